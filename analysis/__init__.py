@@ -1,0 +1,1 @@
+"""Post-hoc analysis: figures and comparisons read from stored results files."""

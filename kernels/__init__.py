@@ -1,0 +1,1 @@
+"""Numba kernels: rotations, rigid-body dynamics, integration methods and scenes."""

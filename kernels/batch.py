@@ -1,0 +1,55 @@
+"""Python entry to the batch kernels: run many independent runs of one method.
+
+Every run has its own body, initial state, dt and sample stride; all runs share
+the number of samples.  The work happens in the method's ``run_batch`` (numba,
+one prange over runs, no reductions), so results do not depend on the thread
+count.
+"""
+import math
+
+import numpy as np
+
+from .driver import N_FIELDS
+from .registry import get_method
+
+DEFAULT_DIVERGENCE_THRESHOLD = 10.0
+
+
+def sample_schedule(dt, every, t_end):
+    """(stride, n_samples): steps per stored sample and samples including t = 0.
+
+    ValueError when dt does not divide ``every`` (to 1e-9 relative) or the
+    times are not positive, or t_end < every.
+    """
+    for key, value in (("dt", dt), ("output.every", every), ("t_end", t_end)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{key}={value}: must be a finite number > 0")
+    stride = round(every / dt)
+    if stride < 1 or abs(stride * dt - every) > 1e-9 * every:
+        raise ValueError(f"dt={dt}: must divide output.every={every} (every/dt = {every / dt:.6g})")
+    if t_end < every:
+        raise ValueError(f"t_end={t_end}: must be >= output.every={every}")
+    n_samples = int(math.floor(t_end / every * (1 + 1e-12))) + 1
+    return stride, n_samples
+
+
+def integrate(method, bodies, omega0, q0, dt, stride, n_samples, threshold=DEFAULT_DIVERGENCE_THRESHOLD):
+    """Integrate a batch of runs with one method, in parallel over runs.
+
+    bodies (n, 4): I1, I2, I3 (kg m²), M g l (N m); omega0 (n, 3) body rates
+    (rad/s); q0 (n, 4) quaternions; dt (n,) step (s); stride (n,) steps per
+    sample.  Returns (samples (n, n_samples, 9) float64 in the field order of
+    ``driver.FIELDS``, status (n,) int8, n_steps (n,) int64).
+    """
+    module = get_method(method)
+    bodies = np.ascontiguousarray(bodies, dtype=np.float64).reshape(-1, 4)
+    n = bodies.shape[0]
+    omega0 = np.ascontiguousarray(omega0, dtype=np.float64).reshape(n, 3)
+    q0 = np.ascontiguousarray(q0, dtype=np.float64).reshape(n, 4)
+    dt = np.ascontiguousarray(np.broadcast_to(dt, (n,)), dtype=np.float64)
+    stride = np.ascontiguousarray(np.broadcast_to(stride, (n,)), dtype=np.int64)
+    out = np.empty((n, int(n_samples), N_FIELDS))
+    status = np.zeros(n, dtype=np.int8)
+    n_steps = np.zeros(n, dtype=np.int64)
+    module.run_batch(omega0, q0, bodies, dt, stride, float(threshold), out, status, n_steps)
+    return out, status, n_steps

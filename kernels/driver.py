@@ -1,0 +1,95 @@
+"""Advance one run of a batch and record its samples; shared by every method.
+
+Each method module defines ``step(w, q, dt, body) -> (w, q)``, builds
+``advance_run = make_advance(step)`` and a ``run_batch`` that calls it inside
+one ``prange`` over runs.  The step is bound by a closure, not passed as an
+argument: numba lowers a dispatcher passed by value to a raw pointer, which
+makes the calling kernel uncacheable.  The parallel kernel is cached in the
+method's module; after editing this file or rigid_body.py, clear the
+``__pycache__`` folders (numba only checks the kernel's own file).
+
+Sample layout, last axis of ``out`` (n_runs, n_samples, N_FIELDS):
+axis_x, axis_y, axis_z (R e3, lab), omega_1..3 (body, rad/s),
+energy (J), Lz and L3 (kg m²/s).
+"""
+import math
+
+import numpy as np
+from numba import njit
+
+from .rigid_body import axis_lab, energy, kinetic_energy, lab_momentum
+
+FIELDS = ("axis_x", "axis_y", "axis_z", "omega_1", "omega_2", "omega_3", "energy", "Lz", "L3")
+N_FIELDS = len(FIELDS)
+
+STATUS_OK = 0
+STATUS_NONFINITE = 1
+STATUS_ENERGY = 2
+STATUS_LEGEND = {
+    STATUS_OK: "ok",
+    STATUS_NONFINITE: "state became NaN/inf",
+    STATUS_ENERGY: "|E - E0| exceeded divergence_threshold x (T0 + M g l)",
+}
+
+
+@njit(cache=True)
+def _record(out, i, k, w, q, body):
+    ax = axis_lab(q)
+    L = lab_momentum(w, q, body)
+    out[i, k, 0] = ax[0]
+    out[i, k, 1] = ax[1]
+    out[i, k, 2] = ax[2]
+    out[i, k, 3] = w[0]
+    out[i, k, 4] = w[1]
+    out[i, k, 5] = w[2]
+    out[i, k, 6] = energy(w, q, body)
+    out[i, k, 7] = L[2]
+    out[i, k, 8] = body[2] * w[2]
+
+
+def make_advance(step):
+    """``advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)``
+    specialised to one method's ``step``.
+
+    Integrates run i for ``strides[i]`` steps of ``dts[i]`` (s) per sample.
+    Stops early, fills the remaining samples with NaN and sets ``status[i]``
+    when the state goes non-finite or |E − E0| passes ``threshold`` times the
+    energy scale T0 + M g l (so a top released at θ0 = 90°, E0 = T0, is fine).
+    """
+
+    @njit
+    def advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
+        body = (bodies[i, 0], bodies[i, 1], bodies[i, 2], bodies[i, 3])
+        w = (w0[i, 0], w0[i, 1], w0[i, 2])
+        q = (q0[i, 0], q0[i, 1], q0[i, 2], q0[i, 3])
+        dt = dts[i]
+        stride = strides[i]
+        _record(out, i, 0, w, q, body)
+        tolerance = threshold * (kinetic_energy(w, body) + abs(body[3]))
+        status[i] = STATUS_OK
+        done = 0
+        for k in range(1, out.shape[1]):
+            for _ in range(stride):
+                w, q = step(w, q, dt, body)
+            done += stride
+            _record(out, i, k, w, q, body)
+            if _diverged(out, i, k, tolerance, status):
+                break
+        n_steps[i] = done
+
+    return advance_run
+
+
+@njit(cache=True)
+def _diverged(out, i, k, tolerance, status):
+    """Flag run i if sample k is non-finite or off in energy; NaN-fill what follows."""
+    if abs(out[i, k, 6] - out[i, 0, 6]) <= tolerance:  # False for NaN too
+        return False
+    finite = True
+    for f in range(N_FIELDS):
+        finite = finite and math.isfinite(out[i, k, f])
+    status[i] = STATUS_ENERGY if finite else STATUS_NONFINITE
+    for later in range(k + 1, out.shape[1]):
+        for f in range(N_FIELDS):
+            out[i, later, f] = np.nan
+    return True

@@ -1,0 +1,64 @@
+"""rk4: classic RK4 on the coupled system (ω, unit quaternion), normalised each step.
+
+q̇ = ½ q ⊗ (0, ω) and I ω̇ = τ(q) − ω × Iω, both stages of every RK4
+substep see the torque of the current stage orientation.  The quaternion is
+renormalised after each step (a projection, so not symplectic).
+"""
+from numba import njit, prange
+
+from .driver import make_advance
+from .rigid_body import euler_rhs, gravity_torque
+from .rotation import quat_mul, quat_normalize
+
+ORDER = 4
+SYMPLECTIC = False
+
+
+@njit(cache=True)
+def _rhs(w, q, body):
+    wd = euler_rhs(w, gravity_torque(q, body[3]), body)
+    qd = quat_mul(q, (0.0, w[0], w[1], w[2]))
+    return wd, (0.5 * qd[0], 0.5 * qd[1], 0.5 * qd[2], 0.5 * qd[3])
+
+
+@njit(cache=True)
+def _stage(w, q, h, k):
+    kw, kq = k
+    return (
+        (w[0] + h * kw[0], w[1] + h * kw[1], w[2] + h * kw[2]),
+        (q[0] + h * kq[0], q[1] + h * kq[1], q[2] + h * kq[2], q[3] + h * kq[3]),
+    )
+
+
+@njit(cache=True)
+def step(w, q, dt, body):
+    h = 0.5 * dt
+    k1 = _rhs(w, q, body)
+    w2, q2 = _stage(w, q, h, k1)
+    k2 = _rhs(w2, q2, body)
+    w3, q3 = _stage(w, q, h, k2)
+    k3 = _rhs(w3, q3, body)
+    w4, q4 = _stage(w, q, dt, k3)
+    k4 = _rhs(w4, q4, body)
+    s = dt / 6.0
+    w_next = (
+        w[0] + s * (k1[0][0] + 2.0 * (k2[0][0] + k3[0][0]) + k4[0][0]),
+        w[1] + s * (k1[0][1] + 2.0 * (k2[0][1] + k3[0][1]) + k4[0][1]),
+        w[2] + s * (k1[0][2] + 2.0 * (k2[0][2] + k3[0][2]) + k4[0][2]),
+    )
+    q_next = (
+        q[0] + s * (k1[1][0] + 2.0 * (k2[1][0] + k3[1][0]) + k4[1][0]),
+        q[1] + s * (k1[1][1] + 2.0 * (k2[1][1] + k3[1][1]) + k4[1][1]),
+        q[2] + s * (k1[1][2] + 2.0 * (k2[1][2] + k3[1][2]) + k4[1][2]),
+        q[3] + s * (k1[1][3] + 2.0 * (k2[1][3] + k3[1][3]) + k4[1][3]),
+    )
+    return w_next, quat_normalize(q_next)
+
+
+advance_run = make_advance(step)
+
+
+@njit(cache=True, parallel=True)
+def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
+    for i in prange(w0.shape[0]):
+        advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)

@@ -1,0 +1,1 @@
+"""The experiment runner: configs → grid → batch kernels → one results file."""
