@@ -10,12 +10,10 @@ body it is the symmetric sub-splitting into rotations about single body axes
 (McLachlan 1993; Touma & Wisdom 1994): e1(h/2) e2(h/2) e3(h) e2(h/2) e1(h/2),
 each exact, second order and Poisson, conserving |L| exactly.
 """
-import math
-
 from numba import njit
 
 from .rigid_body import gravity_torque
-from .rotation import quat_mul, rotate_body_step
+from .rotation import half_angle, quat_mul, rotate_body_step
 
 
 @njit(cache=True)
@@ -28,9 +26,7 @@ def kick(w, q, h, body):
 @njit(cache=True)
 def _axis_rotation(w, q, axis, h, body):
     """Flow of L_k²/(2 I_k): the body turns by φ = ω_k h about e_k, L_b by −φ."""
-    phi = w[axis] * h
-    c = math.cos(0.5 * phi)
-    s = math.sin(0.5 * phi)
+    c, s = half_angle(w[axis] * h)
     cos_phi = 1.0 - 2.0 * s * s
     sin_phi = 2.0 * s * c
     I = (body[0], body[1], body[2])
@@ -54,9 +50,10 @@ def free_flow(w, q, h, body):
     if I1 == I2:
         c = (1.0 - I3 / I1) * w[2]  # (1/I3 − 1/I1) L3
         q = rotate_body_step(q, w[0] * h, w[1] * h, I3 / I1 * w[2] * h)
-        q = quat_mul(q, (math.cos(0.5 * c * h), 0.0, 0.0, math.sin(0.5 * c * h)))
-        cp = math.cos(c * h)
-        sp = math.sin(c * h)
+        ch, sh = half_angle(c * h)
+        q = quat_mul(q, (ch, 0.0, 0.0, sh))
+        cp = 1.0 - 2.0 * sh * sh  # cos(c h)
+        sp = 2.0 * sh * ch  # sin(c h)
         return (cp * w[0] + sp * w[1], -sp * w[0] + cp * w[1], w[2]), q
     half = 0.5 * h
     w, q = _axis_rotation(w, q, 0, half, body)

@@ -22,23 +22,37 @@ SMALL_ANGLE = 0.2
 
 
 @njit(cache=True)
+def _cos_sinc_half(angle2):
+    """(cos(h), sin(h)/(2h)) with h = √angle2 / 2, for angle2 < SMALL_ANGLE² (Taylor, exact)."""
+    h2 = 0.25 * angle2
+    c = 1.0 + h2 * (-1.0 / 2 + h2 * (1.0 / 24 + h2 * (-1.0 / 720 + h2 * (1.0 / 40320))))
+    s = 0.5 + h2 * (-1.0 / 12 + h2 * (1.0 / 240 + h2 * (-1.0 / 10080 + h2 * (1.0 / 725760))))
+    return c, s
+
+
+@njit(cache=True)
 def quat_from_rotvec(v0, v1, v2):
     """CK parameters of the active rotation by |v| (rad) about v/|v|.
 
     a = cos(|v|/2), (b, c, d) = v̂ sin(|v|/2); exact for any angle.
     """
     angle2 = v0 * v0 + v1 * v1 + v2 * v2
-    angle = math.sqrt(angle2)
-    h = 0.5 * angle
-    if angle < SMALL_ANGLE:
-        h2 = 0.25 * angle2
-        a = 1.0 + h2 * (-1.0 / 2 + h2 * (1.0 / 24 + h2 * (-1.0 / 720 + h2 * (1.0 / 40320))))
-        # sin(h)/|v| = sin(h)/(2h)
-        s = 0.5 + h2 * (-1.0 / 12 + h2 * (1.0 / 240 + h2 * (-1.0 / 10080 + h2 * (1.0 / 725760))))
+    if angle2 < SMALL_ANGLE * SMALL_ANGLE:
+        a, s = _cos_sinc_half(angle2)  # s = sin(|v|/2)/|v|
     else:
-        a = math.cos(h)
-        s = math.sin(h) / angle
+        angle = math.sqrt(angle2)
+        a = math.cos(0.5 * angle)
+        s = math.sin(0.5 * angle) / angle
     return a, s * v0, s * v1, s * v2
+
+
+@njit(cache=True)
+def half_angle(phi):
+    """(cos(φ/2), sin(φ/2)) for a signed angle φ (rad), without libm when |φ| is small."""
+    if abs(phi) < SMALL_ANGLE:
+        c, s = _cos_sinc_half(phi * phi)
+        return c, s * phi
+    return math.cos(0.5 * phi), math.sin(0.5 * phi)
 
 
 @njit(cache=True)
