@@ -1,0 +1,382 @@
+"""The ``gyrolab`` command (a Hydra app): config → grid → chunks → one results file.
+
+    gyrolab                                   # the write-up's main study (conf/sweep/default.yaml)
+    gyrolab sweep.f=[1,10,50] sweep.dt=[1e-3,1e-4] sweep.method=[seed_next,lie_poisson] sweep.t_end=10
+    gyrolab experiment=<name>                 # a pinned study, conf/experiment/<name>.yaml
+    gyrolab runner.dry_run=true ...           # sizes and estimates, no work
+    gyrolab -m scene=heavy_top,free_asymmetric ...   # one results file per job; see gyrolab-combine
+
+The results go to ``output.path`` (default ``results.h5``) in Hydra's output
+directory (``outputs/<date>/<time>/``), figures to ``figures/`` next to it.
+An interrupted sweep is finished, computing only its missing runs, with the
+same overrides plus ``runner.resume=true hydra.run.dir=<that directory>``
+(the command is printed when it is interrupted).
+
+Bad input (any key) exits with status 2 and one line on stderr naming the
+key and the value, before any work and without leaving files behind.  Test
+hook: the environment variable GYROLAB_TEST_CHUNK_DELAY (seconds) sleeps
+after each stored chunk.
+"""
+import os
+import re
+import shlex
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import h5py
+import hydra
+import numpy as np
+from hydra.core.hydra_config import HydraConfig
+from hydra.errors import HydraException
+from omegaconf import OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
+from .config import ConfigError, config_hash, register_configs
+from .grid import build_grid, estimate_seconds, plan_chunks
+from .store import Journal, OutputLock, partial_dir, temp_path, write_results
+
+EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130
+COMPILE_SECONDS = 3.0  # rough JIT time of one method's kernel on a cold numba cache
+
+
+def fail(message):
+    """Print one line and exit with the bad-input status."""
+    sys.stderr.write(f"gyrolab: error: {' '.join(str(message).split())}\n")
+    sys.stderr.flush()
+    sys.exit(EXIT_BAD_INPUT)
+
+
+# --------------------------------------------------------------------------- output checks
+
+def resolve_output(path, run_dir):
+    """The results file: ``output.path`` relative to Hydra's output directory."""
+    out = Path(os.path.expanduser(str(path)))
+    return (out if out.is_absolute() else Path(run_dir) / out).resolve()
+
+
+def check_writable(out):
+    """ConfigError unless the results' directory exists as a writable directory or can be made one."""
+    if out.is_dir():
+        raise ConfigError(f"output.path={out}: is a directory, not a file name")
+    ancestor = out.parent
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise ConfigError(f"output.path={out}: {ancestor} is not a directory")
+    try:
+        with tempfile.NamedTemporaryFile(dir=ancestor, prefix=".gyrolab-probe-"):
+            pass
+    except OSError as err:
+        raise ConfigError(f"output.path={out}: cannot write in {ancestor} ({err.strerror})") from None
+
+
+def stored_hash(path):
+    """The config_hash attr of an existing results file (None if unreadable)."""
+    try:
+        with h5py.File(path, "r") as fh:
+            value = fh.attrs.get("config_hash")
+    except OSError:
+        return None
+    return value.decode() if isinstance(value, bytes) else value
+
+
+def output_state(out, chash, overwrite, resume):
+    """What to do with ``out``: "fresh", "resume" or "done"; ConfigError when it is not allowed."""
+    journal = Journal(out)
+    if out.exists():
+        if resume and not overwrite:
+            if stored_hash(out) == chash:
+                return "done"
+            raise ConfigError(
+                f"output.path={out}: exists and was made with a different config; "
+                "set output.overwrite=true to replace it"
+            )
+        if not overwrite:
+            raise ConfigError(
+                f"output.path={out}: exists; set output.overwrite=true to replace it "
+                "(or runner.resume=true to finish an interrupted sweep)"
+            )
+    if journal.exists():
+        if resume:
+            if journal.manifest().get("config_hash") != chash:
+                raise ConfigError(
+                    f"runner.resume=true: {journal.dir} holds runs of a different config; "
+                    "set output.overwrite=true to discard them"
+                )
+            return "resume"
+        if not overwrite:
+            raise ConfigError(
+                f"output.path={out}: an interrupted sweep left {journal.dir}; finish it with "
+                "runner.resume=true or start over with output.overwrite=true"
+            )
+    elif partial_dir(out).exists() and not overwrite:
+        raise ConfigError(f"output.path={out}: {partial_dir(out)} exists and is not a gyrolab journal")
+    return "fresh"
+
+
+def available_memory():
+    """Bytes of memory available to a new allocation (MemAvailable), None if unknown."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
+
+
+def nearest_dir(path):
+    while not path.exists():
+        path = path.parent
+    return path
+
+
+def check_fits(grid, out, chunks):
+    """ConfigError when a chunk would not fit in memory or the results not on disk."""
+    memory = available_memory()
+    peak = max(len(c) for c in chunks) * grid.bytes_per_run()
+    if memory is not None and peak > memory:
+        raise ConfigError(
+            f"output.every={grid.every}: a run stores {grid.n_samples} samples and needs {_size(grid.bytes_per_run())}; "
+            f"more than the {_size(memory)} of memory available (raise output.every or lower sweep.t_end)"
+        )
+    need = disk_needed(grid)
+    free = shutil.disk_usage(nearest_dir(out.parent)).free
+    if need > free:
+        raise ConfigError(
+            f"output.path={out}: the results need {_size(need)} on disk (file and partial chunks) "
+            f"but only {_size(free)} is free (raise output.every or shrink the sweep)"
+        )
+    return peak
+
+
+def disk_needed(grid):
+    """Peak disk use (bytes): the journal of raw samples plus the results file being assembled."""
+    journal = grid.n_runs * grid.n_samples * 9 * 8
+    return journal + grid.bytes_stored()
+
+
+def _size(n):
+    for unit in ("B", "kB", "MB", "GB", "TB"):
+        if n < 1000 or unit == "TB":
+            return f"{n:.3g} {unit}"
+        n /= 1000
+
+
+# --------------------------------------------------------------------------- the sweep
+
+def resolve_threads(requested):
+    """numba threads to use (runner.threads, else all of NUMBA_NUM_THREADS)."""
+    import numba
+
+    top = numba.config.NUMBA_NUM_THREADS
+    if requested is None:
+        return numba.get_num_threads()
+    if requested > top:
+        raise ConfigError(
+            f"runner.threads={requested}: more than NUMBA_NUM_THREADS={top} (set that variable to allow more)"
+        )
+    return int(requested)
+
+
+def describe(grid):
+    m, f, t, d = grid.shape
+    return (f"{grid.scene}: {m} method x {f} f x {t} theta0 x {d} dt = {grid.n_runs} runs, "
+            f"{grid.total_steps:.3g} steps, {grid.n_samples} samples each")
+
+
+def dry_run(grid, out, chunks, threads, peak, state):
+    steps = grid.steps(np.arange(grid.n_runs))
+    seconds = estimate_seconds(grid, chunks, threads)
+    print(f"gyrolab dry run: {describe(grid)}")
+    print(f"  steps per run: {steps.min():.3g} to {steps.max():.3g}; {len(chunks)} chunks on {threads} threads")
+    print(f"  estimated time: {seconds:.3g} s of integration "
+          f"(+ up to ~{COMPILE_SECONDS * len(grid.methods):.0f} s of JIT on a cold numba cache)")
+    print(f"  peak memory: ~{_size(peak)} of samples per chunk (+ ~0.3 GB for Python, numba, xarray)")
+    print(f"  output: {out} ~ {_size(grid.bytes_stored())} "
+          f"(peak disk {_size(disk_needed(grid))} with the partial chunks)")
+    if state != "fresh":
+        print(f"  note: runner.resume=true would {'skip: the file is complete' if state == 'done' else 'resume it'}")
+
+
+def resume_command(run_dir):
+    overrides = [o for o in HydraConfig.get().overrides.task
+                 if not o.startswith(("runner.resume=", "hydra.run.dir="))]
+    words = ["gyrolab", *overrides, "runner.resume=true", f"hydra.run.dir={run_dir}"]
+    return " ".join(shlex.quote(w) for w in words)
+
+
+def file_attrs(cfg, grid, threads, chash):
+    from .provenance import provenance
+
+    attrs = {"scene": grid.scene}
+    for key, value in grid.options.items():
+        attrs[f"scene_{key}"] = int(value) if isinstance(value, bool) else value
+    attrs.update(t_end=grid.t_end, every=grid.every, divergence_threshold=grid.threshold, config_hash=chash)
+    attrs.update(provenance(OmegaConf.to_yaml(cfg, resolve=True), threads))
+    return attrs
+
+
+def run_sweep(cfg, run_dir):
+    """Check everything, then run the grid (or only its missing runs) and write the results."""
+    import numba
+    from tqdm import tqdm
+
+    from .execute import run_missing, warm_up
+
+    grid = build_grid(cfg)
+    threads = resolve_threads(cfg.runner.threads)
+    out = resolve_output(cfg.output.path, run_dir)
+    check_writable(out)
+    chash = config_hash(cfg)
+    overwrite, resume = bool(cfg.output.overwrite), bool(cfg.runner.resume)
+    state = output_state(out, chash, overwrite, resume)
+    chunks = plan_chunks(grid, np.arange(grid.n_runs), threads, cfg.runner.chunk_seconds)
+    peak = check_fits(grid, out, chunks)
+    if cfg.runner.dry_run:
+        dry_run(grid, out, chunks, threads, peak, state)
+        return None
+    if state == "done":
+        print(f"gyrolab: {out} is already complete (same config); nothing to do")
+        return str(out)
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    numba.set_num_threads(threads)
+    journal = Journal(out)
+    started = time.perf_counter()
+    with OutputLock(out):
+        state = output_state(out, chash, overwrite, resume)  # again, now that we hold the lock
+        if state == "resume":
+            journal.clean_temporaries()
+            done, number = journal.done_runs()
+        else:
+            journal.create({"config_hash": chash, "n_runs": grid.n_runs, "shape": list(grid.shape)})
+            done, number = np.empty(0, dtype=np.int64), 0
+        todo = np.setdiff1d(np.arange(grid.n_runs), done)
+        print(f"gyrolab: {describe(grid)}")
+        if done.size:
+            print(f"gyrolab: resuming: {done.size} runs already done, {todo.size} to go")
+        print(f"gyrolab: writing {out}", flush=True)
+        total_steps = int(grid.steps(todo).sum()) if todo.size else 0
+        bar = tqdm(total=total_steps, unit="step", unit_scale=True, disable=None, dynamic_ncols=True,
+                   desc="gyrolab", postfix=f"runs {done.size}/{grid.n_runs}")
+        counter = {"runs": int(done.size)}
+
+        def progress(runs, steps):
+            counter["runs"] += runs
+            bar.set_postfix_str(f"runs {counter['runs']}/{grid.n_runs}", refresh=False)
+            bar.update(steps)
+
+        try:
+            if todo.size:
+                warm_up(grid)
+                run_missing(grid, journal, todo, threads, cfg.runner.chunk_seconds, number, progress)
+        except KeyboardInterrupt:
+            bar.close()
+            print(f"\ngyrolab: interrupted; {counter['runs']} of {grid.n_runs} runs are saved in {journal.dir}.\n"
+                  f"Finish with: {resume_command(run_dir)}", file=sys.stderr)
+            sys.exit(EXIT_INTERRUPTED)
+        bar.close()
+        tmp = temp_path(out)
+        try:
+            write_results(tmp, grid, journal.chunks(), file_attrs(cfg, grid, threads, chash))
+            os.replace(tmp, out)
+        finally:
+            if tmp.exists():
+                tmp.unlink()
+        journal.discard()
+    elapsed = time.perf_counter() - started
+    with h5py.File(out, "r") as fh:
+        failed = int((fh["status"][...] != 0).sum())
+    print(f"gyrolab: results: {out} ({_size(out.stat().st_size)}, {grid.n_runs} runs, "
+          f"{failed} diverged) in {elapsed:.1f} s")
+    if cfg.output.figures:
+        make_figures(out)
+    return str(out)
+
+
+def make_figures(out):
+    """The analysis' standard figures into ``figures/`` next to the results file."""
+    try:
+        from ..analysis.figures import standard_figures
+    except ModuleNotFoundError as err:
+        if err.name and err.name.startswith("gyrolab.analysis"):
+            print("gyrolab: figures skipped: gyrolab.analysis.figures is not available", file=sys.stderr)
+            return []
+        raise
+    paths = standard_figures(str(out), str(out.parent / "figures"))
+    print(f"gyrolab: figures: {out.parent / 'figures'} ({len(paths)} PNG)")
+    return paths
+
+
+def remove_empty_dirs(directory, stop):
+    """Remove ``directory`` and its parents while they are empty, up to ``stop`` (excluded)."""
+    directory, stop = Path(directory).resolve(), Path(stop).resolve()
+    while directory != stop and stop in directory.parents:
+        try:
+            directory.rmdir()
+        except OSError:
+            return
+        directory = directory.parent
+
+
+@hydra.main(version_base=None, config_path="pkg://gyrolab.conf", config_name="config")
+def hydra_main(cfg):
+    run_dir = HydraConfig.get().runtime.output_dir
+    try:
+        return run_sweep(cfg, run_dir)
+    except ConfigError as err:
+        remove_empty_dirs(run_dir, os.getcwd())
+        fail(err)
+    finally:
+        if cfg.runner.dry_run:
+            remove_empty_dirs(run_dir, os.getcwd())
+
+
+# --------------------------------------------------------------------------- errors from Hydra itself
+
+def describe_hydra_error(err, argv):
+    """One line naming the key and value of a composition error from Hydra/OmegaConf."""
+    cause = err.__cause__ if isinstance(err.__cause__, OmegaConfBaseException) else None
+    text = str(err)
+    missing = re.search(r"Could not find '([^']+)/([^']+)'", text)
+    if missing:
+        group, name = missing.groups()
+        options = re.search(rf"Available options in '{re.escape(group)}':\n((?:\t.*\n?)*)", text)
+        choices = ", ".join(o.strip() for o in options.group(1).splitlines()) if options else ""
+        return f"{group}={name}: unknown {group}" + (f"; choose from {choices}" if choices else "")
+    key = getattr(cause or err, "full_key", None)
+    override = re.search(r"override '([^']+)'", text) or re.search(r"override (\S+)", text)
+    token = getattr(err, "override", None) or (override.group(1) if override else None)
+    if token and "=" not in token:
+        token = next((a for a in argv if a.lstrip("+~").startswith(token + "=")), token)
+    if token is None and key:
+        token = next((a for a in argv if a.lstrip("+~").startswith(f"{key}=")), key)
+    reason = str(cause) if cause is not None else text
+    if cause is None and override and "\n" in text:
+        reason = text.split("\n", 1)[1]
+    reason = reason.strip().splitlines()[0] if reason.strip() else type(err).__name__
+    if "is not a ListConfig" in reason:
+        reason += " (sweep axes are lists, e.g. sweep.f=[10])"
+    return f"{token}: {reason}" if token else reason
+
+
+def main():
+    """Console entry point ``gyrolab``."""
+    register_configs()
+    if os.environ.get("HYDRA_FULL_ERROR"):  # the user asked for Hydra's own tracebacks
+        return hydra_main()
+    os.environ["HYDRA_FULL_ERROR"] = "1"  # let composition errors reach us instead of a printed trace
+    try:
+        hydra_main()
+    except (HydraException, OmegaConfBaseException) as err:
+        fail(describe_hydra_error(err, sys.argv[1:]))
+
+
+if __name__ == "__main__":
+    main()

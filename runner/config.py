@@ -1,0 +1,187 @@
+"""The config schema (dataclasses in Hydra's ConfigStore) and checks of single values.
+
+Types and allowed keys are enforced by OmegaConf when Hydra composes the
+config, so a wrong type or an unknown key fails before any work.  Scene
+schemas are generated from each scene module's ``OPTIONS``: the keys of
+``conf/scene/<name>.yaml`` are exactly the kernel's options.  Checks that need
+the physics (scene builds, dt dividing output.every) live in ``grid.py``.
+
+Units: sweep.f in Hz, sweep.theta0 in degrees, sweep.dt, sweep.t_end and
+output.every in seconds.
+"""
+import dataclasses
+import hashlib
+import math
+from dataclasses import dataclass, field
+from typing import Any, List, Optional
+
+from omegaconf import MISSING, OmegaConf
+
+from ..kernels.scenes import SCENES
+
+BACKENDS = ("local",)
+
+
+class ConfigError(ValueError):
+    """Bad input: the message is one line that names the key and the value."""
+
+
+@dataclass
+class SweepConfig:
+    """Grid axes (lists): methods, spin f (Hz), tilt theta0 (deg), step dt (s); t_end (s)."""
+
+    method: List[str] = field(default_factory=lambda: ["seed_next"])
+    f: List[float] = field(default_factory=lambda: [10.0])
+    theta0: List[float] = field(default_factory=lambda: [45.0])
+    dt: List[float] = field(default_factory=lambda: [1e-4])
+    t_end: float = 10.0
+
+
+@dataclass
+class OutputConfig:
+    """every: sample interval (s); path: results file, relative to Hydra's output dir."""
+
+    every: float = 1e-3
+    path: str = "results.h5"
+    overwrite: bool = False
+    figures: bool = True
+
+
+@dataclass
+class RunnerConfig:
+    """How the grid is run: resume, dry run, numba threads, chunk size (s), divergence test."""
+
+    resume: bool = False
+    dry_run: bool = False
+    threads: Optional[int] = None
+    chunk_seconds: float = 1.0
+    divergence_threshold: float = 10.0
+    backend: str = "local"
+
+
+@dataclass
+class GyrolabConfig:
+    scene: Any = MISSING
+    sweep: SweepConfig = field(default_factory=SweepConfig)
+    output: OutputConfig = field(default_factory=OutputConfig)
+    runner: RunnerConfig = field(default_factory=RunnerConfig)
+
+
+def scene_schema(name, module):
+    """A dataclass with ``name`` plus one typed field per entry of the scene's OPTIONS."""
+    fields = [("name", str, field(default=name))]
+    for key, default in module.OPTIONS.items():
+        kind = str if isinstance(default, str) else bool if isinstance(default, bool) else float
+        fields.append((key, kind, field(default=default)))
+    return dataclasses.make_dataclass(f"{name.title().replace('_', '')}Scene", fields)
+
+
+def register_configs():
+    """Put the schemas into Hydra's ConfigStore (root ``gyrolab_schema``, ``schema/scene/<name>``)."""
+    from hydra.core.config_store import ConfigStore
+
+    cs = ConfigStore.instance()
+    cs.store(name="gyrolab_schema", node=GyrolabConfig)
+    for name, module in SCENES.items():
+        cs.store(group="schema/scene", name=name, node=scene_schema(name, module))
+
+
+def check_values(cfg):
+    """ConfigError for the first value a type cannot rule out: NaN/inf, empty or
+    duplicated axes, non-positive times and sizes, unknown backend, bad threads."""
+    check_keys(cfg)
+    check_finite(OmegaConf.to_container(cfg, resolve=True))
+    sweep, output, runner = cfg.sweep, cfg.output, cfg.runner
+    for axis in ("method", "f", "theta0", "dt"):
+        values = list(sweep[axis])
+        if not values:
+            raise ConfigError(f"sweep.{axis}=[]: needs at least one value")
+        seen = set()
+        for v in values:
+            if v in seen:
+                raise ConfigError(f"sweep.{axis}={_fmt(values)}: value {v} appears twice")
+            seen.add(v)
+    for v in sweep.dt:
+        if not v > 0:
+            raise ConfigError(f"sweep.dt={v}: the time step must be > 0 s")
+    for v in sweep.f:
+        if v < 0:
+            raise ConfigError(f"sweep.f={v}: the spin frequency must be >= 0 Hz")
+    for v in sweep.theta0:
+        if not 0.0 <= v <= 180.0:
+            raise ConfigError(f"sweep.theta0={v}: the tilt must lie in [0, 180] degrees")
+    if not sweep.t_end > 0:
+        raise ConfigError(f"sweep.t_end={sweep.t_end}: must be > 0 s")
+    if sweep.t_end < max(sweep.dt):
+        raise ConfigError(f"sweep.t_end={sweep.t_end}: shorter than the time step dt={max(sweep.dt)}")
+    if not output.every > 0:
+        raise ConfigError(f"output.every={output.every}: the sample interval must be > 0 s")
+    if sweep.t_end < output.every:
+        raise ConfigError(f"sweep.t_end={sweep.t_end}: shorter than the sample interval output.every={output.every}")
+    if not str(output.path).strip():
+        raise ConfigError("output.path='': needs a file name")
+    if runner.threads is not None and runner.threads < 1:
+        raise ConfigError(f"runner.threads={runner.threads}: must be >= 1 (or null for all)")
+    if not runner.chunk_seconds > 0:
+        raise ConfigError(f"runner.chunk_seconds={runner.chunk_seconds}: must be > 0 s")
+    if not runner.divergence_threshold > 0:
+        raise ConfigError(f"runner.divergence_threshold={runner.divergence_threshold}: must be > 0")
+    if runner.backend not in BACKENDS:
+        raise ConfigError(f"runner.backend={runner.backend}: choose from {', '.join(BACKENDS)}")
+
+
+def check_keys(cfg):
+    """ConfigError for keys the schema does not know (``+key=value`` slips past OmegaConf)."""
+    groups = {f.name: f.type for f in dataclasses.fields(GyrolabConfig)}
+    for key in cfg:
+        if key not in groups:
+            raise ConfigError(f"{key}={_value(cfg, key)}: unknown config key (known: {', '.join(groups)})")
+    for group, schema in groups.items():
+        if not dataclasses.is_dataclass(schema):
+            continue  # the scene: its options are checked against the scene module by build_scene
+        known = [f.name for f in dataclasses.fields(schema)]
+        for key in cfg[group]:
+            if key not in known:
+                raise ConfigError(
+                    f"{group}.{key}={_value(cfg[group], key)}: unknown key of {group} (known: {', '.join(known)})"
+                )
+
+
+def _value(node, key):
+    value = OmegaConf.to_container(node, resolve=True)[key]
+    return _fmt(value) if isinstance(value, list) else value
+
+
+def check_finite(node, key=""):
+    """ConfigError naming the first float that is NaN or ±inf anywhere in a nested container."""
+    if isinstance(node, dict):
+        for name, value in node.items():
+            check_finite(value, f"{key}.{name}" if key else str(name))
+    elif isinstance(node, list):
+        for value in node:
+            check_finite(value, key)
+    elif isinstance(node, float) and not math.isfinite(node):
+        raise ConfigError(f"{key}={node}: must be a finite number")
+
+
+# Settings that change how a sweep is run, not its data: left out of the data hash.
+RUN_ONLY = {"output": ("path", "overwrite", "figures"), "runner": ("resume", "dry_run", "threads", "chunk_seconds", "backend")}
+
+
+def data_config(cfg):
+    """The resolved config without the settings that do not change the results."""
+    data = OmegaConf.to_container(cfg, resolve=True)
+    for group, keys in RUN_ONLY.items():
+        for key in keys:
+            data.get(group, {}).pop(key, None)
+    return data
+
+
+def config_hash(cfg):
+    """sha256 of the data-relevant part of the config: resume only joins runs of equal hash."""
+    text = OmegaConf.to_yaml(OmegaConf.create(data_config(cfg)), sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _fmt(values):
+    return "[" + ",".join(str(v) for v in values) + "]"

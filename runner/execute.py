@@ -1,0 +1,70 @@
+"""Run a grid's missing runs chunk by chunk on this machine, journaling each chunk.
+
+The runs of a chunk go to the batch kernel in one call (parallel over runs);
+each run's result does not depend on which chunk it is in nor on the thread
+count, so a resumed sweep ends up with the same data as an uninterrupted one.
+"""
+import os
+import time
+
+import numpy as np
+
+from ..kernels.batch import integrate
+from .grid import plan_chunks
+
+# Test hook: seconds to sleep after each stored chunk, so a test can kill a sweep mid-way.
+DELAY_ENV = "GYROLAB_TEST_CHUNK_DELAY"
+
+
+def warm_up(grid):
+    """Compile (or load from numba's cache) each method's kernel with the runner's argument
+    types, so that JIT time is not charged to the first chunk's wall_time."""
+    first = np.zeros(1, dtype=np.int64)
+    for m in range(len(grid.methods)):
+        bodies, omega0, q0, dt, stride = grid.inputs(first)
+        integrate(grid.methods[m], bodies, omega0, q0, dt, np.ones(1, dtype=np.int64), 2, grid.threshold)
+
+
+def run_chunk(grid, runs, threads):
+    """Integrate one chunk; returns the dict stored in the journal.
+
+    wall_time (s) per run: the chunk's wall time × the threads it used, shared
+    in proportion to the steps each run took.
+    """
+    method = grid.methods[int(grid.index(runs[:1])[0][0])]
+    bodies, omega0, q0, dt, stride = grid.inputs(runs)
+    start = time.perf_counter()
+    samples, status, n_steps = integrate(method, bodies, omega0, q0, dt, stride, grid.n_samples, grid.threshold)
+    wall = time.perf_counter() - start
+    share = n_steps / max(int(n_steps.sum()), 1)
+    wall_time = wall * min(threads, len(runs)) * share
+    return {"runs": np.asarray(runs, dtype=np.int64), "samples": samples, "status": status,
+            "n_steps": n_steps, "wall_time": wall_time}
+
+
+def run_missing(grid, journal, todo, threads, chunk_seconds, first_number, progress=None):
+    """Run the runs in ``todo`` (flat numbers) in chunks, storing each in ``journal``.
+
+    Chunks are re-planned after each one with the measured speed of its method,
+    so each takes about ``chunk_seconds``.  ``progress(runs, steps)`` is called
+    after each stored chunk.
+    """
+    delay = float(os.environ.get(DELAY_ENV, "0") or 0)
+    rates = {}
+    number = first_number
+    remaining = np.sort(np.asarray(todo, dtype=np.int64))
+    while remaining.size:
+        runs = plan_chunks(grid, remaining, threads, chunk_seconds, rates)[0]
+        result = run_chunk(grid, runs, threads)
+        steps = int(result["n_steps"].sum())
+        wall = float(result["wall_time"].sum()) / min(threads, len(runs))
+        if wall > 0 and steps == int(grid.steps(runs).sum()):  # diverged runs stop early: no speed sample
+            method = grid.methods[int(grid.index(runs[:1])[0][0])]
+            rates[method] = steps / wall / min(threads, len(runs))
+        journal.write_chunk(number, **result)
+        number += 1
+        remaining = np.setdiff1d(remaining, runs, assume_unique=True)
+        if progress is not None:
+            progress(len(runs), int(grid.steps(runs).sum()))
+        if delay:
+            time.sleep(delay)

@@ -1,0 +1,175 @@
+"""The sweep grid: every run's inputs, checked up front, and its split into chunks.
+
+A run is one point (method, f, theta0, dt) of the Cartesian grid, numbered in
+C order of the results' dims (method, f, theta0, dt).  ``build_grid`` builds
+every scene and every sample schedule before any work, so bad input fails
+first.  A chunk is a set of runs of ONE method and ONE step count, so the
+batch kernel's prange hands every thread the same amount of work.
+"""
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from omegaconf import OmegaConf
+
+from ..kernels.batch import sample_schedule
+from ..kernels.driver import N_FIELDS
+from ..kernels.registry import METHODS
+from ..kernels.scenes import SCENES, build_scene
+from .config import ConfigError, check_values
+
+# Rough steps per second per thread of each method on the development machine
+# (heavy top, warm JIT cache); only used to size chunks and for dry-run estimates.
+STEP_RATE = {"seed_next": 1.2e7, "seed_prev": 1.2e7, "rk4": 1.2e7, "lie_poisson": 1.2e7, "lie_poisson4": 5e6}
+DEFAULT_STEP_RATE = 5e6
+# Float64 values per sample: stored (axis 3, theta, phi, energy, Lz, L3, omega 3)
+# and computed by the kernel (driver.FIELDS).
+STORED_PER_SAMPLE = 11
+RAW_PER_SAMPLE = N_FIELDS
+MAX_CHUNK_BYTES = 256 * 2**20
+
+
+@dataclass(frozen=True)
+class Grid:
+    """All runs of a sweep.  Axes: methods (str), f (Hz), theta0 (deg), dt (s);
+    t_end and every (s); strides[l] steps per sample at dt[l]; bodies/omega0/q0
+    of each (f, theta0) as arrays (nf, nt, 4|3|4)."""
+
+    scene: str
+    options: dict
+    methods: tuple
+    f: tuple
+    theta0: tuple
+    dt: tuple
+    t_end: float
+    every: float
+    threshold: float
+    strides: tuple
+    n_samples: int
+    bodies: np.ndarray = field(repr=False)
+    omega0: np.ndarray = field(repr=False)
+    q0: np.ndarray = field(repr=False)
+
+    @property
+    def shape(self):
+        return (len(self.methods), len(self.f), len(self.theta0), len(self.dt))
+
+    @property
+    def n_runs(self):
+        return int(np.prod(self.shape))
+
+    def index(self, runs):
+        """(method, f, theta0, dt) indices of flat run numbers."""
+        return np.unravel_index(np.asarray(runs), self.shape)
+
+    def steps(self, runs):
+        """Planned steps of each run (the kernel stops early only when a run diverges)."""
+        ld = self.index(runs)[3]
+        return (self.n_samples - 1) * np.asarray(self.strides, dtype=np.int64)[ld]
+
+    @property
+    def total_steps(self):
+        return int(self.steps(np.arange(self.n_runs)).sum())
+
+    def inputs(self, runs):
+        """Kernel inputs of the given runs: bodies, omega0, q0, dt (s), stride (fresh C arrays)."""
+        _, jf, kt, ld = self.index(runs)
+        return (
+            np.ascontiguousarray(self.bodies[jf, kt]),
+            np.ascontiguousarray(self.omega0[jf, kt]),
+            np.ascontiguousarray(self.q0[jf, kt]),
+            np.asarray(self.dt, dtype=np.float64)[ld].copy(),
+            np.asarray(self.strides, dtype=np.int64)[ld].copy(),
+        )
+
+    def bytes_stored(self):
+        """Size of the per-sample data in the results file (bytes)."""
+        return self.n_runs * self.n_samples * STORED_PER_SAMPLE * 8
+
+    def bytes_per_run(self):
+        """Memory of one run's samples while a chunk is integrated and stored (bytes)."""
+        return self.n_samples * (RAW_PER_SAMPLE + STORED_PER_SAMPLE) * 8
+
+
+def build_grid(cfg):
+    """Check the whole config and build every run's inputs; ConfigError on bad input."""
+    check_values(cfg)
+    sweep, scene_cfg = cfg.sweep, OmegaConf.to_container(cfg.scene, resolve=True)
+    for m in sweep.method:
+        if m not in METHODS:
+            raise ConfigError(f"sweep.method={m}: unknown method; choose from {', '.join(METHODS)}")
+    name = scene_cfg.pop("name", None)
+    if name not in SCENES:
+        raise ConfigError(f"scene.name={name}: unknown scene; choose from {', '.join(SCENES)}")
+    every, t_end = float(cfg.output.every), float(sweep.t_end)
+    strides = []
+    for dt in sweep.dt:
+        try:
+            stride, n_samples = sample_schedule(float(dt), every, t_end)
+        except ValueError as err:
+            raise ConfigError(_prefix_sweep(str(err))) from None
+        strides.append(stride)
+    nf, nt = len(sweep.f), len(sweep.theta0)
+    bodies, omega0, q0 = np.empty((nf, nt, 4)), np.empty((nf, nt, 3)), np.empty((nf, nt, 4))
+    for j, f in enumerate(sweep.f):
+        for k, theta0 in enumerate(sweep.theta0):
+            try:
+                sc = build_scene(name, float(f), float(theta0), **scene_cfg)
+            except ValueError as err:
+                raise ConfigError(_prefix_sweep(str(err))) from None
+            bodies[j, k], omega0[j, k], q0[j, k] = sc.body, sc.omega0, sc.q0
+    return Grid(
+        scene=name, options=scene_cfg, methods=tuple(sweep.method), f=tuple(map(float, sweep.f)),
+        theta0=tuple(map(float, sweep.theta0)), dt=tuple(map(float, sweep.dt)), t_end=t_end, every=every,
+        threshold=float(cfg.runner.divergence_threshold), strides=tuple(strides), n_samples=n_samples,
+        bodies=bodies, omega0=omega0, q0=q0,
+    )
+
+
+def _prefix_sweep(message):
+    """Name sweep keys in full: the kernels say ``f=…``, the config says ``sweep.f=…``."""
+    for key in ("f=", "theta0=", "dt=", "t_end="):
+        if message.startswith(key):
+            return "sweep." + message
+    return message
+
+
+def chunk_size(steps_per_run, rate, threads, chunk_seconds, bytes_per_run, max_bytes=MAX_CHUNK_BYTES):
+    """Runs per chunk: about ``chunk_seconds`` of work at ``rate`` steps/s per thread,
+    a multiple of ``threads`` (so every thread gets equal work), within ``max_bytes``."""
+    by_time = chunk_seconds * rate * threads / max(int(steps_per_run), 1)
+    k = max(threads, int(by_time // threads) * threads)
+    by_memory = max(1, int(max_bytes // max(bytes_per_run, 1)))
+    if k > by_memory:
+        k = max(threads, by_memory // threads * threads) if by_memory >= threads else by_memory
+    return k
+
+
+def plan_chunks(grid, runs, threads, chunk_seconds, rates=None, max_bytes=MAX_CHUNK_BYTES):
+    """Split ``runs`` (flat numbers) into chunks: lists of runs of one method and one
+    step count, in method order then dt order, each of ``chunk_size`` runs."""
+    rates = rates or {}
+    runs = np.sort(np.asarray(runs, dtype=np.int64))
+    im, _, _, ld = grid.index(runs)
+    chunks = []
+    for m in range(len(grid.methods)):
+        rate = rates.get(grid.methods[m], STEP_RATE.get(grid.methods[m], DEFAULT_STEP_RATE))
+        for l in range(len(grid.dt)):
+            group = runs[(im == m) & (ld == l)]
+            if group.size == 0:
+                continue
+            steps = int(grid.steps(group[:1])[0])
+            k = chunk_size(steps, rate, threads, chunk_seconds, grid.bytes_per_run(), max_bytes)
+            chunks.extend(group[i:i + k] for i in range(0, group.size, k))
+    return chunks
+
+
+def estimate_seconds(grid, chunks, threads):
+    """Estimated compute time (s) of the chunks from STEP_RATE, JIT compile not included."""
+    total = 0.0
+    for chunk in chunks:
+        method = grid.methods[int(grid.index(chunk[:1])[0][0])]
+        rate = STEP_RATE.get(method, DEFAULT_STEP_RATE)
+        per_thread = math.ceil(len(chunk) / threads)
+        total += per_thread * int(grid.steps(chunk[:1])[0]) / rate
+    return total

@@ -1,0 +1,231 @@
+"""Everything the runner writes: the lock, the journal of finished chunks, the results file.
+
+Crash safety: each finished chunk goes to ``<out>.partial/chunk-NNNNN.npz``
+through a temporary name, fsync and ``os.replace``, so a chunk file is
+either complete or absent.  The results file is assembled from the journal
+into a temporary name and renamed into place only when complete; then the
+journal is removed.  ``OutputLock`` (``fcntl.flock`` on ``<out>.lock``)
+refuses a second writer to the same output.
+
+Results layout (SPEC §4): dims method, f, theta0, dt, time, xyz; per-sample
+variables (method, f, theta0, dt, time[, xyz]); per-run status, n_steps,
+wall_time (method, f, theta0, dt); units and long names from
+``dataset.VARIABLE_ATTRS`` / ``COORD_ATTRS``.
+"""
+import fcntl
+import json
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from .config import ConfigError
+from .dataset import COORD_ATTRS, VARIABLE_ATTRS, sample_variables
+
+DIMS = ("method", "f", "theta0", "dt")
+WALL_TIME_NOTE = (
+    "chunk wall-clock time x threads used, shared among the chunk's runs in proportion to their steps "
+    "(runs of one chunk run in parallel; JIT compilation excluded)"
+)
+
+
+def partial_dir(out):
+    return Path(f"{out}.partial")
+
+
+def lock_path(out):
+    return Path(f"{out}.lock")
+
+
+def temp_path(out):
+    out = Path(out)
+    return out.with_name(f".{out.name}.tmp")
+
+
+def fsync_dir(directory):
+    fd = os.open(directory, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def atomic_write(path, write):
+    """Call ``write(fileobj)`` on a temporary file, fsync it and rename it to ``path``."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        with open(tmp, "wb") as fh:
+            write(fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    fsync_dir(path.parent)
+
+
+class OutputLock:
+    """Exclusive, non-blocking lock on ``<out>.lock``; ConfigError naming the holder's pid if taken.
+
+    The lock file is removed on release; the inode check after locking makes
+    that safe against a writer that opened the file just before the removal.
+    """
+
+    def __init__(self, out):
+        self.out = Path(out)
+        self.path = lock_path(out)
+        self.fd = None
+
+    def acquire(self):
+        while True:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.read(fd, 64).decode(errors="replace").strip() or "?"
+                os.close(fd)
+                raise ConfigError(
+                    f"output.path={self.out}: another gyrolab (pid {holder}) is writing it right now; "
+                    "wait for it to finish or choose another output.path"
+                ) from None
+            try:
+                same = os.stat(self.path).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                break
+            os.close(fd)  # the previous holder removed the file under us: lock the new one
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+        self.fd = fd
+        return self
+
+    def release(self):
+        if self.fd is not None:
+            try:
+                self.path.unlink()
+            except FileNotFoundError:
+                pass
+            os.close(self.fd)
+            self.fd = None
+
+    def __enter__(self):
+        return self.acquire()
+
+    def __exit__(self, *exc):
+        self.release()
+
+
+class Journal:
+    """Finished chunks of one sweep in ``<out>.partial/``; ``manifest.json`` names the config hash."""
+
+    def __init__(self, out):
+        self.dir = partial_dir(out)
+        self.manifest_path = self.dir / "manifest.json"
+
+    def exists(self):
+        return self.manifest_path.exists()
+
+    def manifest(self):
+        with open(self.manifest_path) as fh:
+            return json.load(fh)
+
+    def create(self, manifest):
+        """Start an empty journal (removing any old one)."""
+        self.discard()
+        self.dir.mkdir(parents=True)
+        atomic_write(self.manifest_path, lambda fh: fh.write(json.dumps(manifest, indent=1).encode()))
+
+    def discard(self):
+        if self.dir.exists():
+            shutil.rmtree(self.dir)
+
+    def chunk_files(self):
+        return sorted(self.dir.glob("chunk-*.npz"))
+
+    def clean_temporaries(self):
+        """Remove half-written chunk files a killed process left behind."""
+        for tmp in self.dir.glob(".chunk-*.tmp*"):
+            tmp.unlink()
+
+    def write_chunk(self, number, runs, samples, status, n_steps, wall_time):
+        """Store one finished chunk durably: runs (flat numbers), samples (n, time, 9), per-run arrays."""
+
+        def write(fh):
+            np.savez(fh, runs=runs, samples=samples, status=status, n_steps=n_steps, wall_time=wall_time)
+
+        atomic_write(self.dir / f"chunk-{number:05d}.npz", write)
+
+    def chunks(self):
+        """Yield each stored chunk as a dict of arrays."""
+        for path in self.chunk_files():
+            with np.load(path, allow_pickle=False) as data:
+                yield {key: data[key] for key in data.files}
+
+    def done_runs(self):
+        """Flat numbers of the runs already stored and the next free chunk number."""
+        files = self.chunk_files()
+        runs = []
+        for path in files:
+            with np.load(path, allow_pickle=False) as data:
+                runs.append(data["runs"])
+        done = np.concatenate(runs) if runs else np.empty(0, dtype=np.int64)
+        next_number = int(files[-1].stem.split("-")[1]) + 1 if files else 0
+        return done, next_number
+
+
+def write_results(path, grid, chunks, attrs):
+    """Write the results file at ``path`` (netCDF4/HDF5 via h5netcdf) from chunk dicts.
+
+    One chunk is in memory at a time; each run is one HDF5 chunk per variable.
+    """
+    import h5netcdf
+    import h5py
+
+    shape = grid.shape
+    ns = grid.n_samples
+    with h5netcdf.File(path, "w") as nc:
+        nc.dimensions = dict(zip(DIMS, shape)) | {"time": ns, "xyz": 3}
+        coords = {
+            "method": np.array(grid.methods, dtype=object),
+            "f": np.array(grid.f),
+            "theta0": np.array(grid.theta0),
+            "dt": np.array(grid.dt),
+            "time": np.arange(ns) * grid.every,
+            "xyz": np.array(["x", "y", "z"], dtype=object),
+        }
+        for name, values in coords.items():
+            dtype = h5py.string_dtype() if values.dtype == object else values.dtype
+            var = nc.create_variable(name, (name,), dtype, data=values)
+            var.attrs.update(COORD_ATTRS[name])
+        variables = {}
+        for name in ("axis", "theta", "phi", "energy", "Lz", "L3", "omega"):
+            vector = name in ("axis", "omega")
+            dims = DIMS + (("time", "xyz") if vector else ("time",))
+            chunking = (1, 1, 1, 1, ns) + ((3,) if vector else ())
+            variables[name] = nc.create_variable(name, dims, np.float64, chunks=chunking)
+        for name, dtype in (("status", np.int8), ("n_steps", np.int64), ("wall_time", np.float64)):
+            variables[name] = nc.create_variable(name, DIMS, dtype)
+        for name, var in variables.items():
+            var.attrs.update(VARIABLE_ATTRS[name])
+        variables["wall_time"].attrs["description"] = WALL_TIME_NOTE
+        per_run = {name: np.zeros(shape, dtype=variables[name].dtype) for name in ("status", "n_steps", "wall_time")}
+        written = np.zeros(shape, dtype=bool)
+        for chunk in chunks:
+            index = grid.index(chunk["runs"])
+            for name, values in sample_variables(chunk["samples"]).items():
+                var = variables[name]
+                for i, at in enumerate(zip(*index)):
+                    var[at] = values[i]
+            for name in per_run:
+                per_run[name][index] = chunk[name]
+            written[index] = True
+        if not written.all():
+            missing = int((~written).sum())
+            raise RuntimeError(f"{missing} of {grid.n_runs} runs missing from the journal; cannot assemble {path}")
+        for name, values in per_run.items():
+            variables[name][...] = values
+        nc.attrs.update(attrs)
