@@ -1,0 +1,444 @@
+"""Compare two results files (SPEC §4 layout) variable by variable: ``gyrolab-compare A B``.
+
+    gyrolab-compare new.h5 stored.h5 --rtol 1e-10 --atol energy=1e-12 --atol 1e-13
+
+One function does the work, ``compare_files(a, b, rtol, atol) -> Report``; the
+command and the regression tests both call it.  Point by point, a value passes
+when ``|a − b| <= atol + rtol·max(|a|, |b|)`` (symmetric in A and B); NaN in
+both files at the same place counts as equal (a run that diverged in both),
+NaN against a number is a difference.  ``status`` and ``n_steps`` are compared
+exactly; ``wall_time`` is ignored (timing, not physics).  Tolerances default to
+0: without options the files must be bit-identical.
+
+The runs (method, f, theta0, dt) are matched by label, in any order; the files
+must hold the same runs (``--shared-runs``: only those in both) and the same
+time samples.  Differences in gyrolab/numba/numpy version or in the
+data-relevant config are printed before the table.
+
+Exit status: 0 within tolerance, 1 not, 2 the files cannot be compared
+(one line on stderr saying why).
+"""
+import argparse
+import math
+import sys
+from dataclasses import dataclass, field
+
+import numpy as np
+
+RUN_DIMS = ("method", "f", "theta0", "dt")
+EXACT = ("status", "n_steps")
+IGNORED = {"wall_time": "timing, not physics"}
+VERSION_ATTRS = ("gyrolab_version", "numba_version", "numpy_version")
+COORD_RTOL = 1e-9  # float coordinates (f, theta0, dt, time) match to this relative tolerance
+EXIT_OK, EXIT_DIFFERENT, EXIT_INCOMPARABLE = 0, 1, 2
+
+
+class CompareError(ValueError):
+    """The files cannot be compared; the message is one line saying why."""
+
+
+class OptionError(CompareError):
+    """A bad tolerance option (not a number, or naming no variable of the files)."""
+
+
+@dataclass
+class VariableDiff:
+    """Differences of one variable.  max_abs in the variable's units; max_rel = |a−b|/max(|a|,|b|);
+    n_bad of n_values points out of tolerance (n_nan of them NaN against a number); worst =
+    where |a−b| is largest compared with its tolerance (labels dict), None if identical."""
+
+    name: str
+    rtol: float
+    atol: float
+    exact: bool
+    max_abs: float = 0.0
+    max_rel: float = 0.0
+    n_bad: int = 0
+    n_nan: int = 0
+    n_values: int = 0
+    worst: dict = None
+
+    @property
+    def ok(self):
+        return self.n_bad == 0
+
+
+@dataclass
+class Report:
+    """Result of ``compare_files``: provenance notes, one VariableDiff per compared variable,
+    the run differing most and the count of runs out of tolerance."""
+
+    a: str
+    b: str
+    headers: list
+    provenance: list
+    grid: str
+    ignored: dict
+    variables: list = field(default_factory=list)
+    n_runs: int = 0
+    bad_runs: int = 0
+    worst_run: dict = None
+    worst_run_detail: str = None
+    dropped: list = field(default_factory=list)
+
+    @property
+    def ok(self):
+        return all(v.ok for v in self.variables)
+
+    @property
+    def exit_status(self):
+        return EXIT_OK if self.ok else EXIT_DIFFERENT
+
+    def failed(self):
+        return [v.name for v in self.variables if not v.ok]
+
+    def text(self):
+        """The human-readable report: provenance first, then the table, then the verdict."""
+        lines = [f"A: {self.a}  ({self.headers[0]})", f"B: {self.b}  ({self.headers[1]})"]
+        lines += [f"PROVENANCE: {p}" for p in self.provenance]
+        lines.append(f"grid: {self.grid}")
+        lines += [f"not compared (only in one file): {d}" for d in self.dropped]
+        lines += [f"ignored: {k} ({why})" for k, why in self.ignored.items()]
+        rows = [("variable", "rtol", "atol", "max |A-B|", "max rel", "out of tol", "worst at")]
+        for v in self.variables:
+            tol = ("exact", "exact") if v.exact else (f"{v.rtol:.3g}", f"{v.atol:.3g}")
+            bad = f"{v.n_bad}/{v.n_values}" + (f" ({v.n_nan} NaN)" if v.n_nan else "")
+            rows.append((v.name, *tol, f"{v.max_abs:.3g}", f"{v.max_rel:.3g}", bad,
+                         _where(v.worst) if v.worst else "-"))
+        widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]) - 1)]
+        for r in rows:
+            lines.append("  ".join(c.ljust(w) for c, w in zip(r, widths)) + "  " + r[-1])
+        if self.worst_run is not None:
+            lines.append(f"run differing most: {_where(self.worst_run, run_only=True)} ({self.worst_run_detail})")
+        if self.ok:
+            lines.append(f"RESULT: OK, {len(self.variables)} variables of {self.n_runs} runs within tolerance")
+        else:
+            lines.append(f"RESULT: DIFFERENT, {', '.join(self.failed())} out of tolerance "
+                         f"in {self.bad_runs} of {self.n_runs} runs")
+        return "\n".join(lines)
+
+
+def _detail(name, ratio, rel, absolute):
+    if math.isinf(absolute):
+        return f"{name}: NaN in one file, a number in the other"
+    how = "exact comparison" if math.isinf(ratio) else f"{ratio:.3g} x its tolerance"
+    return f"{name}: max |A-B| {absolute:.3g}, max rel {rel:.3g}, {how}"
+
+
+def _where(labels, run_only=False):
+    keys = RUN_DIMS if run_only else RUN_DIMS + ("time", "xyz")
+    parts = []
+    for k in keys:
+        if k in labels:
+            v = labels[k]
+            parts.append(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}")
+    return " ".join(parts)
+
+
+# --------------------------------------------------------------------------- tolerances
+
+def tolerance_for(tol, name):
+    """Tolerance of variable ``name`` from a number (all variables) or a dict {name: value, "*": default}."""
+    if isinstance(tol, dict):
+        return float(tol.get(name, tol.get("*", 0.0)))
+    return float(tol)
+
+
+def parse_tolerances(items, option):
+    """``["energy=1e-9", "1e-12"]`` -> ``{"energy": 1e-9, "*": 1e-12}``; CompareError on bad items."""
+    out = {}
+    for item in items or []:
+        name, _, value = item.rpartition("=")
+        name = name.strip() or "*"
+        try:
+            number = float(value)
+        except ValueError:
+            raise OptionError(f"{option} {item}: not a number (use {option} 1e-9 or {option} energy=1e-9)") from None
+        if not (math.isfinite(number) and number >= 0):
+            raise OptionError(f"{option} {item}: must be a finite number >= 0")
+        out[name] = number
+    return out
+
+
+# --------------------------------------------------------------------------- opening and matching
+
+def open_results(path, label):
+    """Open a results file fully loaded (xarray, h5netcdf); CompareError if unreadable."""
+    import xarray as xr
+
+    try:
+        with xr.open_dataset(path, engine="h5netcdf") as ds:
+            ds = ds.load()
+    except FileNotFoundError:
+        raise CompareError(f"{label}: {path}: no such file") from None
+    except Exception as err:  # h5py/h5netcdf raise many kinds on non-HDF5 input
+        raise CompareError(f"{label}: {path}: not a readable results file ({type(err).__name__}: "
+                           f"{' '.join(str(err).split())[:120]})") from None
+    missing = [d for d in RUN_DIMS + ("time",) if d not in ds.coords]
+    if missing:
+        raise CompareError(f"{label}: {path}: not a gyrolab results file (no coordinate {missing[0]})")
+    return ds
+
+
+def _match(values_a, values_b):
+    """Index into values_b of each of values_a (None where absent); floats match to COORD_RTOL."""
+    out = []
+    for va in values_a:
+        hit = None
+        for j, vb in enumerate(values_b):
+            if isinstance(va, str) or isinstance(vb, str):
+                same = str(va) == str(vb)
+            else:
+                same = abs(float(va) - float(vb)) <= COORD_RTOL * max(abs(float(va)), abs(float(vb)))
+            if same:
+                hit = j
+                break
+        out.append(hit)
+    return out
+
+
+def _fmt_values(values):
+    return "[" + ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in values) + "]"
+
+
+def align(da, db, shared_runs=False):
+    """(A, B) restricted to the same runs in A's order, and notes on runs left out.
+
+    CompareError when the runs or the time samples differ (or share nothing)."""
+    dropped = []
+    sel_a, sel_b = {}, {}
+    for dim in RUN_DIMS:
+        va, vb = [v.item() for v in da[dim].values], [v.item() for v in db[dim].values]
+        ia, ib = _match(va, vb), _match(vb, va)
+        if None in ia or None in ib:
+            if not shared_runs:
+                raise CompareError(f"different grids: {dim} is {_fmt_values(va)} in A and {_fmt_values(vb)} in B "
+                                   "(use --shared-runs to compare only the runs in both)")
+            keep = [i for i, j in enumerate(ia) if j is not None]
+            if not keep:
+                raise CompareError(f"nothing to compare: no {dim} in both files (A {_fmt_values(va)}, "
+                                   f"B {_fmt_values(vb)})")
+            only_a = [va[i] for i, j in enumerate(ia) if j is None]
+            only_b = [vb[i] for i, j in enumerate(ib) if j is None]
+            dropped.append(f"{dim} {_fmt_values(only_a)} only in A, {_fmt_values(only_b)} only in B")
+            sel_a[dim] = keep
+            sel_b[dim] = [ia[i] for i in keep]
+        else:
+            sel_b[dim] = ia
+    ta, tb = da["time"].values, db["time"].values
+    if ta.shape != tb.shape or not np.allclose(ta, tb, rtol=COORD_RTOL, atol=COORD_RTOL * max(ta.max(), 1e-300)):
+        raise CompareError(f"different grids: time has {ta.size} samples to {ta[-1]:g} s in A "
+                           f"and {tb.size} samples to {tb[-1]:g} s in B")
+    da = da.isel(sel_a) if sel_a else da
+    db = db.isel(sel_b)
+    return da, db, dropped
+
+
+# --------------------------------------------------------------------------- provenance
+
+def _header(ds):
+    at = ds.attrs
+    commit = str(at.get("git_commit", "?"))[:10] + ("+dirty" if at.get("git_dirty", 0) == 1 else "")
+    return (f"gyrolab {at.get('gyrolab_version', '?')}, git {commit}, numba {at.get('numba_version', '?')}, "
+            f"numpy {at.get('numpy_version', '?')}, created {at.get('created', '?')}")
+
+
+def _flatten(node, prefix=""):
+    if isinstance(node, dict):
+        out = {}
+        for k, v in node.items():
+            out.update(_flatten(v, f"{prefix}.{k}" if prefix else str(k)))
+        return out
+    return {prefix: node}
+
+
+def data_config(text):
+    """The flattened config of a file's ``config`` attr, without the keys that do not change data."""
+    import yaml
+
+    from ..runner.config import RUN_ONLY
+
+    data = yaml.safe_load(text) or {}
+    for group, keys in RUN_ONLY.items():
+        for key in keys:
+            (data.get(group) or {}).pop(key, None)
+    return _flatten(data)
+
+
+def provenance_notes(da, db):
+    """Lines saying how the files' makers differ: versions, and data-relevant config keys."""
+    notes = []
+    for key in VERSION_ATTRS:
+        va, vb = da.attrs.get(key), db.attrs.get(key)
+        if va != vb:
+            notes.append(f"{key} differs: A {va}, B {vb}")
+    ca, cb = da.attrs.get("config"), db.attrs.get("config")
+    if ca is None or cb is None:
+        if not (ca is None and cb is None):
+            notes.append(f"config recorded only in {'A' if cb is None else 'B'}")
+        return notes
+    fa, fb = data_config(ca), data_config(cb)
+    diffs = [f"{k}: A {fa.get(k, '(absent)')}, B {fb.get(k, '(absent)')}"
+             for k in sorted(set(fa) | set(fb)) if fa.get(k) != fb.get(k)]
+    if diffs:
+        notes.append("config differs: " + "; ".join(diffs))
+    return notes
+
+
+# --------------------------------------------------------------------------- the comparison
+
+def _diff_block(a, b, exact):
+    """Per-point |a−b|, relative difference and NaN-mismatch mask; NaN at the same place in both = equal."""
+    if exact:
+        a, b = a.astype(np.float64), b.astype(np.float64)
+    nan_a, nan_b = np.isnan(a), np.isnan(b)
+    one_nan = nan_a ^ nan_b
+    with np.errstate(invalid="ignore", over="ignore"):
+        d = np.where((a == b) | (nan_a & nan_b), 0.0, np.abs(a - b))
+        d = np.where(one_nan, np.inf, d)
+        scale = np.fmax(np.abs(a), np.abs(b))
+        scale = np.where(np.isnan(scale), 0.0, scale)
+        rel = np.where(d == 0, 0.0, np.where(scale > 0, d / np.where(scale > 0, scale, 1.0), np.inf))
+    return d, rel, scale, one_nan
+
+
+def compare_variable(name, a, b, rtol, atol, exact, dims, coords):
+    """VariableDiff of one variable from aligned arrays a, b with dims ``dims``; also the per-run
+    maxima (|a−b| / tolerance, relative difference, |a−b|) as arrays over RUN_DIMS and the
+    per-run flag "some point out of tolerance"."""
+    vd = VariableDiff(name, rtol, atol, exact)
+    d, rel, scale, one_nan = _diff_block(a, b, exact)
+    bound = np.zeros_like(d) if exact else atol + rtol * scale
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(d == 0, 0.0, np.where(bound > 0, d / np.where(bound > 0, bound, 1.0), np.inf))
+    bad = d > bound
+    vd.n_values, vd.n_bad, vd.n_nan = int(d.size), int(bad.sum()), int(one_nan.sum())
+    finite = np.where(np.isinf(d), np.nan, d)
+    vd.max_abs = float(np.nanmax(finite)) if np.isfinite(finite).any() else (math.inf if vd.n_nan else 0.0)
+    finite_rel = np.where(np.isinf(rel), np.nan, rel)
+    vd.max_rel = float(np.nanmax(finite_rel)) if np.isfinite(finite_rel).any() else (
+        math.inf if np.isinf(rel).any() else 0.0)
+    if d.size and d.max() > 0:
+        k = np.lexsort((rel.ravel(), ratio.ravel()))[-1]
+        at = np.unravel_index(k, d.shape)
+        vd.worst = {dim: coords[dim][i] for dim, i in zip(dims, at)}
+    sample_axes = tuple(range(len(RUN_DIMS), d.ndim))
+    run_ratio = ratio.max(axis=sample_axes) if sample_axes else ratio
+    run_rel = rel.max(axis=sample_axes) if sample_axes else rel
+    run_bad = bad.any(axis=sample_axes) if sample_axes else bad
+    run_abs = d.max(axis=sample_axes) if sample_axes else d
+    return vd, (run_ratio, run_rel, run_abs), run_bad
+
+
+def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, names=("A", "B")):
+    """Compare two opened results Datasets; see ``compare_files``."""
+    ignored = dict(IGNORED)
+    ignored.update({name: "asked" for name in ignore})
+    if da.attrs.get("scene") != db.attrs.get("scene"):
+        raise CompareError(f"different scenes: {da.attrs.get('scene')} in A and {db.attrs.get('scene')} in B")
+    notes = provenance_notes(da, db)
+    da, db, dropped = align(da, db, shared_runs)
+    va = [v for v in da.data_vars if v not in ignored]
+    vb = [v for v in db.data_vars if v not in ignored]
+    for v in va:
+        if v not in vb:
+            raise CompareError(f"missing variables: {v} is in A but not in B")
+    for v in vb:
+        if v not in va:
+            raise CompareError(f"missing variables: {v} is in B but not in A")
+    for tol, option in ((rtol, "--rtol"), (atol, "--atol")):
+        for key in (tol if isinstance(tol, dict) else {}):
+            if key != "*" and key not in va:
+                raise OptionError(f"{option} {key}={tol[key]}: no variable {key} to compare "
+                                   f"(variables: {', '.join(va)})")
+            if key in EXACT:
+                raise OptionError(f"{option} {key}={tol[key]}: {key} is compared exactly")
+    coords = {d: [x.item() for x in da[d].values] for d in da.dims}
+    shape = tuple(da.sizes[d] for d in RUN_DIMS)
+    grid = (f"scene {da.attrs.get('scene', '?')}; " + " x ".join(f"{n} {d}" for d, n in zip(RUN_DIMS, shape))
+            + f" = {int(np.prod(shape))} runs; {da.sizes['time']} samples, t = 0 to {coords['time'][-1]:g} s")
+    report = Report(a=names[0], b=names[1], headers=[_header(da), _header(db)], provenance=notes, grid=grid,
+                    ignored={k: v for k, v in ignored.items() if k in da.data_vars or k in db.data_vars},
+                    dropped=dropped, n_runs=int(np.prod(shape)))
+    best = [np.full(shape, -1.0), np.full(shape, -1.0), np.zeros(shape)]  # ratio, rel, abs of the worst variable
+    best_var = np.full(shape, "", dtype=object)
+    any_bad = np.zeros(shape, dtype=bool)
+    for name in va:
+        xa, xb = da[name], db[name]
+        if set(xa.dims) != set(xb.dims) or tuple(xa.dims[:4]) != RUN_DIMS:
+            raise CompareError(f"different layout: {name} has dims {xa.dims} in A and {xb.dims} in B")
+        a, b = xa.values, xb.transpose(*xa.dims).values
+        exact = name in EXACT or not np.issubdtype(a.dtype, np.floating)
+        vd, per_run, run_bad = compare_variable(name, a, b, tolerance_for(rtol, name),
+                                                tolerance_for(atol, name), exact, xa.dims, coords)
+        report.variables.append(vd)
+        better = (per_run[0] > best[0]) | ((per_run[0] == best[0]) & (per_run[1] > best[1]))
+        for mine, theirs in zip(best, per_run):
+            mine[better] = theirs[better]
+        best_var[better] = name
+        any_bad |= run_bad
+    report.bad_runs = int(any_bad.sum())
+    k = np.lexsort((best[1].ravel(), best[0].ravel()))[-1]
+    if best[0].ravel()[k] > 0:
+        at = np.unravel_index(k, shape)
+        report.worst_run = {d: coords[d][i] for d, i in zip(RUN_DIMS, at)}
+        report.worst_run_detail = _detail(best_var[at], *(x[at] for x in best))
+    return report
+
+
+def compare_files(a, b, rtol=0.0, atol=0.0, ignore=(), shared_runs=False):
+    """Compare results files ``a`` and ``b`` (paths) variable by variable.
+
+    rtol, atol: a number for every variable or a dict {variable: value, "*": default};
+    a point passes when |a−b| <= atol + rtol·max(|a|,|b|) (atol in the variable's units).
+    ``ignore``: more variables to skip (wall_time always is).  ``shared_runs``: compare only
+    the runs present in both files.  Returns a Report; raises CompareError (one-line
+    message) when the files cannot be compared.
+    """
+    da = open_results(a, "A")
+    db = open_results(b, "B")
+    return compare_datasets(da, db, rtol, atol, ignore, shared_runs, names=(str(a), str(b)))
+
+
+# --------------------------------------------------------------------------- command line
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):
+        sys.stderr.write(f"gyrolab-compare: error: {message}\n")
+        sys.exit(EXIT_INCOMPARABLE)
+
+
+def build_parser():
+    p = _Parser(prog="gyrolab-compare", description=__doc__.split("\n\n")[0],
+                formatter_class=argparse.RawDescriptionHelpFormatter,
+                epilog="exit status: 0 within tolerance, 1 out of tolerance, 2 cannot compare")
+    p.add_argument("a", help="results file A (e.g. a fresh run)")
+    p.add_argument("b", help="results file B (e.g. the stored reference)")
+    p.add_argument("--rtol", action="append", metavar="[VAR=]X",
+                   help="relative tolerance, for every variable or for VAR (repeatable; default 0)")
+    p.add_argument("--atol", action="append", metavar="[VAR=]X",
+                   help="absolute tolerance in the variable's units, for every variable or for VAR "
+                        "(repeatable; default 0)")
+    p.add_argument("--ignore", action="append", default=[], metavar="VAR",
+                   help="skip a variable (repeatable); wall_time is always skipped")
+    p.add_argument("--shared-runs", action="store_true",
+                   help="compare only the runs (method, f, theta0, dt) present in both files")
+    return p
+
+
+def main(argv=None):
+    args = build_parser().parse_args(argv)
+    try:
+        rtol = parse_tolerances(args.rtol, "--rtol")
+        atol = parse_tolerances(args.atol, "--atol")
+        report = compare_files(args.a, args.b, rtol, atol, args.ignore, args.shared_runs)
+    except CompareError as err:
+        kind = "error" if isinstance(err, OptionError) else "cannot compare"
+        sys.stderr.write(f"gyrolab-compare: {kind}: {err}\n")
+        return EXIT_INCOMPARABLE
+    print(report.text())
+    return report.exit_status
+
+
+if __name__ == "__main__":
+    sys.exit(main())
