@@ -233,6 +233,7 @@ def run_sweep(cfg, run_dir):
     threads = resolve_threads(cfg.runner.threads)
     out = resolve_output(cfg.output.path, run_dir)
     check_writable(out)
+    OutputLock(out).check_free()
     chash = config_hash(cfg)
     overwrite, resume = bool(cfg.output.overwrite), bool(cfg.runner.resume)
     state = output_state(out, chash, overwrite, resume)

@@ -79,18 +79,33 @@ class OutputLock:
         self.path = lock_path(out)
         self.fd = None
 
+    def check_free(self):
+        """ConfigError if another process holds the lock; creates nothing."""
+        try:
+            fd = os.open(self.path, os.O_RDONLY)
+        except FileNotFoundError:
+            return
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            self._refuse(fd)
+        os.close(fd)
+
+    def _refuse(self, fd):
+        holder = os.read(fd, 64).decode(errors="replace").strip() or "?"
+        os.close(fd)
+        raise ConfigError(
+            f"output.path={self.out}: another gyrolab (pid {holder}) is writing it right now; "
+            "wait for it to finish or choose another output.path"
+        )
+
     def acquire(self):
         while True:
             fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
-                holder = os.read(fd, 64).decode(errors="replace").strip() or "?"
-                os.close(fd)
-                raise ConfigError(
-                    f"output.path={self.out}: another gyrolab (pid {holder}) is writing it right now; "
-                    "wait for it to finish or choose another output.path"
-                ) from None
+                self._refuse(fd)
             try:
                 same = os.stat(self.path).st_ino == os.fstat(fd).st_ino
             except FileNotFoundError:
