@@ -1,0 +1,248 @@
+"""The ``gyrolab`` and ``gyrolab-combine`` commands, end to end in subprocesses, on tiny grids.
+
+Each subprocess costs ~1-2 s (Hydra, numba and xarray imports; JIT from cache).
+"""
+import os
+import shlex
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from gyrolab import simulate
+from gyrolab.runner.provenance import VOLATILE_ATTRS
+
+BIN = Path(sys.executable).parent
+TINY = ["sweep.method=[seed_next,lie_poisson]", "sweep.f=[10,50]", "sweep.theta0=[30,45]", "sweep.dt=[1e-3,1e-4]",
+        "sweep.t_end=0.1", "output.every=1e-3", "output.figures=false"]
+SLOW = ["runner.chunk_seconds=1e-6"]  # chunks of `threads` runs: many chunks to interrupt
+
+
+def command(name, module):
+    exe = BIN / name
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", module]
+
+
+def environment(**extra):
+    env = {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "GYROLAB_TEST_CHUNK_DELAY")}
+    env.update({k: str(v) for k, v in extra.items()})
+    return env
+
+
+def gyrolab(*args, cwd, env=None, timeout=300):
+    return subprocess.run(command("gyrolab", "gyrolab.runner.app") + list(args), cwd=cwd, capture_output=True,
+                          text=True, env=env or environment(), timeout=timeout)
+
+
+def start(*args, cwd, **env):
+    return subprocess.Popen(command("gyrolab", "gyrolab.runner.app") + list(args), cwd=cwd, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=environment(**env))
+
+
+def wait_for(predicate, proc, timeout=120):
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert proc.poll() is None, f"finished before the test could interrupt it: {proc.communicate()}"
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)
+
+
+def chunk_count(run_dir):
+    return len(list((Path(run_dir) / "results.h5.partial").glob("chunk-*.npz")))
+
+
+def data(path):
+    """The file's data without what legitimately differs between runs (timings, provenance)."""
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        ds = ds.load()
+    return ds.drop_vars("wall_time").drop_attrs(deep=False).assign_attrs(
+        {k: v for k, v in ds.attrs.items() if k not in VOLATILE_ATTRS})
+
+
+def assert_ok(result):
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """An uninterrupted run of TINY (+ SLOW chunking) on all threads."""
+    root = tmp_path_factory.mktemp("reference")
+    result = gyrolab(*TINY, *SLOW, f"hydra.run.dir={root / 'run'}", cwd=root)
+    assert_ok(result)
+    return root / "run" / "results.h5"
+
+
+def test_tiny_sweep_file_opens_with_xarray_and_matches_simulate(reference):
+    with xr.open_dataset(reference, engine="h5netcdf") as ds:
+        assert dict(ds.sizes) == {"method": 2, "f": 2, "theta0": 2, "dt": 2, "time": 101, "xyz": 3}
+        assert list(ds["method"].values) == ["seed_next", "lie_poisson"]
+        assert list(ds["f"].values) == [10.0, 50.0] and list(ds["dt"].values) == [1e-3, 1e-4]
+        assert ds["f"].attrs["units"] == "Hz" and ds["theta0"].attrs["units"] == "deg"
+        assert "legend" in ds["status"].attrs and np.all(ds["status"].values == 0)
+        for key in ("config", "gyrolab_version", "git_commit", "numba_version", "numpy_version", "threads",
+                    "created", "scene", "scene_M", "scene_init"):
+            assert key in ds.attrs, key
+        assert "sweep:" in ds.attrs["config"] and ds.attrs["scene"] == "heavy_top"
+        assert np.all(ds["wall_time"].values > 0)
+        # Every run sits at its coordinates: the same bits as gyrolab.simulate of that point.
+        for method in ds["method"].values:
+            for f in ds["f"].values:
+                for theta0 in ds["theta0"].values:
+                    for dt in ds["dt"].values:
+                        one = simulate(method=str(method), f=f, theta0=theta0, dt=dt, t_end=0.1, every=1e-3)
+                        run = ds.sel({"method": method, "f": f, "theta0": theta0, "dt": dt})
+                        for name in ("axis", "theta", "phi", "energy", "Lz", "L3", "omega", "status", "n_steps"):
+                            np.testing.assert_array_equal(run[name].values, one[name].values, err_msg=name)
+
+
+def test_results_and_where_they_are_printed(tmp_path):
+    result = gyrolab("sweep=tiny", "output.figures=false", cwd=tmp_path)
+    assert_ok(result)
+    (path,) = tmp_path.glob("outputs/*/*/results.h5")
+    assert f"results: {path}" in result.stdout
+    assert sorted(p.name for p in path.parent.iterdir()) == ["results.h5"]  # no journal, lock or temp left
+
+
+def test_dry_run_of_the_default_study_estimates_and_writes_nothing(tmp_path):
+    result = gyrolab("runner.dry_run=true", cwd=tmp_path)
+    assert_ok(result)
+    out = result.stdout
+    assert "5 method x 3 f x 1 theta0 x 3 dt = 45 runs" in out
+    for word in ("steps", "estimated time", "peak memory", "output"):
+        assert word in out
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_killed_sweep_resumes_to_identical_data(tmp_path, reference):
+    run = tmp_path / "run"
+    proc = start(*TINY, *SLOW, f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=0.3)
+    wait_for(lambda: chunk_count(run) >= 2, proc)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert not (run / "results.h5").exists() and chunk_count(run) >= 2
+    saved = sum(len(np.load(p)["runs"]) for p in (run / "results.h5.partial").glob("chunk-*.npz"))
+    refused = gyrolab(*TINY, *SLOW, f"hydra.run.dir={run}", cwd=tmp_path)
+    assert refused.returncode == 2 and "runner.resume=true" in refused.stderr
+    resumed = gyrolab(*TINY, *SLOW, f"hydra.run.dir={run}", "runner.resume=true", cwd=tmp_path)
+    assert_ok(resumed)
+    assert f"resuming: {saved} runs already done, {16 - saved} to go" in resumed.stdout
+    xr.testing.assert_identical(data(run / "results.h5"), data(reference))
+    assert sorted(p.name for p in run.iterdir()) == ["results.h5"]
+    again = gyrolab(*TINY, *SLOW, f"hydra.run.dir={run}", "runner.resume=true", cwd=tmp_path)
+    assert_ok(again)
+    assert "nothing to do" in again.stdout
+
+
+def test_ctrl_c_prints_the_command_that_finishes_the_sweep(tmp_path, reference):
+    run = tmp_path / "run"
+    proc = start(*TINY, *SLOW, f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=0.3)
+    wait_for(lambda: chunk_count(run) >= 1, proc)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and "Traceback" not in err
+    words = shlex.split(err.split("Finish with: ")[1].strip())
+    assert words[0] == "gyrolab"
+    finished = gyrolab(*words[1:], cwd=tmp_path)
+    assert_ok(finished)
+    xr.testing.assert_identical(data(run / "results.h5"), data(reference))
+
+
+def test_second_writer_to_the_same_output_is_refused(tmp_path, reference):
+    run = tmp_path / "run"
+    first = start(*TINY, *SLOW, f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=0.3)
+    wait_for(lambda: chunk_count(run) >= 1, first)
+    for extra in ([], ["runner.resume=true"], ["output.overwrite=true"]):
+        second = gyrolab(*TINY, *SLOW, f"hydra.run.dir={run}", *extra, cwd=tmp_path)
+        assert second.returncode == 2, second.stderr
+        assert f"another gyrolab (pid {first.pid}) is writing it" in second.stderr
+    assert first.wait(timeout=120) == 0, first.communicate()
+    xr.testing.assert_identical(data(run / "results.h5"), data(reference))
+
+
+def test_one_thread_and_two_threads_give_identical_files(tmp_path, reference):
+    result = gyrolab(*TINY, f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path, env=environment(NUMBA_NUM_THREADS=1))
+    assert_ok(result)
+    with xr.open_dataset(tmp_path / "run" / "results.h5", engine="h5netcdf") as ds:
+        assert ds.attrs["threads"] == 1
+    xr.testing.assert_identical(data(tmp_path / "run" / "results.h5"), data(reference))
+
+
+def test_multirun_writes_one_file_per_job_and_combine_merges_them(tmp_path):
+    sweep_dir = tmp_path / "mr"
+    result = gyrolab("-m", "scene=heavy_top,free_asymmetric", *TINY, f"hydra.sweep.dir={sweep_dir}", cwd=tmp_path)
+    assert_ok(result)
+    files = sorted(sweep_dir.glob("*/results.h5"))
+    assert [f.parent.name for f in files] == ["0", "1"]
+    combined = subprocess.run(command("gyrolab-combine", "gyrolab.runner.combine") + [str(sweep_dir)],
+                              capture_output=True, text=True, env=environment(), timeout=120)
+    assert combined.returncode == 0, combined.stderr
+    with xr.open_dataset(sweep_dir / "combined.h5", engine="h5netcdf") as ds:
+        assert list(ds["scene"].values) == ["heavy_top", "free_asymmetric"]
+        assert ds["axis"].dims == ("scene", "method", "f", "theta0", "dt", "time", "xyz")
+        for path, scene in zip(files, ("heavy_top", "free_asymmetric")):
+            with xr.open_dataset(path, engine="h5netcdf") as one:
+                np.testing.assert_array_equal(ds["energy"].sel(scene=scene).values, one["energy"].values)
+                assert one.attrs["scene"] == scene
+        assert np.isnan(ds["scene_M"].sel(scene="free_asymmetric")) and ds["scene_M"].sel(scene="heavy_top") == 1.0
+        assert ds.sizes["source"] == 2 and "sweep:" in str(ds["source_config"].values[0])
+
+
+def test_multirun_with_a_bad_job_stops_before_any_job_runs(tmp_path):
+    result = gyrolab("-m", "scene.M=1,-1", *TINY, f"hydra.sweep.dir={tmp_path / 'mr'}", cwd=tmp_path)
+    assert result.returncode == 2
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("gyrolab: error: scene.M=-1.0: must be > 0 (in job scene.M=-1 ")
+    assert list(tmp_path.iterdir()) == []
+
+
+BIG_F = "sweep.f=[" + ",".join(str(v) for v in range(1, 101)) + "]"
+BIG_THETA = "sweep.theta0=[" + ",".join(str(v) for v in range(1, 101)) + "]"
+BAD_INPUTS = [
+    (["sweep.dt=[0]"], "sweep.dt=0.0"),
+    (["sweep.dt=[1e-3,-1e-4]"], "sweep.dt=-0.0001"),
+    (["sweep.dt=[3e-4]"], "sweep.dt=0.0003: must divide output.every=0.001"),
+    (["sweep.t_end=0"], "sweep.t_end=0.0"),
+    (["sweep.t_end=-1"], "sweep.t_end=-1.0"),
+    (["sweep.t_end=1e-4"], "sweep.t_end=0.0001"),
+    (["sweep.theta0=[nan]"], "sweep.theta0=nan: must be a finite number"),
+    (["scene.g=inf"], "scene.g=inf: must be a finite number"),
+    (["output.every=nan"], "output.every=nan: must be a finite number"),
+    (["sweep.theta0=[45,181]"], "sweep.theta0=181.0"),
+    (["sweep.theta0=[-5]"], "sweep.theta0=-5.0"),
+    (["sweep.f=[-1]"], "sweep.f=-1.0"),
+    (["scene.M=-1"], "scene.M=-1.0"),
+    (["scene.r=-0.05"], "scene.r=-0.05"),
+    (["scene=free_asymmetric", "scene.I3=5e-4"], "scene.I3=0.0005: violates the triangle inequality"),
+    (["sweep.method=[seed_next,euler]"], "sweep.method=euler: unknown method"),
+    (["scene=spinning_plate"], "scene=spinning_plate: unknown scene"),
+    (["scene.init=steady_slow", "sweep.f=[1,10,50]"], "sweep.f=1: steady precession"),
+    (["output.path={existing}"], "output.path={existing}: exists"),
+    (["output.path=/proc/gyrolab-test/results.h5"], "output.path=/proc/gyrolab-test/results.h5: cannot write"),
+    (["sweep.t_end=1e4", "output.every=1e-6", "sweep.dt=[1e-6]"], "output.every=1e-06"),
+    (["sweep.t_end=1000", BIG_F, BIG_THETA, "sweep.dt=[1e-3]"], "output.path="),
+    (["sweep.t_end=ten"], "sweep.t_end=ten"),
+    (["sweep.f=10"], "sweep.f=10"),
+    (["sweep.tend=3"], "sweep.tend=3"),
+    (["runner.backend=slurm"], "runner.backend=slurm"),
+]
+
+
+@pytest.mark.parametrize("args, message", BAD_INPUTS, ids=[" ".join(a)[:40] for a, _ in BAD_INPUTS])
+def test_bad_input_is_refused_in_one_line_with_status_2_and_no_file(tmp_path, args, message):
+    existing = tmp_path / "old.h5"
+    existing.write_bytes(b"an earlier result")
+    args = [a.format(existing=existing) for a in args]
+    result = gyrolab(*args, cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("gyrolab: error: "), result.stderr
+    assert message.format(existing=existing) in lines[0]
+    assert "Traceback" not in result.stdout + result.stderr
+    assert [p.name for p in tmp_path.rglob("*")] == ["old.h5"]
+    assert existing.read_bytes() == b"an earlier result"

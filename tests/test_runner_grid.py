@@ -1,0 +1,92 @@
+"""The grid numbers runs like the results' dims; chunks cover every run once, one method and dt each."""
+import numpy as np
+import pytest
+from hydra import compose, initialize_config_module
+
+from gyrolab.kernels.scenes import build_scene
+from gyrolab.runner.config import ConfigError, register_configs
+from gyrolab.runner.execute import run_chunk
+from gyrolab.runner.grid import build_grid, chunk_size, plan_chunks
+
+register_configs()
+
+
+def grid_of(*overrides):
+    with initialize_config_module(config_module="gyrolab.conf", version_base=None):
+        return build_grid(compose("config", overrides=list(overrides)))
+
+
+GRID = ("sweep.method=[seed_next,rk4,lie_poisson]", "sweep.f=[1,10,50]", "sweep.theta0=[30,45]",
+        "sweep.dt=[1e-3,5e-4,1e-4]", "sweep.t_end=0.2", "output.every=1e-3")
+
+
+def test_run_numbers_follow_the_dims_in_c_order():
+    grid = grid_of(*GRID)
+    assert grid.shape == (3, 3, 2, 3) and grid.n_runs == 54
+    run = 1 * 18 + 2 * 6 + 1 * 3 + 2  # rk4, f=50, theta0=45, dt=1e-4
+    assert [int(i[0]) for i in grid.index([run])] == [1, 2, 1, 2]
+    bodies, omega0, q0, dt, stride = grid.inputs([run])
+    scene = build_scene("heavy_top", 50.0, 45.0)
+    np.testing.assert_array_equal(bodies[0], scene.body)
+    np.testing.assert_array_equal(omega0[0], scene.omega0)
+    np.testing.assert_array_equal(q0[0], scene.q0)
+    assert dt[0] == 1e-4 and stride[0] == 10 and grid.steps([run])[0] == 2000
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+@pytest.mark.parametrize("seconds", [1e-6, 1e-4, 1.0])
+def test_chunks_cover_every_run_once_with_one_method_and_dt(threads, seconds):
+    grid = grid_of(*GRID)
+    chunks = plan_chunks(grid, np.arange(grid.n_runs), threads, seconds)
+    runs = np.concatenate(chunks)
+    assert np.array_equal(np.sort(runs), np.arange(grid.n_runs))
+    for chunk in chunks:
+        im, _, _, ld = grid.index(chunk)
+        assert len(set(im)) == 1 and len(set(ld)) == 1
+    # Full chunks hand every thread the same number of equal runs.
+    sizes = [len(c) for c in chunks]
+    assert all(s % threads == 0 for s in sizes[:-1] if s == max(sizes))
+
+
+def test_chunk_size_targets_the_time_and_respects_memory():
+    # 1e6 steps/s per thread, 2 threads, 1 s: 2e6 steps = 20 runs of 1e5 steps
+    assert chunk_size(1e5, 1e6, 2, 1.0, bytes_per_run=1) == 20
+    assert chunk_size(1e9, 1e6, 2, 1.0, bytes_per_run=1) == 2  # never fewer runs than threads...
+    assert chunk_size(1e5, 1e6, 2, 1.0, bytes_per_run=100, max_bytes=1000) == 10  # ...nor over memory
+    assert chunk_size(1e5, 1e6, 4, 1.0, bytes_per_run=100, max_bytes=250) == 2
+
+
+def test_only_the_given_runs_are_planned():
+    grid = grid_of(*GRID)
+    todo = np.arange(5, 40, 3)
+    assert np.array_equal(np.sort(np.concatenate(plan_chunks(grid, todo, 2, 1e-5))), todo)
+
+
+def test_a_run_gives_the_same_bits_in_any_chunk():
+    grid = grid_of(*GRID)
+    alone = run_chunk(grid, np.array([10]), threads=1)
+    together = run_chunk(grid, np.array([1, 4, 7, 10, 13, 16]), threads=2)
+    np.testing.assert_array_equal(alone["samples"][0], together["samples"][3])
+    assert alone["n_steps"][0] == together["n_steps"][3] == grid.steps([10])[0]
+
+
+def test_wall_time_is_shared_by_steps_and_threads():
+    grid = grid_of(*GRID)
+    result = run_chunk(grid, np.array([1, 4]), threads=2)
+    assert np.all(result["wall_time"] > 0)
+    assert result["wall_time"][0] == pytest.approx(result["wall_time"][1])
+
+
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("sweep.dt=[3e-4]", "sweep.dt=0.0003: must divide output.every"),
+        ("scene.init=steady_fast", "sweep.f=1: steady precession"),
+        ("scene.name=nope", "scene.name=nope: unknown scene"),
+        ("sweep.method=[seed_next,nope]", "sweep.method=nope: unknown method"),
+    ],
+)
+def test_build_grid_names_key_and_value(override, message):
+    with pytest.raises(ConfigError) as info:
+        grid_of(*GRID, override)
+    assert str(info.value).startswith(message)

@@ -1,0 +1,75 @@
+"""Lock, journal and results file: one writer, durable chunks, SPEC §4 layout."""
+import numpy as np
+import pytest
+import xarray as xr
+from hydra import compose, initialize_config_module
+
+from gyrolab.runner.config import ConfigError, register_configs
+from gyrolab.runner.dataset import COORD_ATTRS, VARIABLE_ATTRS
+from gyrolab.runner.execute import run_chunk
+from gyrolab.runner.grid import build_grid
+from gyrolab.runner.store import Journal, OutputLock, write_results
+
+register_configs()
+
+
+@pytest.fixture(scope="module")
+def grid():
+    overrides = ["sweep.method=[seed_next,seed_prev]", "sweep.f=[10,50]", "sweep.theta0=[45]",
+                 "sweep.dt=[1e-3,1e-4]", "sweep.t_end=0.05", "output.every=1e-3"]
+    with initialize_config_module(config_module="gyrolab.conf", version_base=None):
+        return build_grid(compose("config", overrides=overrides))
+
+
+def test_second_lock_is_refused_naming_the_holder(tmp_path):
+    out = tmp_path / "results.h5"
+    with OutputLock(out):
+        with pytest.raises(ConfigError, match=r"another gyrolab \(pid \d+\) is writing"):
+            OutputLock(out).acquire()
+        with pytest.raises(ConfigError, match="another gyrolab"):
+            OutputLock(out).check_free()
+    assert not (tmp_path / "results.h5.lock").exists()
+    with OutputLock(out):  # free again once released
+        pass
+
+
+def test_journal_keeps_finished_chunks_and_drops_half_written_ones(tmp_path, grid):
+    journal = Journal(tmp_path / "results.h5")
+    journal.create({"config_hash": "abc"})
+    first = run_chunk(grid, np.array([0, 2]), threads=1)
+    journal.write_chunk(0, **first)
+    (journal.dir / ".chunk-00001.npz.tmp123").write_bytes(b"half")
+    done, number = journal.done_runs()
+    assert sorted(done) == [0, 2] and number == 1
+    journal.clean_temporaries()
+    assert sorted(p.name for p in journal.dir.iterdir()) == ["chunk-00000.npz", "manifest.json"]
+    (stored,) = list(journal.chunks())
+    np.testing.assert_array_equal(stored["samples"], first["samples"])
+    assert journal.manifest()["config_hash"] == "abc"
+
+
+def test_results_file_layout_and_attrs(tmp_path, grid):
+    chunks = [run_chunk(grid, np.arange(0, 4), 2), run_chunk(grid, np.arange(4, 8), 2)]
+    path = tmp_path / "r.h5"
+    write_results(path, grid, chunks, {"scene": "heavy_top", "config": "a: 1\n"})
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        assert dict(ds.sizes) == {"method": 2, "f": 2, "theta0": 1, "dt": 2, "time": 51, "xyz": 3}
+        assert ds["axis"].dims == ("method", "f", "theta0", "dt", "time", "xyz")
+        assert ds["status"].dtype == np.int8 and ds["n_steps"].dtype == np.int64
+        assert list(ds["method"].values) == ["seed_next", "seed_prev"]
+        np.testing.assert_allclose(ds["time"].values, np.arange(51) * 1e-3)
+        for name, attrs in VARIABLE_ATTRS.items():
+            assert {k: ds[name].attrs[k] for k in attrs} == attrs
+        for name, attrs in COORD_ATTRS.items():
+            assert {k: ds[name].attrs[k] for k in attrs} == attrs
+        assert "proportion to their steps" in ds["wall_time"].attrs["description"]
+        assert ds.attrs["config"] == "a: 1\n"
+        # run 5 = seed_prev, f=10, theta0=45, dt=1e-4
+        run = ds.isel(method=1, f=0, theta0=0, dt=1)
+        np.testing.assert_array_equal(run["omega"].values, chunks[1]["samples"][1][:, 3:6])
+        assert int(run["n_steps"]) == 500
+
+
+def test_incomplete_journal_is_not_assembled(tmp_path, grid):
+    with pytest.raises(RuntimeError, match="4 of 8 runs missing"):
+        write_results(tmp_path / "r.h5", grid, [run_chunk(grid, np.arange(4), 2)], {})
