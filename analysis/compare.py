@@ -1,12 +1,15 @@
 """Compare two results files (SPEC §4 layout) variable by variable: ``gyrolab-compare A B``.
 
     gyrolab-compare new.h5 stored.h5 --rtol 1e-10 --atol energy=1e-12 --atol 1e-13
+    gyrolab-compare new.h5 stored.h5 --scaled 1e-10      # what the regression tests use
 
 One function does the work, ``compare_files(a, b, rtol, atol) -> Report``; the
 command and the regression tests both call it.  Point by point, a value passes
 when ``|a − b| <= atol + rtol·max(|a|, |b|)`` (symmetric in A and B); NaN in
 both files at the same place counts as equal (a run that diverged in both),
-NaN against a number is a difference.  ``status`` and ``n_steps`` are compared
+NaN against a number is a difference.  ``--scaled X`` sets each variable's atol to
+X times its largest |value| in B (the reference), so one number fits variables
+of any units and scene.  ``status`` and ``n_steps`` are compared
 exactly; ``wall_time`` is ignored (timing, not physics).  Tolerances default to
 0: without options the files must be bit-identical.
 
@@ -65,13 +68,15 @@ class VariableDiff:
 
 @dataclass
 class Report:
-    """Result of ``compare_files``: provenance notes, one VariableDiff per compared variable,
-    the run differing most and the count of runs out of tolerance."""
+    """Result of ``compare_files``: provenance notes (``versions``: gyrolab/numba/numpy versions that
+    differ; ``configs``: data-relevant config keys that differ), one VariableDiff per compared
+    variable, the run differing most and the count of runs out of tolerance."""
 
     a: str
     b: str
     headers: list
-    provenance: list
+    versions: list
+    configs: list
     grid: str
     ignored: dict
     variables: list = field(default_factory=list)
@@ -95,7 +100,7 @@ class Report:
     def text(self):
         """The human-readable report: provenance first, then the table, then the verdict."""
         lines = [f"A: {self.a}  ({self.headers[0]})", f"B: {self.b}  ({self.headers[1]})"]
-        lines += [f"PROVENANCE: {p}" for p in self.provenance]
+        lines += [f"PROVENANCE: {p}" for p in self.versions + self.configs]
         lines.append(f"grid: {self.grid}")
         lines += [f"not compared (only in one file): {d}" for d in self.dropped]
         lines += [f"ignored: {k} ({why})" for k, why in self.ignored.items()]
@@ -265,24 +270,25 @@ def data_config(text):
     return _flatten(data)
 
 
-def provenance_notes(da, db):
-    """Lines saying how the files' makers differ: versions, and data-relevant config keys."""
+def version_notes(da, db):
+    """Lines naming each of gyrolab/numba/numpy version that differs between the files' makers."""
     notes = []
     for key in VERSION_ATTRS:
         va, vb = da.attrs.get(key), db.attrs.get(key)
         if va != vb:
             notes.append(f"{key} differs: A {va}, B {vb}")
+    return notes
+
+
+def config_notes(da, db):
+    """Lines naming the data-relevant config keys that differ (run-only keys such as output.path skipped)."""
     ca, cb = da.attrs.get("config"), db.attrs.get("config")
     if ca is None or cb is None:
-        if not (ca is None and cb is None):
-            notes.append(f"config recorded only in {'A' if cb is None else 'B'}")
-        return notes
+        return [] if ca is None and cb is None else [f"config recorded only in {'A' if cb is None else 'B'}"]
     fa, fb = data_config(ca), data_config(cb)
     diffs = [f"{k}: A {fa.get(k, '(absent)')}, B {fb.get(k, '(absent)')}"
              for k in sorted(set(fa) | set(fb)) if fa.get(k) != fb.get(k)]
-    if diffs:
-        notes.append("config differs: " + "; ".join(diffs))
-    return notes
+    return ["config differs: " + "; ".join(diffs)] if diffs else []
 
 
 # --------------------------------------------------------------------------- the comparison
@@ -330,13 +336,13 @@ def compare_variable(name, a, b, rtol, atol, exact, dims, coords):
     return vd, (run_ratio, run_rel, run_abs), run_bad
 
 
-def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, names=("A", "B")):
+def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, scaled=None, names=("A", "B")):
     """Compare two opened results Datasets; see ``compare_files``."""
     ignored = dict(IGNORED)
     ignored.update({name: "asked" for name in ignore})
     if da.attrs.get("scene") != db.attrs.get("scene"):
         raise CompareError(f"different scenes: {da.attrs.get('scene')} in A and {db.attrs.get('scene')} in B")
-    notes = provenance_notes(da, db)
+    versions, configs = version_notes(da, db), config_notes(da, db)
     da, db, dropped = align(da, db, shared_runs)
     va = [v for v in da.data_vars if v not in ignored]
     vb = [v for v in db.data_vars if v not in ignored]
@@ -357,7 +363,8 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, n
     shape = tuple(da.sizes[d] for d in RUN_DIMS)
     grid = (f"scene {da.attrs.get('scene', '?')}; " + " x ".join(f"{n} {d}" for d, n in zip(RUN_DIMS, shape))
             + f" = {int(np.prod(shape))} runs; {da.sizes['time']} samples, t = 0 to {coords['time'][-1]:g} s")
-    report = Report(a=names[0], b=names[1], headers=[_header(da), _header(db)], provenance=notes, grid=grid,
+    report = Report(a=names[0], b=names[1], headers=[_header(da), _header(db)], versions=versions, configs=configs,
+                    grid=grid,
                     ignored={k: v for k, v in ignored.items() if k in da.data_vars or k in db.data_vars},
                     dropped=dropped, n_runs=int(np.prod(shape)))
     best = [np.full(shape, -1.0), np.full(shape, -1.0), np.zeros(shape)]  # ratio, rel, abs of the worst variable
@@ -370,7 +377,7 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, n
         a, b = xa.values, xb.transpose(*xa.dims).values
         exact = name in EXACT or not np.issubdtype(a.dtype, np.floating)
         vd, per_run, run_bad = compare_variable(name, a, b, tolerance_for(rtol, name),
-                                                tolerance_for(atol, name), exact, xa.dims, coords)
+                                                variable_atol(atol, scaled, name, b), exact, xa.dims, coords)
         report.variables.append(vd)
         better = (per_run[0] > best[0]) | ((per_run[0] == best[0]) & (per_run[1] > best[1]))
         for mine, theirs in zip(best, per_run):
@@ -386,18 +393,32 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, n
     return report
 
 
-def compare_files(a, b, rtol=0.0, atol=0.0, ignore=(), shared_runs=False):
+def variable_atol(atol, scaled, name, reference):
+    """atol of one variable: given for it by name, else the larger of the default atol and
+    ``scaled`` × its largest finite |value| in the reference (B)."""
+    if isinstance(atol, dict) and name in atol:
+        return float(atol[name])
+    value = tolerance_for(atol, name)
+    if scaled and np.issubdtype(reference.dtype, np.floating):
+        finite = np.abs(reference[np.isfinite(reference)])
+        value = max(value, scaled * float(finite.max()) if finite.size else 0.0)
+    return value
+
+
+def compare_files(a, b, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, scaled=None):
     """Compare results files ``a`` and ``b`` (paths) variable by variable.
 
     rtol, atol: a number for every variable or a dict {variable: value, "*": default};
     a point passes when |a−b| <= atol + rtol·max(|a|,|b|) (atol in the variable's units).
+    ``scaled``: atol of each variable not named in ``atol`` becomes at least ``scaled`` × its
+    largest |value| in b.
     ``ignore``: more variables to skip (wall_time always is).  ``shared_runs``: compare only
     the runs present in both files.  Returns a Report; raises CompareError (one-line
     message) when the files cannot be compared.
     """
     da = open_results(a, "A")
     db = open_results(b, "B")
-    return compare_datasets(da, db, rtol, atol, ignore, shared_runs, names=(str(a), str(b)))
+    return compare_datasets(da, db, rtol, atol, ignore, shared_runs, scaled, names=(str(a), str(b)))
 
 
 # --------------------------------------------------------------------------- command line
@@ -406,6 +427,16 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message):
         sys.stderr.write(f"gyrolab-compare: error: {message}\n")
         sys.exit(EXIT_INCOMPARABLE)
+
+
+def _non_negative(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text}: not a number") from None
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"{text}: must be a finite number >= 0")
+    return value
 
 
 def build_parser():
@@ -419,6 +450,8 @@ def build_parser():
     p.add_argument("--atol", action="append", metavar="[VAR=]X",
                    help="absolute tolerance in the variable's units, for every variable or for VAR "
                         "(repeatable; default 0)")
+    p.add_argument("--scaled", type=_non_negative, metavar="X",
+                   help="atol of each variable not given by --atol VAR=: at least X times its largest |value| in B")
     p.add_argument("--ignore", action="append", default=[], metavar="VAR",
                    help="skip a variable (repeatable); wall_time is always skipped")
     p.add_argument("--shared-runs", action="store_true",
@@ -431,7 +464,7 @@ def main(argv=None):
     try:
         rtol = parse_tolerances(args.rtol, "--rtol")
         atol = parse_tolerances(args.atol, "--atol")
-        report = compare_files(args.a, args.b, rtol, atol, args.ignore, args.shared_runs)
+        report = compare_files(args.a, args.b, rtol, atol, args.ignore, args.shared_runs, args.scaled)
     except CompareError as err:
         kind = "error" if isinstance(err, OptionError) else "cannot compare"
         sys.stderr.write(f"gyrolab-compare: {kind}: {err}\n")
