@@ -148,6 +148,9 @@ def main(argv=None):
     parser.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     args = parser.parse_args(argv)
     try:
+        for path in args.paths:
+            if not Path(path).exists():
+                raise CombineError(f"{path}: no such file or directory")
         if args.output is None:
             if len(args.paths) != 1 or not Path(args.paths[0]).is_dir():
                 raise CombineError("-o/--output: needed unless one directory is given")
