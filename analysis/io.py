@@ -1,0 +1,196 @@
+"""Reading stored results and choosing runs: the helpers every figure shares.
+
+A results file (SPEC §4) opens as an xarray Dataset with dims
+``method, f, theta0, dt, time, xyz``.  A *selection* is a dict (or the CLI
+text ``method=seed_next,rk4 f=10 dt=1e-4``) of coordinate values; numbers
+match their coordinate to a relative 1e-9, so ``dt=1e-4`` finds 0.0001.
+"""
+import math
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # analysis is headless: files, never windows
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import xarray as xr  # noqa: E402
+
+GRID_DIMS = ("method", "f", "theta0", "dt")
+FORMATS = ("png", "svg", "pdf")
+# One colour per registered method (stable across figures), then peers.
+METHOD_COLORS = {
+    "seed_next": "#d62728",
+    "seed_prev": "#1f77b4",
+    "rk4": "#2ca02c",
+    "lie_poisson": "#9467bd",
+    "lie_poisson4": "#ff7f0e",
+    "DOP853": "#000000",
+    "RK45": "#7f7f7f",
+}
+DT_STYLES = ("-", "--", ":", "-.")
+QUANTITY_LABELS = {"energy": "E", "Lz": "L_z", "L3": "L_3"}
+
+
+class SelectionError(ValueError):
+    """A selection naming a coordinate or value the file does not have (one-line message)."""
+
+
+def open_results(path):
+    """The results Dataset of ``path`` loaded into memory (file closed afterwards)."""
+    path = Path(path)
+    if not path.is_file():
+        raise SelectionError(f"FILE={path}: no such results file")
+    try:
+        with xr.open_dataset(path, engine="h5netcdf") as ds:
+            ds = ds.load()
+    except (OSError, ValueError) as err:
+        raise SelectionError(f"FILE={path}: not a gyrolab results file ({err})") from None
+    missing = [d for d in GRID_DIMS + ("time",) if d not in ds.dims]
+    if missing:
+        raise SelectionError(f"FILE={path}: not a gyrolab results file (no dimension {missing[0]!r})")
+    return ds
+
+
+def parse_selection(words):
+    """``["method=seed_next,rk4", "f=10"]`` -> {"method": ["seed_next", "rk4"], "f": [10.0]}."""
+    sel = {}
+    for word in words or ():
+        for item in str(word).split():
+            key, eq, value = item.partition("=")
+            if not eq or key not in GRID_DIMS:
+                raise SelectionError(
+                    f"{item}: a selection is KEY=VALUE[,VALUE...] with KEY in {', '.join(GRID_DIMS)}"
+                )
+            values = [v for v in value.split(",") if v]
+            if not values:
+                raise SelectionError(f"{item}: no value given for {key}")
+            if key != "method":
+                try:
+                    values = [float(v) for v in values]
+                except ValueError:
+                    raise SelectionError(f"{key}={value}: not a number") from None
+            sel[key] = values
+    return sel
+
+
+def _match(coord, wanted, key):
+    """Coordinate values of ``coord`` matching ``wanted`` (numbers to rel. 1e-9)."""
+    out = []
+    have = coord.values
+    for w in wanted:
+        if key == "method":
+            hits = [v for v in have if str(v) == str(w)]
+        else:
+            hits = [v for v in have if math.isclose(float(v), float(w), rel_tol=1e-9, abs_tol=1e-12)]
+        if not hits:
+            shown = ", ".join(f"{v:g}" if key != "method" else str(v) for v in have)
+            raise SelectionError(f"{key}={w}: not in this file ({key} has {shown})")
+        out.extend(hits)
+    return out
+
+
+def select(ds, sel=None):
+    """Sub-Dataset with the grid values named in ``sel`` (dict of scalars or lists); dims kept."""
+    sel = sel or {}
+    idx = {}
+    for key, wanted in sel.items():
+        if wanted is None:
+            continue
+        if key not in GRID_DIMS:
+            raise SelectionError(f"{key}: not a grid axis (choose from {', '.join(GRID_DIMS)})")
+        wanted = wanted if isinstance(wanted, (list, tuple, np.ndarray)) else [wanted]
+        idx[key] = _match(ds[key], wanted, key)
+    return ds.sel(idx) if idx else ds
+
+
+def pick(ds, key, value=None, prefer="first"):
+    """One value of grid axis ``key``: ``value`` if given (checked), else first/last/smallest."""
+    if value is not None:
+        return _match(ds[key], [value], key)[0]
+    values = ds[key].values
+    if prefer == "min":
+        return values.min()
+    if prefer == "last":
+        return values[-1]
+    return values[0]
+
+
+def scene_options(ds):
+    """{option: value} of the scene, from the file attrs ``scene_<key>``."""
+    opts = {}
+    for key, value in ds.attrs.items():
+        if key.startswith("scene_"):
+            if isinstance(value, bytes):
+                value = value.decode()
+            if isinstance(value, np.generic):
+                value = value.item()
+            opts[key[len("scene_"):]] = value
+    return opts
+
+
+def scene_name(ds):
+    name = ds.attrs.get("scene", "heavy_top")
+    return name.decode() if isinstance(name, bytes) else str(name)
+
+
+def build_run_scene(ds, f, theta0):
+    """The kernel Scene of grid point (f Hz, theta0 deg) of this file."""
+    from ..kernels.scenes import build_scene
+
+    return build_scene(scene_name(ds), float(f), float(theta0), **scene_options(ds))
+
+
+def scene_label(ds):
+    """Short text naming the scene and its non-default options, e.g. 'heavy_top (release)'."""
+    name = scene_name(ds)
+    opts = scene_options(ds)
+    extra = []
+    if name == "heavy_top":
+        init = opts.get("init", "release")
+        extra.append(init if init != "precession" else f"precession, φ̇0 = {opts.get('phidot0', 0):g} rad/s")
+    return f"{name} ({', '.join(extra)})" if extra else name
+
+
+def fmt_dt(dt):
+    """1e-4 -> '1e-04 s' style label text (compact)."""
+    return f"dt = {float(dt):.0e} s".replace("e-0", "e-")
+
+
+def run_ok(ds_run):
+    return int(ds_run["status"].values) == 0
+
+
+def relative_error(values, reference=None):
+    """|x(t) − x0| / |x0| along the last axis (x0 = first sample unless given).
+
+    When |x0| is tiny next to the run's scale (e.g. L_z ≈ 0), the run's
+    largest |x| is the denominator instead, so the ratio stays meaningful.
+    """
+    values = np.asarray(values, dtype=float)
+    x0 = values[..., :1] if reference is None else np.asarray(reference, dtype=float)[..., None]
+    scale = np.abs(x0)
+    big = np.nanmax(np.abs(values), axis=-1, keepdims=True)
+    scale = np.where(scale > 1e-9 * big, scale, big)
+    return np.abs(values - x0) / scale
+
+
+FLOOR = 1e-17  # plotted instead of an exact 0 on log axes (below double precision)
+
+
+def save_figure(fig, out, formats=("png",)):
+    """Save ``fig`` to ``out`` (its suffix replaced by each format); return the PNG/first path."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for fmt in formats:
+        if fmt not in FORMATS:
+            raise SelectionError(f"--format={fmt}: choose from {', '.join(FORMATS)}")
+        p = out.with_suffix("." + fmt)
+        fig.savefig(p, dpi=110 if fmt == "png" else None, bbox_inches="tight")
+        paths.append(p)
+    plt.close(fig)
+    return paths[0]
+
+
+def color(method):
+    return METHOD_COLORS.get(str(method), None)

@@ -1,0 +1,158 @@
+"""Analysis figures: content checks (lines per method, units, log scales, reference lines), CLI behaviour."""
+import math
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from test_analysis_data import results_file, single_run_file  # noqa: E402,F401
+
+from gyrolab.analysis import cli  # noqa: E402
+from gyrolab.analysis.energy import drift_figure, drift_table, invariants_figure  # noqa: E402
+from gyrolab.analysis.figures import standard_figures, thin  # noqa: E402
+from gyrolab.analysis.io import METHOD_COLORS, SelectionError, open_results, parse_selection, select  # noqa: E402
+from gyrolab.analysis.nutation import closed_form_nutation, theta_figure, tip_locus_figure  # noqa: E402
+from gyrolab.kernels.closed_form import heavy_top_nutation  # noqa: E402
+from gyrolab.kernels.scenes import build_scene  # noqa: E402
+
+
+def lines_of(ax, method):
+    """Data lines (more than 2 points) drawn in ``method``'s colour."""
+    want = matplotlib.colors.to_rgba(METHOD_COLORS[method])
+    return [ln for ln in ax.get_lines() if len(ln.get_xdata()) > 2 and matplotlib.colors.to_rgba(ln.get_color()) == want]
+
+
+@pytest.fixture(autouse=True)
+def close_figures():
+    yield
+    plt.close("all")
+
+
+def test_selection_parsing_and_matching(results_file):
+    ds = open_results(results_file)
+    sel = parse_selection(["method=seed_next,rk4", "dt=5e-4"])
+    assert sel == {"method": ["seed_next", "rk4"], "dt": [5e-4]}
+    sub = select(ds, sel)
+    assert list(sub.method.values) == ["seed_next", "rk4"] and sub.dt.size == 1
+    with pytest.raises(SelectionError, match="f=7"):
+        select(ds, {"f": [7.0]})
+    with pytest.raises(SelectionError, match="KEY=VALUE"):
+        parse_selection(["speed=3"])
+
+
+def test_theta_figure_lines_and_closed_form_bounds(results_file):
+    ds = open_results(results_file)
+    fig = theta_figure(ds)  # default: largest dt, every method, one row per f
+    axes = np.array(fig.axes).reshape(2, -1)
+    for row, f in zip(axes, (10.0, 50.0)):
+        ax = row[0]
+        assert "(deg)" in ax.get_ylabel() and "(s)" in ax.get_xlabel()
+        for m in ds.method.values:
+            assert len(lines_of(ax, str(m))) == 1, m  # one line per method at the single dt drawn
+        nut = heavy_top_nutation(build_scene("heavy_top", f, 45.0))
+        levels = sorted(ln.get_ydata()[0] for ln in ax.get_lines() if len(ln.get_ydata()) == 2)
+        assert levels == pytest.approx([math.degrees(nut.theta_min), math.degrees(nut.theta_max)], abs=1e-9)
+        # rk4 at dt = 1e-3 stays inside the closed-form band to a tenth of a degree over the window drawn
+        (rk4,) = lines_of(ax, "rk4")
+        y = rk4.get_ydata()
+        assert y.min() > levels[0] - 0.1 and y.max() < levels[1] + 0.1
+
+
+def test_theta_figure_draws_each_dt_when_asked(results_file):
+    fig = theta_figure(open_results(results_file), {"dt": [1e-3, 5e-4], "f": [50.0]})
+    ax = fig.axes[0]
+    assert len(lines_of(ax, "seed_prev")) == 2
+    assert {ln.get_linestyle() for ln in lines_of(ax, "seed_prev")} == {"-", "--"}
+
+
+def test_tip_locus_is_the_stored_axis(results_file):
+    ds = open_results(results_file)
+    fig = tip_locus_figure(ds, method="rk4", f=50.0, dt=5e-4)
+    (ax,) = fig.axes
+    (trace,) = lines_of(ax, "rk4")
+    run = ds.sel({"method": "rk4", "f": 50.0, "theta0": 45.0, "dt": 5e-4})
+    n = len(trace.get_xdata())
+    np.testing.assert_array_equal(trace.get_xdata(), run.axis.values[:n, 0])
+    np.testing.assert_array_equal(trace.get_ydata(), run.axis.values[:n, 1])
+    assert ax.get_aspect() == 1.0
+    # the closed-form annulus: two dashed circles of radius sin θ_min, sin θ_max
+    nut = closed_form_nutation(ds, 50.0, 45.0)
+    radii = sorted(np.hypot(ln.get_xdata(), ln.get_ydata()).mean() for ln in ax.get_lines()
+                   if len(ln.get_xdata()) == 361)
+    assert radii == pytest.approx(sorted([math.sin(nut.theta_min), math.sin(nut.theta_max)]), rel=1e-6)
+    assert "rk4" in fig._suptitle.get_text() and "f = 50 Hz" in ax.get_title()
+
+
+def test_energy_drift_log_scale_lines_per_method_and_dt(results_file):
+    ds = open_results(results_file)
+    fig = drift_figure(ds, "energy")
+    assert len(fig.axes) == 2  # one panel per f
+    for ax in fig.axes:
+        assert ax.get_yscale() == "log"
+        assert ax.get_xlabel() == "time t (s)"
+        for m in ds.method.values:
+            assert len(lines_of(ax, str(m))) == ds.dt.size
+    # The write-up's claim as the figure shows it: seed_prev's curve ends far above seed_next's.
+    ax = fig.axes[0]
+    end = {m: max(ln.get_ydata()[-1] for ln in lines_of(ax, m)) for m in ("seed_next", "seed_prev")}
+    assert end["seed_prev"] > 10 * end["seed_next"]
+
+
+def test_drift_table_matches_stored_energy(results_file):
+    ds = open_results(results_file)
+    table = drift_table(ds, "energy")
+    e = ds.energy.sel({"method": "rk4", "f": 10.0, "theta0": 45.0, "dt": 1e-3}).values
+    worst, final = table[("rk4", 10.0, 45.0, 1e-3)]
+    assert worst == pytest.approx(np.abs(e - e[0]).max() / abs(e[0]), rel=1e-12)
+    assert final == pytest.approx(abs(e[-1] - e[0]) / abs(e[0]), rel=1e-12)
+
+
+def test_invariants_figure_marks_exact_L3(results_file):
+    fig = invariants_figure(open_results(results_file))
+    axes = np.array(fig.axes).reshape(3, 2)
+    assert all(ax.get_yscale() == "log" for ax in axes.ravel())
+    assert "L_z" in axes[1, 0].get_ylabel() and "L_3" in axes[2, 0].get_ylabel()
+    # I1 = I2: every method keeps ω3, hence L3, to the last bit: drawn at the floor and said so
+    assert any("exactly conserved" in t.get_text() for t in axes[2, 0].texts)
+
+
+def test_standard_figures_default_and_single_run(results_file, single_run_file, tmp_path):
+    paths = standard_figures(results_file, tmp_path / "a")
+    assert [p.name for p in paths] == ["nutation_theta.png", "tip_locus.png", "energy_drift.png", "invariants.png"]
+    assert all(p.stat().st_size > 10_000 for p in paths)
+    one = standard_figures(single_run_file, tmp_path / "b")
+    assert len(one) == 4
+
+
+def test_thin_keeps_ends():
+    import xarray as xr
+
+    ds = xr.Dataset(coords={"f": np.arange(10.0), "dt": [1e-3], "theta0": [45.0]})
+    assert thin(ds) == {"f": [0.0, 3.0, 6.0, 9.0]}
+
+
+def test_cli_writes_and_refuses(results_file, tmp_path, capsys):
+    out = tmp_path / "e.png"
+    assert cli.main(["energy", str(results_file), "method=rk4", "--quantity", "Lz", "-o", str(out)]) == 0
+    assert out.stat().st_size > 10_000
+    bad = tmp_path / "bad.png"
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["nutation", str(results_file), "f=7", "-o", str(bad)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "f=7" in err[0]
+    assert not bad.exists()
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["energy", str(tmp_path / "missing.h5")])
+    assert exc.value.code == 2
+
+
+@pytest.mark.parametrize("kind", ["nutation", "tip", "energy", "invariants", "work-precision", "stability",
+                                  "animation", "seed", "standard"])
+def test_cli_help(kind, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main([kind, "--help"])
+    assert exc.value.code == 0
+    assert "usage: gyrolab-plot" in capsys.readouterr().out
