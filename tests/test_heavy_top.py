@@ -14,7 +14,6 @@ from scipy.integrate import cumulative_trapezoid, quad
 from scipy.special import ellipk
 
 import gyrolab
-from gyrolab.kernels import closed_form
 from gyrolab.kernels.closed_form import heavy_top_nutation, nutation_roots
 from gyrolab.kernels.reference import _rhs as reference_rhs
 from gyrolab.kernels.reference import dop853
@@ -101,7 +100,8 @@ def test_release_roots_match_the_quadratic():
 
 
 def test_period_quadrature_matches_ellipk():
-    """The smooth substitution u = u1 + (u2 − u1) sin² s gives T = 4 ∫ ds / √(β (u3 − u)); it equals 4K(m)/√(β(u3 − u1))."""
+    """The substitution u = u1 + (u2 − u1) sin² s gives T = 4 ∫ ds / √(β (u3 − u)) over [0, π/2];
+    it equals 4K(m)/√(β(u3 − u1))."""
     sc = build_scene("heavy_top", 10.0, 30.0)
     u1, u2, u3 = nutation_roots(sc)
     beta = 2 * sc.body[3] / sc.body[0]

@@ -30,7 +30,8 @@ def test_quat_from_rotvec_matches_scipy(v):
     q = quat_from_rotvec(*v)
     assert abs(sum(x * x for x in q) - 1.0) <= 3 * np.finfo(float).eps
     # Matrix entries are O(1); 8 eps covers the rounding of both constructions.
-    np.testing.assert_allclose(ck_matrix(q), Rotation.from_rotvec(v).as_matrix(), rtol=0, atol=8e-16 * (1 + np.linalg.norm(v)))
+    np.testing.assert_allclose(ck_matrix(q), Rotation.from_rotvec(v).as_matrix(),
+                               rtol=0, atol=8e-16 * (1 + np.linalg.norm(v)))
 
 
 def test_small_angle_branch_matches_libm_to_2_ulp():
