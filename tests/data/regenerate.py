@@ -43,12 +43,11 @@ def gyrolab_command():
     return found
 
 
-def run_config(name, out, workdir):
-    """Run ``gyrolab experiment=regression_<name>`` writing ``out``; Hydra's run dir inside ``workdir``.
-
-    Raises RuntimeError with gyrolab's stderr if the command fails."""
+def run_config(name, out, workdir, overrides=()):
+    """Run ``gyrolab experiment=regression_<name> [overrides]`` writing ``out``; Hydra's run dir
+    inside ``workdir``.  Raises RuntimeError with gyrolab's stderr if the command fails."""
     cmd = [gyrolab_command(), f"experiment=regression_{name}", f"output.path={Path(out).resolve()}",
-           "output.overwrite=true", f"hydra.run.dir={Path(workdir).resolve() / ('run_' + name)}"]
+           "output.overwrite=true", f"hydra.run.dir={Path(workdir).resolve() / ('run_' + name)}", *overrides]
     done = subprocess.run(cmd, capture_output=True, text=True, cwd=workdir)
     if done.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} exited {done.returncode}: {done.stderr.strip()[-2000:]}")

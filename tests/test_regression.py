@@ -1,0 +1,199 @@
+"""Regression: re-run every regression config with the real ``gyrolab`` command and compare the
+fresh file with its stored dataset in tests/data/, using gyrolab-compare's own ``compare_files``.
+
+Tolerance (tests/data/README.md explains the numbers): a value passes when
+|fresh − stored| <= 1e-10 × the largest |value| of that variable in the stored
+file; status and n_steps exactly.  Last-bit changes (what another CPU's libm
+or another numba could bring) move these datasets by at most ~5e-13 of that
+scale; a 6e-5 relative change in one coefficient of lie_poisson4 moves them by
+~1e-8 (test_coefficient_change_fails_with_a_readable_message).
+"""
+import importlib.resources
+import importlib.util
+import shutil
+import warnings
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import xarray as xr
+import yaml
+from numba import njit
+
+import gyrolab
+
+from gyrolab.analysis.compare import compare_files
+from gyrolab.kernels.batch import sample_schedule
+from gyrolab.kernels.driver import make_advance
+from gyrolab.kernels.lie_poisson import step as strang_step
+from gyrolab.kernels.registry import METHODS
+from gyrolab.kernels.scenes import SCENES, build_scene
+from gyrolab.runner.dataset import sample_variables
+
+_spec = importlib.util.spec_from_file_location("regenerate", Path(__file__).parent / "data" / "regenerate.py")
+regen = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(regen)
+
+MAX_TOTAL_BYTES = 5 * 2**20
+
+
+def check_against_stored(fresh, name, stored=None):
+    """Fail with the comparison table (and how to regenerate) unless ``fresh`` matches the stored
+    dataset of regression config ``name`` (or the file ``stored``) and was made by the same config."""
+    stored = Path(stored or regen.stored_path(name))
+    report = compare_files(fresh, stored, scaled=regen.SCALED_TOL)
+    hint = (f"If the change is intended, regenerate on purpose and commit the new file:\n"
+            f"    python tests/data/regenerate.py --write {name}")
+    text = f"A = fresh run, B = {stored.name}\n{report.text()}\n{hint}"
+    if report.configs:
+        pytest.fail(f"{stored.name} was made with a different config than "
+                    f"conf/experiment/regression_{name}.yaml now holds\n{text}", pytrace=False)
+    if report.versions:
+        warnings.warn(f"{stored.name}: {'; '.join(report.versions)} (compared within tolerance anyway)")
+    if not report.ok:
+        pytest.fail(f"regression {name}: fresh run differs from the stored dataset\n{text}", pytrace=False)
+    return report
+
+
+@pytest.fixture(scope="module")
+def fresh(tmp_path_factory):
+    """``fresh(name)``: path of a fresh run of regression config ``name`` (each run once per module)."""
+    work = tmp_path_factory.mktemp("regression")
+    done = {}
+
+    def get(name):
+        if name not in done:
+            done[name] = regen.run_config(name, work / f"regression_{name}.h5", work)
+        return done[name]
+
+    return get
+
+
+@pytest.mark.parametrize("name", regen.DATASETS)
+def test_rerun_matches_stored_dataset(fresh, name):
+    check_against_stored(fresh(name), name)
+
+
+def test_same_machine_rerun_is_bit_identical(fresh, tmp_path):
+    """The most sensitive dataset (tennis-racket flip) twice, with 1 thread and with all: identical bits."""
+    first = fresh("free_asymmetric")
+    again = regen.run_config("free_asymmetric", tmp_path / "again.h5", tmp_path, ["runner.threads=1"])
+    report = compare_files(again, first)  # zero tolerance
+    assert report.ok, report.text()
+
+
+def test_stored_dataset_from_another_config_or_version_is_named_up_front(fresh, tmp_path):
+    """A stored file whose recorded config (g) and gyrolab version differ: the check fails on the
+    config, and the first lines of its message say what differs."""
+    copy = tmp_path / "old.h5"
+    shutil.copyfile(regen.stored_path("heavy_top_release"), copy)
+    with h5py.File(copy, "r+") as fh:
+        config = yaml.safe_load(fh.attrs["config"])
+        config["scene"]["g"] = 9.81
+        fh.attrs["config"] = yaml.safe_dump(config, sort_keys=False)
+        fh.attrs["gyrolab_version"] = "0.0.9"
+    with pytest.raises(pytest.fail.Exception) as failure:
+        check_against_stored(fresh("heavy_top_release"), "heavy_top_release", stored=copy)
+    lines = str(failure.value).splitlines()
+    assert lines[0] == ("old.h5 was made with a different config than "
+                        "conf/experiment/regression_heavy_top_release.yaml now holds")
+    assert lines[4] == f"PROVENANCE: gyrolab_version differs: A {gyrolab.__version__}, B 0.0.9"
+    assert lines[5] == "PROVENANCE: config differs: scene.g: A 10.0, B 9.81"
+
+
+def test_every_regression_config_has_a_stored_dataset():
+    experiments = importlib.resources.files("gyrolab.conf") / "experiment"
+    configs = sorted(p.name[len("regression_"):-len(".yaml")] for p in experiments.iterdir()
+                     if p.name.startswith("regression_") and p.name.endswith(".yaml"))
+    assert configs == sorted(regen.DATASETS)
+    stored = sorted(p.name for p in regen.DATA_DIR.glob("*.h5"))
+    assert stored == sorted(f"regression_{n}.h5" for n in regen.DATASETS)
+
+
+def test_stored_datasets_open_are_small_and_cover_every_scene_and_method():
+    total, scenes, inits = 0, set(), set()
+    for name in regen.DATASETS:
+        path = regen.stored_path(name)
+        total += path.stat().st_size
+        with xr.open_dataset(path, engine="h5netcdf") as ds:
+            config = yaml.safe_load(ds.attrs["config"])
+            assert ds.attrs["scene"] == config["scene"]["name"]
+            assert sorted(ds["method"].values.tolist()) == sorted(METHODS), name
+            assert (ds["status"].values == 0).all(), f"{name}: a run diverged"
+            assert ds.attrs["gyrolab_version"] and ds.attrs["numba_version"] and ds.attrs["git_commit"]
+            scenes.add(ds.attrs["scene"])
+            if ds.attrs["scene"] == "heavy_top":
+                inits.add(ds.attrs["scene_init"])
+    assert total < MAX_TOTAL_BYTES, f"stored datasets take {total / 2**20:.2f} MB"
+    assert scenes == set(SCENES)
+    assert {"release", "steady_slow"} <= inits
+
+
+# --------------------------------------------------------------------------- a deliberate coefficient change
+
+def _lie_poisson4_with(w1):
+    """A serial batch kernel of lie_poisson4 with the outer Yoshida weight ``w1`` (middle 1 − 2 w1)."""
+    w0 = 1.0 - 2.0 * w1
+
+    @njit
+    def step(w, q, dt, body):
+        w, q = strang_step(w, q, w1 * dt, body)
+        w, q = strang_step(w, q, w0 * dt, body)
+        return strang_step(w, q, w1 * dt, body)
+
+    advance = make_advance(step)
+
+    @njit
+    def run_batch(w0_, q0_, bodies, dts, strides, threshold, out, status, n_steps):
+        for i in range(w0_.shape[0]):
+            advance(i, w0_, q0_, bodies, dts, strides, threshold, out, status, n_steps)
+
+    return run_batch
+
+
+def overwrite_method(path, method, run_batch):
+    """Recompute every run of ``method`` in the results file ``path`` (in place) with ``run_batch``."""
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        config = yaml.safe_load(ds.attrs["config"])
+        methods = ds["method"].values.tolist()
+        fs, thetas, dts = ds["f"].values, ds["theta0"].values, ds["dt"].values
+    options = dict(config["scene"])
+    name = options.pop("name")
+    im = methods.index(method)
+    with h5py.File(path, "r+") as fh:
+        for jf, f in enumerate(fs):
+            for kt, theta0 in enumerate(thetas):
+                for ld, dt in enumerate(dts):
+                    sc = build_scene(name, float(f), float(theta0), **options)
+                    stride, n = sample_schedule(float(dt), config["output"]["every"], config["sweep"]["t_end"])
+                    out = np.empty((1, n, 9))
+                    status, n_steps = np.zeros(1, np.int8), np.zeros(1, np.int64)
+                    run_batch(np.array([sc.omega0]), np.array([sc.q0]), np.array([sc.body]), np.array([float(dt)]),
+                              np.array([stride]), config["runner"]["divergence_threshold"], out, status, n_steps)
+                    for var, values in sample_variables(out[0]).items():
+                        fh[var][im, jf, kt, ld] = values
+                    fh["status"][im, jf, kt, ld] = status[0]
+                    fh["n_steps"][im, jf, kt, ld] = n_steps[0]
+
+
+def test_coefficient_change_fails_with_a_readable_message(tmp_path):
+    """Yoshida's w1 = 1/(2 − 2^(1/3)) with 2^(1/3) written as 1.26 (a 6e-5 relative change):
+    the regression check of a copy of the stored file must fail and name lie_poisson4."""
+    copy = tmp_path / "perturbed.h5"
+    shutil.copyfile(regen.stored_path("heavy_top_release"), copy)
+    overwrite_method(copy, "lie_poisson4", _lie_poisson4_with(1.0 / (2.0 - 1.26)))
+    with pytest.raises(pytest.fail.Exception) as failure:
+        check_against_stored(copy, "heavy_top_release")
+    message = str(failure.value)
+    print(message)  # what a developer sees (pytest -s)
+    assert "regression heavy_top_release: fresh run differs from the stored dataset" in message
+    assert "run differing most: method=lie_poisson4" in message
+    assert "out of tolerance in 2 of 10 runs" in message  # lie_poisson4 at both dt, nothing else
+    assert "python tests/data/regenerate.py --write heavy_top_release" in message
+    report = compare_files(copy, regen.stored_path("heavy_top_release"), scaled=regen.SCALED_TOL)
+    worst = max((v for v in report.variables if not v.ok), key=lambda v: v.max_abs / max(v.atol, 1e-300))
+    assert worst.max_abs > 10 * worst.atol  # fails by a wide margin, not by a hair
+    # the same copy with the true coefficient passes again: the check is about the coefficient
+    overwrite_method(copy, "lie_poisson4", _lie_poisson4_with(1.0 / (2.0 - 2.0 ** (1.0 / 3.0))))
+    check_against_stored(copy, "heavy_top_release")
