@@ -308,6 +308,14 @@ def _diff_block(a, b, exact):
     return d, rel, scale, one_nan
 
 
+def _first_largest(key, tiebreak):
+    """Flat index of the largest ``key`` (ties: largest ``tiebreak``, then the first in C order,
+    i.e. the earliest time: where a NaN-filled divergence starts)."""
+    key, tiebreak = key.ravel(), tiebreak.ravel()
+    top = np.lexsort((tiebreak, key))[-1]
+    return int(np.flatnonzero((key == key[top]) & (tiebreak == tiebreak[top]))[0])
+
+
 def compare_variable(name, a, b, rtol, atol, exact, dims, coords):
     """VariableDiff of one variable from aligned arrays a, b with dims ``dims``; also the per-run
     maxima (|a−b| / tolerance, relative difference, |a−b|) as arrays over RUN_DIMS and the
@@ -325,8 +333,7 @@ def compare_variable(name, a, b, rtol, atol, exact, dims, coords):
     vd.max_rel = float(np.nanmax(finite_rel)) if np.isfinite(finite_rel).any() else (
         math.inf if np.isinf(rel).any() else 0.0)
     if d.size and d.max() > 0:
-        k = np.lexsort((rel.ravel(), ratio.ravel()))[-1]
-        at = np.unravel_index(k, d.shape)
+        at = np.unravel_index(_first_largest(ratio, rel), d.shape)
         vd.worst = {dim: coords[dim][i] for dim, i in zip(dims, at)}
     sample_axes = tuple(range(len(RUN_DIMS), d.ndim))
     run_ratio = ratio.max(axis=sample_axes) if sample_axes else ratio
@@ -385,7 +392,7 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
         best_var[better] = name
         any_bad |= run_bad
     report.bad_runs = int(any_bad.sum())
-    k = np.lexsort((best[1].ravel(), best[0].ravel()))[-1]
+    k = _first_largest(best[0], best[1])
     if best[0].ravel()[k] > 0:
         at = np.unravel_index(k, shape)
         report.worst_run = {d: coords[d][i] for d, i in zip(RUN_DIMS, at)}
@@ -440,7 +447,7 @@ def _non_negative(text):
 
 
 def build_parser():
-    p = _Parser(prog="gyrolab-compare", description=__doc__.split("\n\n")[0],
+    p = _Parser(prog="gyrolab-compare", description="Compare two gyrolab results files variable by variable.",
                 formatter_class=argparse.RawDescriptionHelpFormatter,
                 epilog="exit status: 0 within tolerance, 1 out of tolerance, 2 cannot compare")
     p.add_argument("a", help="results file A (e.g. a fresh run)")

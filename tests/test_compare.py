@@ -157,6 +157,7 @@ def test_nan_in_both_is_equal_nan_against_number_is_not(pair):
     report = compare_files(a, both, rtol=1.0, atol=1.0)  # NaN vs number fails whatever the tolerance
     theta = next(v for v in report.variables if v.name == "theta")
     assert not report.ok and theta.n_bad == theta.n_nan == 4
+    assert theta.worst == {**at, "theta0": 45.0, "time": 0.07}  # where the divergence starts
     assert "NaN in one file, a number in the other" in report.text()
     assert "4/88 (4 NaN)" in report.text()
 
