@@ -36,7 +36,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from .config import ConfigError, config_hash, register_configs
 from .grid import build_grid, estimate_seconds, plan_chunks
-from .store import Journal, OutputLock, partial_dir, temp_path, write_results
+from .store import Journal, OutputLock, assemble, partial_dir
 
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
@@ -225,9 +225,6 @@ def file_attrs(cfg, grid, threads, chash):
 def run_sweep(cfg, run_dir):
     """Check everything, then run the grid (or only its missing runs) and write the results."""
     import numba
-    from tqdm import tqdm
-
-    from .execute import run_missing, warm_up
 
     grid = build_grid(cfg)
     threads = resolve_threads(cfg.runner.threads)
@@ -243,54 +240,21 @@ def run_sweep(cfg, run_dir):
         dry_run(grid, out, chunks, threads, peak, state)
         return None
     if state == "done":
+        if Journal(out).exists():  # killed between the rename and the clean-up
+            with OutputLock(out):
+                Journal(out).discard()
         print(f"gyrolab: {out} is already complete (same config); nothing to do")
         return str(out)
 
     out.parent.mkdir(parents=True, exist_ok=True)
     numba.set_num_threads(threads)
-    journal = Journal(out)
     started = time.perf_counter()
     with OutputLock(out):
         state = output_state(out, chash, overwrite, resume)  # again, now that we hold the lock
-        if state == "resume":
-            journal.clean_temporaries()
-            done, number = journal.done_runs()
-        else:
-            journal.create({"config_hash": chash, "n_runs": grid.n_runs, "shape": list(grid.shape)})
-            done, number = np.empty(0, dtype=np.int64), 0
-        todo = np.setdiff1d(np.arange(grid.n_runs), done)
-        print(f"gyrolab: {describe(grid)}")
-        if done.size:
-            print(f"gyrolab: resuming: {done.size} runs already done, {todo.size} to go")
-        print(f"gyrolab: writing {out}", flush=True)
-        total_steps = int(grid.steps(todo).sum()) if todo.size else 0
-        bar = tqdm(total=total_steps, unit="step", unit_scale=True, disable=None, dynamic_ncols=True,
-                   desc="gyrolab", postfix=f"runs {done.size}/{grid.n_runs}")
-        counter = {"runs": int(done.size)}
-
-        def progress(runs, steps):
-            counter["runs"] += runs
-            bar.set_postfix_str(f"runs {counter['runs']}/{grid.n_runs}", refresh=False)
-            bar.update(steps)
-
         try:
-            if todo.size:
-                warm_up(grid)
-                run_missing(grid, journal, todo, threads, cfg.runner.chunk_seconds, number, progress)
+            execute(cfg, grid, out, threads, chash, resume=state == "resume", run_dir=run_dir)
         except KeyboardInterrupt:
-            bar.close()
-            print(f"\ngyrolab: interrupted; {counter['runs']} of {grid.n_runs} runs are saved in {journal.dir}.\n"
-                  f"Finish with: {resume_command(run_dir)}", file=sys.stderr)
             sys.exit(EXIT_INTERRUPTED)
-        bar.close()
-        tmp = temp_path(out)
-        try:
-            write_results(tmp, grid, journal.chunks(), file_attrs(cfg, grid, threads, chash))
-            os.replace(tmp, out)
-        finally:
-            if tmp.exists():
-                tmp.unlink()
-        journal.discard()
     elapsed = time.perf_counter() - started
     with h5py.File(out, "r") as fh:
         failed = int((fh["status"][...] != 0).sum())
@@ -299,6 +263,47 @@ def run_sweep(cfg, run_dir):
     if cfg.output.figures:
         make_figures(out)
     return str(out)
+
+
+def execute(cfg, grid, out, threads, chash, resume, run_dir):
+    """Run the missing runs with a progress bar, then assemble the results file (we hold the lock)."""
+    from tqdm import tqdm
+
+    from .execute import run_missing, warm_up
+
+    journal = Journal(out)
+    if resume:
+        journal.clean_temporaries()
+        done, number = journal.done_runs()
+    else:
+        journal.create({"config_hash": chash, "n_runs": grid.n_runs, "shape": list(grid.shape)})
+        done, number = np.empty(0, dtype=np.int64), 0
+    todo = np.setdiff1d(np.arange(grid.n_runs), done)
+    print(f"gyrolab: {describe(grid)}")
+    if done.size:
+        print(f"gyrolab: resuming: {done.size} runs already done, {todo.size} to go")
+    print(f"gyrolab: writing {out}", flush=True)
+    counter = {"runs": int(done.size)}
+    bar = tqdm(total=int(grid.steps(todo).sum()) if todo.size else 0, unit="step", unit_scale=True,
+               disable=None, dynamic_ncols=True, desc="gyrolab", postfix=f"runs {done.size}/{grid.n_runs}")
+
+    def progress(runs, steps):
+        counter["runs"] += runs
+        bar.set_postfix_str(f"runs {counter['runs']}/{grid.n_runs}", refresh=False)
+        bar.update(steps)
+
+    try:
+        if todo.size:
+            warm_up(grid)
+            run_missing(grid, journal, todo, threads, cfg.runner.chunk_seconds, number, progress)
+        bar.close()
+        assemble(out, grid, journal, file_attrs(cfg, grid, threads, chash))
+    except KeyboardInterrupt:
+        bar.close()
+        print(f"\ngyrolab: interrupted; {counter['runs']} of {grid.n_runs} runs are saved in {journal.dir}.\n"
+              f"Finish with: {resume_command(run_dir)}", file=sys.stderr)
+        raise
+    journal.discard()
 
 
 def make_figures(out):

@@ -192,6 +192,21 @@ class Journal:
         return done, next_number
 
 
+def assemble(out, grid, journal, attrs):
+    """Write the results file from the journal into a temporary name, fsync it, rename it to ``out``."""
+    out = Path(out)
+    tmp = temp_path(out)
+    try:
+        write_results(tmp, grid, journal.chunks(), attrs)
+        with open(tmp, "rb") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, out)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    fsync_dir(out.parent)
+
+
 def write_results(path, grid, chunks, attrs):
     """Write the results file at ``path`` (netCDF4/HDF5 via h5netcdf) from chunk dicts.
 

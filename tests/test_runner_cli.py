@@ -155,10 +155,11 @@ def test_ctrl_c_prints_the_command_that_finishes_the_sweep(tmp_path, reference):
 
 def test_second_writer_to_the_same_output_is_refused(tmp_path, reference):
     run = tmp_path / "run"
-    first = start(*TINY, *SLOW, f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=0.3)
+    first = start(*TINY, *SLOW, f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=1.0)
     wait_for(lambda: chunk_count(run) >= 1, first)
     for extra in ([], ["runner.resume=true"], ["output.overwrite=true"]):
         second = gyrolab(*TINY, *SLOW, f"hydra.run.dir={run}", *extra, cwd=tmp_path)
+        assert first.poll() is None, "the first writer finished too soon for this test"
         assert second.returncode == 2, second.stderr
         assert f"another gyrolab (pid {first.pid}) is writing it" in second.stderr
     assert first.wait(timeout=120) == 0, first.communicate()

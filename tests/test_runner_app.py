@@ -1,0 +1,69 @@
+"""What gyrolab does with an existing output, and how Hydra's errors become one line."""
+import pytest
+from hydra import compose, initialize_config_module
+
+from gyrolab.runner.app import describe_hydra_error, output_state, remove_empty_dirs
+from gyrolab.runner.config import ConfigError, register_configs
+from gyrolab.runner.store import Journal
+
+register_configs()
+
+
+@pytest.fixture
+def out(tmp_path):
+    return tmp_path / "results.h5"
+
+
+def test_fresh_output_is_fresh_whatever_the_flags(out):
+    for overwrite in (False, True):
+        for resume in (False, True):
+            assert output_state(out, "h", overwrite, resume) == "fresh"
+
+
+def test_existing_file_needs_overwrite_or_a_matching_resume(out):
+    out.write_bytes(b"not hdf5")
+    with pytest.raises(ConfigError, match="exists; set output.overwrite=true"):
+        output_state(out, "h", False, False)
+    with pytest.raises(ConfigError, match="different config"):
+        output_state(out, "h", False, True)  # unreadable: no hash to match
+    assert output_state(out, "h", True, False) == "fresh"
+
+
+def test_journal_resumes_only_with_the_same_config(out):
+    Journal(out).create({"config_hash": "h"})
+    with pytest.raises(ConfigError, match="runner.resume=true or start over"):
+        output_state(out, "h", False, False)
+    assert output_state(out, "h", False, True) == "resume"
+    with pytest.raises(ConfigError, match="runner.resume=true: .* different config"):
+        output_state(out, "other", False, True)
+    assert output_state(out, "h", True, False) == "fresh"
+
+
+def composition_error(*overrides):
+    with initialize_config_module(config_module="gyrolab.conf", version_base=None):
+        with pytest.raises(Exception) as info:
+            compose("config", overrides=list(overrides))
+    return describe_hydra_error(info.value, list(overrides))
+
+
+@pytest.mark.parametrize(
+    "override, line",
+    [
+        ("sweep.t_end=ten", "sweep.t_end=ten: Value 'ten' of type 'str' could not be converted to Float"),
+        ("scene=plate", "scene=plate: unknown scene; choose from free_asymmetric, free_symmetric, heavy_top"),
+        ("sweep.tend=3", "sweep.tend=3: Key 'tend' not in 'SweepConfig'"),
+        ("sweep.f=5", "sweep.f=5: Invalid value assigned: int is not a ListConfig, list or tuple. "
+                      "(sweep axes are lists, e.g. sweep.f=[10])"),
+    ],
+)
+def test_hydra_errors_become_one_line_with_key_and_value(override, line):
+    assert composition_error(override) == line
+
+
+def test_only_empty_directories_are_removed(tmp_path):
+    (tmp_path / "outputs" / "day" / "time").mkdir(parents=True)
+    (tmp_path / "outputs" / "day" / "other").mkdir()
+    remove_empty_dirs(tmp_path / "outputs" / "day" / "time", tmp_path)
+    assert sorted(p.name for p in (tmp_path / "outputs" / "day").iterdir()) == ["other"]
+    remove_empty_dirs(tmp_path / "outputs" / "day" / "other", tmp_path)
+    assert list(tmp_path.iterdir()) == []
