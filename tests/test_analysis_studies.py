@@ -1,0 +1,118 @@
+"""Study figures (stability map, seed figures, work-precision, animation) on small simulate-built files."""
+import math
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from test_analysis_data import build_dataset, results_file  # noqa: E402,F401
+
+from gyrolab.analysis.animation import animate  # noqa: E402
+from gyrolab.analysis.figures import standard_figures  # noqa: E402
+from gyrolab.analysis.io import open_results  # noqa: E402
+from gyrolab.analysis.seed_figures import load_jobs, next_vs_prev_figure, regimes_figure, seed_figures  # noqa: E402
+from gyrolab.analysis.stability import stability_figure  # noqa: E402
+from gyrolab.analysis.work_precision import work_precision_data, work_precision_figure  # noqa: E402
+
+
+@pytest.fixture(autouse=True)
+def close_figures():
+    yield
+    plt.close("all")
+
+
+def test_stability_map_cells_and_diverged_marks(tmp_path):
+    # With a tight divergence threshold (|E − E0| > 0.2 (T0 + Mgl)) seed_prev's energy gain at the 10 Hz
+    # top stops its runs within 3 s; rk4 stays far below it.
+    path = tmp_path / "stability.h5"
+    ds = build_dataset(path, {"method": ["rk4", "seed_prev"], "f": [2.0, 10.0], "dt": [1e-3, 2e-3]}, t_end=3.0,
+                       every=1e-2, threshold=0.2)
+    assert int(ds.status.sel({"method": "rk4"}).max()) == 0
+    assert int(ds.status.sel({"method": "seed_prev", "f": 10.0}).max()) != 0
+    fig = stability_figure(open_results(path))
+    ax_rk4, ax_prev = fig.axes[:2]
+    assert ax_rk4.get_xscale() == "log" and ax_rk4.get_yscale() == "log"
+    assert ax_rk4.get_xlabel() == "time step dt (s)" and ax_rk4.get_ylabel() == "spin f (Hz)"
+    mesh = ax_rk4.collections[0]
+    values = np.asarray(mesh.get_array()).reshape(2, 2)  # rows f, columns dt
+    e = ds.energy.sel({"method": "rk4", "theta0": 45.0}).values  # (f, dt, time)
+    expected = np.log10(np.abs(e - e[..., :1]).max(axis=-1) / np.abs(e[..., 0]))
+    np.testing.assert_allclose(values, expected, rtol=1e-12)
+    # diverged cells are marked with a red x, ok cells carry their number
+    n_bad = int((ds.status.sel({"method": "seed_prev"}) != 0).sum())
+    crosses = [ln for ln in ax_prev.get_lines() if ln.get_marker() == "x"]
+    assert len(crosses) == n_bad and f"({n_bad} diverged)" in ax_prev.get_title()
+    assert "log10" in fig.axes[-1].get_ylabel()  # the colour bar says what the colour is
+    # the runner's figure step draws the map for a file named stability.h5
+    names = [p.name for p in standard_figures(path, tmp_path / "figs")]
+    assert names[0] == "stability_map.png"
+
+
+@pytest.fixture(scope="module")
+def seed_dir(tmp_path_factory):
+    """Four short jobs like experiment=seed_figures (cusp, loop, wave, steady at 22.1 Hz)."""
+    root = tmp_path_factory.mktemp("seed")
+    grid = {"method": ["seed_next", "seed_prev", "lie_poisson4"], "f": [1.0, 10.0, 20.0, 22.1, 50.0],
+            "dt": [1e-3]}
+    for i, phidot0 in enumerate((0.0, -3.0, 3.0, 10.973050677702307)):
+        (root / str(i)).mkdir()
+        build_dataset(root / str(i) / "seed.h5", grid, t_end=0.6, init="precession", phidot0=phidot0)
+    return root
+
+
+def test_seed_jobs_are_classified_by_regime(seed_dir):
+    jobs = load_jobs([seed_dir])
+    assert sorted(jobs) == ["cusp", "loop", "steady", "wave"]
+    assert jobs["steady"][1] == pytest.approx(22.1) and jobs["loop"][1] == 20.0
+
+
+def test_seed_figures_content(seed_dir, tmp_path):
+    jobs = load_jobs([seed_dir])
+    fig = regimes_figure(jobs)
+    titles = [ax.get_title() for ax in fig.axes]
+    assert any("cusps" in t for t in titles) and any("steady" in t and "22.1 Hz" in t for t in titles)
+    steady_ax = fig.axes[3]
+    assert any("22.07 Hz" in t.get_text() for t in steady_ax.texts)  # says why 20 Hz is not drawn
+    fig = next_vs_prev_figure(jobs)
+    top = fig.axes[:4]
+    assert all(ax.get_yscale() == "log" for ax in top)
+    for ax in top:  # seed_prev (ω(t)) ends above seed_next (ω(t+dt)) in every regime
+        ends = {ln.get_label().split(",")[0]: ln.get_ydata()[-1] for ln in ax.get_lines()}
+        assert ends["seed_prev"] > 10 * ends["seed_next"]
+    paths = seed_figures([seed_dir], tmp_path)
+    assert [p.name for p in paths] == ["seed_regimes.png", "seed_remark1.png", "seed_next_vs_prev.png"]
+
+
+def test_work_precision_lines_and_peers(tmp_path):
+    path = tmp_path / "work_precision.h5"
+    build_dataset(path, {"method": ["rk4", "lie_poisson"], "f": [10.0], "dt": [1e-3, 5e-4, 2.5e-4]}, t_end=0.2,
+                  every=1e-2)
+    ds = open_results(path)
+    data = work_precision_data(ds, retime=False)
+    pts = data[(10.0, 45.0)]["methods"]
+    # the error falls with dt at about the declared order (rk4: 4, lie_poisson: 2)
+    for m, order in (("rk4", 4), ("lie_poisson", 2)):
+        dts = np.array([p[0] for p in pts[m]])
+        errs = np.array([p[3] for p in pts[m]])
+        slope = np.polyfit(np.log(dts), np.log(errs), 1)[0]
+        assert slope == pytest.approx(order, abs=0.5), (m, slope)
+    assert {"DOP853", "RK45"} <= set(data[(10.0, 45.0)]["peers"])
+    fig = work_precision_figure(ds, data=data)
+    left, right = fig.axes[:2]
+    for ax in (left, right):
+        assert ax.get_xscale() == "log" and ax.get_yscale() == "log"
+        assert "(rad)" in ax.get_ylabel()
+    assert "(s/s)" in left.get_xlabel() and "(1/s)" in right.get_xlabel()
+    labels = [ln.get_label() for ln in left.get_lines()]
+    assert "rk4" in labels and "lie_poisson" in labels and any(lab.startswith("scipy DOP853") for lab in labels)
+
+
+def test_animation_writes_gif_frames(results_file, tmp_path):
+    from PIL import Image
+
+    out = animate(open_results(results_file), tmp_path / "top.gif", {"method": ["rk4"], "f": [50.0]},
+                  seconds=0.2, fps=10, max_frames=12)
+    with Image.open(out) as im:
+        assert 5 <= im.n_frames <= 12
