@@ -146,21 +146,48 @@ def chunk_size(steps_per_run, rate, threads, chunk_seconds, bytes_per_run, max_b
 
 
 def plan_chunks(grid, runs, threads, chunk_seconds, rates=None, max_bytes=MAX_CHUNK_BYTES):
-    """Split ``runs`` (flat numbers) into chunks: lists of runs of one method and one
-    step count, in method order then dt order, each of ``chunk_size`` runs."""
+    """Split ``runs`` (flat numbers) into chunks of one method each, in method order.
+
+    Runs of one dt fill chunks of ``chunk_size`` equal runs (every thread gets
+    the same work); what is left of each dt, less than a chunk, is pooled with
+    the other dts' leftovers of that method into chunks of about
+    ``chunk_seconds``, so a grid of many small dt groups does not become many
+    tiny chunks.
+    """
     rates = rates or {}
     runs = np.sort(np.asarray(runs, dtype=np.int64))
     im, _, _, ld = grid.index(runs)
     chunks = []
     for m in range(len(grid.methods)):
         rate = rates.get(grid.methods[m], STEP_RATE.get(grid.methods[m], DEFAULT_STEP_RATE))
+        leftovers = []
         for l in range(len(grid.dt)):
             group = runs[(im == m) & (ld == l)]
             if group.size == 0:
                 continue
             steps = int(grid.steps(group[:1])[0])
             k = chunk_size(steps, rate, threads, chunk_seconds, grid.bytes_per_run(), max_bytes)
-            chunks.extend(group[i:i + k] for i in range(0, group.size, k))
+            full = group.size // k * k
+            chunks.extend(group[i:i + k] for i in range(0, full, k))
+            leftovers.append(group[full:])
+        chunks.extend(_pool(grid, np.concatenate(leftovers) if leftovers else runs[:0], rate, threads,
+                            chunk_seconds, max_bytes))
+    return chunks
+
+
+def _pool(grid, runs, rate, threads, chunk_seconds, max_bytes):
+    """Pack runs of mixed step counts into chunks of at most ~chunk_seconds and max_bytes."""
+    budget_steps = chunk_seconds * rate * threads
+    max_runs = max(1, int(max_bytes // max(grid.bytes_per_run(), 1)))
+    chunks, start, steps = [], 0, 0
+    per_run = grid.steps(runs)
+    for i, n in enumerate(per_run):
+        if i > start and (steps + n > budget_steps or i - start >= max_runs):
+            chunks.append(runs[start:i])
+            start, steps = i, 0
+        steps += int(n)
+    if start < len(runs):
+        chunks.append(runs[start:])
     return chunks
 
 

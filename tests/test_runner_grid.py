@@ -35,17 +35,27 @@ def test_run_numbers_follow_the_dims_in_c_order():
 
 @pytest.mark.parametrize("threads", [1, 2, 3])
 @pytest.mark.parametrize("seconds", [1e-6, 1e-4, 1.0])
-def test_chunks_cover_every_run_once_with_one_method_and_dt(threads, seconds):
+def test_chunks_cover_every_run_once_with_one_method_each(threads, seconds):
     grid = grid_of(*GRID)
-    chunks = plan_chunks(grid, np.arange(grid.n_runs), threads, seconds)
+    rate = 1e7
+    chunks = plan_chunks(grid, np.arange(grid.n_runs), threads, seconds, {m: rate for m in grid.methods})
     runs = np.concatenate(chunks)
     assert np.array_equal(np.sort(runs), np.arange(grid.n_runs))
     for chunk in chunks:
         im, _, _, ld = grid.index(chunk)
-        assert len(set(im)) == 1 and len(set(ld)) == 1
-    # Full chunks hand every thread the same number of equal runs.
-    sizes = [len(c) for c in chunks]
-    assert all(s % threads == 0 for s in sizes[:-1] if s == max(sizes))
+        assert len(set(im)) == 1
+        work = grid.steps(chunk).sum() / (rate * threads)
+        if len(set(ld)) > 1:  # pooled leftovers of several dt: within the time budget
+            assert work <= seconds
+        elif work > seconds * 1.0001:  # over budget only when one run per thread is already too long
+            assert len(chunk) <= threads
+
+
+def test_small_dt_groups_are_pooled_not_left_as_tiny_chunks():
+    grid = grid_of("sweep.method=[seed_next]", "sweep.f=[10]", "sweep.theta0=[45]",
+                   "sweep.dt=[1e-3,5e-4,2.5e-4,2e-4,1e-4]", "sweep.t_end=0.1")
+    (chunk,) = plan_chunks(grid, np.arange(grid.n_runs), 2, 1.0)
+    assert sorted(chunk) == list(range(5))
 
 
 def test_chunk_size_targets_the_time_and_respects_memory():
