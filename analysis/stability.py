@@ -89,5 +89,6 @@ def stability_figure(ds, sel=None, theta0=None):
     t_end = float(sub.time[-1])
     what = scene_label(sub) if not extra else ", ".join(str(v) for v, _ in rows)
     fig.suptitle(f"Stability map: {what}, θ0 = {float(th):g}°, {t_end:g} s "
-                 "\nnumbers: log10 error; red × hatched: diverged; dotted: ω3·dt = 0.01, 0.1, 1 rad per step", fontsize=10.5)
+                 "\nnumbers: log10 error; red × hatched: diverged; dotted: ω3·dt = 0.01, 0.1, 1 rad per step", fontsize=10.5,
+                 y=1.06)
     return fig
