@@ -252,21 +252,23 @@ def run_sweep(cfg, run_dir):
     with OutputLock(out):
         state = output_state(out, chash, overwrite, resume)  # again, now that we hold the lock
         try:
-            execute(cfg, grid, out, threads, chash, resume=state == "resume", run_dir=run_dir)
+            computing = execute(cfg, grid, out, threads, chash, resume=state == "resume", run_dir=run_dir)
         except KeyboardInterrupt:
             sys.exit(EXIT_INTERRUPTED)
     elapsed = time.perf_counter() - started
     with h5py.File(out, "r") as fh:
         failed = int((fh["status"][...] != 0).sum())
     print(f"gyrolab: results: {out} ({_size(out.stat().st_size)}, {grid.n_runs} runs, "
-          f"{failed} diverged) in {elapsed:.1f} s")
+          f"{failed} diverged) in {elapsed:.1f} s ({computing:.1f} s integrating)")
     if cfg.output.figures:
         make_figures(out)
     return str(out)
 
 
 def execute(cfg, grid, out, threads, chash, resume, run_dir):
-    """Run the missing runs with a progress bar, then assemble the results file (we hold the lock)."""
+    """Run the missing runs with a progress bar, then assemble the results file (we hold the lock).
+
+    Returns the seconds spent integrating (JIT warm-up excluded)."""
     from tqdm import tqdm
 
     from .execute import run_missing, warm_up
@@ -295,7 +297,10 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir):
     try:
         if todo.size:
             warm_up(grid)
+        start = time.perf_counter()
+        if todo.size:
             run_missing(grid, journal, todo, threads, cfg.runner.chunk_seconds, number, progress)
+        computing = time.perf_counter() - start
         bar.close()
         assemble(out, grid, journal, file_attrs(cfg, grid, threads, chash))
     except KeyboardInterrupt:
@@ -304,6 +309,7 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir):
               f"Finish with: {resume_command(run_dir)}", file=sys.stderr)
         raise
     journal.discard()
+    return computing
 
 
 def make_figures(out):
