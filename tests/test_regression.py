@@ -19,14 +19,11 @@ import numpy as np
 import pytest
 import xarray as xr
 import yaml
-from numba import njit
 
 import gyrolab
 
 from gyrolab.analysis.compare import compare_files
 from gyrolab.kernels.batch import sample_schedule
-from gyrolab.kernels.driver import make_advance
-from gyrolab.kernels.lie_poisson import step as strang_step
 from gyrolab.kernels.registry import METHODS
 from gyrolab.kernels.scenes import SCENES, build_scene
 from gyrolab.runner.dataset import sample_variables
@@ -132,26 +129,6 @@ def test_stored_datasets_open_are_small_and_cover_every_scene_and_method():
 
 # --------------------------------------------------------------------------- a deliberate coefficient change
 
-def _lie_poisson4_with(w1):
-    """A serial batch kernel of lie_poisson4 with the outer Yoshida weight ``w1`` (middle 1 − 2 w1)."""
-    w0 = 1.0 - 2.0 * w1
-
-    @njit
-    def step(w, q, dt, body):
-        w, q = strang_step(w, q, w1 * dt, body)
-        w, q = strang_step(w, q, w0 * dt, body)
-        return strang_step(w, q, w1 * dt, body)
-
-    advance = make_advance(step)
-
-    @njit
-    def run_batch(w0_, q0_, bodies, dts, strides, threshold, out, status, n_steps):
-        for i in range(w0_.shape[0]):
-            advance(i, w0_, q0_, bodies, dts, strides, threshold, out, status, n_steps)
-
-    return run_batch
-
-
 def overwrite_method(path, method, run_batch):
     """Recompute every run of ``method`` in the results file ``path`` (in place) with ``run_batch``."""
     with xr.open_dataset(path, engine="h5netcdf") as ds:
@@ -182,7 +159,7 @@ def test_coefficient_change_fails_with_a_readable_message(tmp_path):
     the regression check of a copy of the stored file must fail and name lie_poisson4."""
     copy = tmp_path / "perturbed.h5"
     shutil.copyfile(regen.stored_path("heavy_top_release"), copy)
-    overwrite_method(copy, "lie_poisson4", _lie_poisson4_with(1.0 / (2.0 - 1.26)))
+    overwrite_method(copy, "lie_poisson4", regen.lie_poisson4_with(1.0 / (2.0 - 1.26)))
     with pytest.raises(pytest.fail.Exception) as failure:
         check_against_stored(copy, "heavy_top_release")
     message = str(failure.value)
@@ -195,5 +172,5 @@ def test_coefficient_change_fails_with_a_readable_message(tmp_path):
     worst = max((v for v in report.variables if not v.ok), key=lambda v: v.max_abs / max(v.atol, 1e-300))
     assert worst.max_abs > 10 * worst.atol  # fails by a wide margin, not by a hair
     # the same copy with the true coefficient passes again: the check is about the coefficient
-    overwrite_method(copy, "lie_poisson4", _lie_poisson4_with(1.0 / (2.0 - 2.0 ** (1.0 / 3.0))))
+    overwrite_method(copy, "lie_poisson4", regen.lie_poisson4_with(1.0 / (2.0 - 2.0 ** (1.0 / 3.0))))
     check_against_stored(copy, "heavy_top_release")

@@ -54,6 +54,34 @@ def run_config(name, out, workdir, overrides=()):
     return Path(out)
 
 
+
+def lie_poisson4_with(w1):
+    """A serial batch kernel of lie_poisson4 with the outer Yoshida weight ``w1``
+    (middle 1 − 2 w1): a deliberate coefficient change for the sensitivity study
+    and the regression test that must catch it."""
+    from numba import njit
+
+    from gyrolab.kernels.driver import make_advance
+    from gyrolab.kernels.lie_poisson import step as strang_step
+
+    w0 = 1.0 - 2.0 * w1
+
+    @njit
+    def step(w, q, dt, body):
+        w, q = strang_step(w, q, w1 * dt, body)
+        w, q = strang_step(w, q, w0 * dt, body)
+        return strang_step(w, q, w1 * dt, body)
+
+    advance = make_advance(step)
+
+    @njit
+    def run_batch(w0_, q0_, bodies, dts, strides, threshold, out, status, n_steps):
+        for i in range(w0_.shape[0]):
+            advance(i, w0_, q0_, bodies, dts, strides, threshold, out, status, n_steps)
+
+    return run_batch
+
+
 def main(argv=None):
     from gyrolab.analysis.compare import CompareError, compare_files
 

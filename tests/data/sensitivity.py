@@ -19,38 +19,15 @@ tolerance (SCALED_TOL in regenerate.py) bounds.
 import numpy as np
 import xarray as xr
 import yaml
-from numba import njit
 
 from gyrolab.kernels.batch import integrate, sample_schedule
-from gyrolab.kernels.driver import make_advance
-from gyrolab.kernels.lie_poisson import step as strang_step
 from gyrolab.kernels.lie_poisson4 import W1
 from gyrolab.kernels.scenes import build_scene
 from gyrolab.runner.dataset import sample_variables
 
-from regenerate import DATASETS, SCALED_TOL, stored_path
+from regenerate import DATASETS, SCALED_TOL, lie_poisson4_with, stored_path
 
 ULP = 2.0**-52
-
-
-def lie_poisson4_with(w1):
-    """Serial batch kernel of lie_poisson4 with outer weight w1 (middle 1 − 2 w1)."""
-    w0 = 1.0 - 2.0 * w1
-
-    @njit
-    def step(w, q, dt, body):
-        w, q = strang_step(w, q, w1 * dt, body)
-        w, q = strang_step(w, q, w0 * dt, body)
-        return strang_step(w, q, w1 * dt, body)
-
-    advance = make_advance(step)
-
-    @njit
-    def run_batch(w0_, q0_, bodies, dts, strides, threshold, out, status, n_steps):
-        for i in range(w0_.shape[0]):
-            advance(i, w0_, q0_, bodies, dts, strides, threshold, out, status, n_steps)
-
-    return run_batch
 
 
 def runs(ds):
