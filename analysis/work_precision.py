@@ -65,14 +65,14 @@ def peer_points(scene, t_end, every, ref_axis, solver):
     from scipy.integrate import solve_ivp
 
     from ..kernels.closed_form import scene_rotation
-    from ..kernels.reference import _rhs
+    from ..kernels.reference import rhs
 
     times = np.arange(ref_axis.shape[0]) * every
     y0 = np.concatenate((np.asarray(scene.omega0, float), scene_rotation(scene).as_matrix().ravel()))
     out = []
     for tol in PEER_TOLERANCES[solver]:
         start = time.perf_counter()
-        sol = solve_ivp(_rhs, (0.0, times[-1]), y0, method=solver, t_eval=times, rtol=tol, atol=tol,
+        sol = solve_ivp(rhs, (0.0, times[-1]), y0, method=solver, t_eval=times, rtol=tol, atol=tol,
                         args=tuple(float(v) for v in scene.body))
         wall = time.perf_counter() - start
         if not sol.success:

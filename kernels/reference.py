@@ -12,7 +12,9 @@ from scipy.integrate import solve_ivp
 from .closed_form import scene_rotation
 
 
-def _rhs(_t, y, I1, I2, I3, mgl):
+def rhs(_t, y, I1, I2, I3, mgl):
+    """d/dt of y = (ω body (rad/s), R row-major): Euler's equations with the gravity
+    torque, and Ṙ = R [ω]×; the scipy ``solve_ivp`` form, args = the body tuple."""
     w1, w2, w3 = y[0], y[1], y[2]
     R = y[3:].reshape(3, 3)
     g1, g2 = R[2, 0], R[2, 1]  # γ = Rᵀ ẑ is the third row of R
@@ -54,7 +56,7 @@ def dop853(scene, t_end, every, rtol=1e-12, atol=1e-12):
     times = np.arange(n_samples) * every
     y0 = np.concatenate((np.asarray(scene.omega0, dtype=float), scene_rotation(scene).as_matrix().ravel()))
     sol = solve_ivp(
-        _rhs, (0.0, times[-1]), y0, method="DOP853", t_eval=times, rtol=rtol, atol=atol,
+        rhs, (0.0, times[-1]), y0, method="DOP853", t_eval=times, rtol=rtol, atol=atol,
         args=tuple(float(v) for v in scene.body),
     )
     if not sol.success:

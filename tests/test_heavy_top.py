@@ -15,7 +15,7 @@ from scipy.special import ellipk
 
 import gyrolab
 from gyrolab.kernels.closed_form import heavy_top_nutation, nutation_roots
-from gyrolab.kernels.reference import _rhs as reference_rhs
+from gyrolab.kernels.reference import rhs as reference_rhs
 from gyrolab.kernels.reference import dop853
 from gyrolab.kernels.registry import METHODS
 from gyrolab.kernels.rigid_body import gravity_torque
