@@ -196,8 +196,7 @@ def test_method_matches_closed_form(name, regime, run_scene):
     """θ_min, θ_max, nutation period, mean precession within (ω3 dt)^ORDER relative at dt = 1e-4 s.
 
     Measured worst over the regimes: rk4 7.1e-8 (bound 9.7e-7 at 50 Hz; 4.2e-11 vs 1.6e-9 at 10 Hz),
-    lie_poisson4 4.2e-10 but 3.8e-8 for the nudged sleeper's θ (the |q| drift of test_rotation tilts
-    axis_z: θ errs by δ|q|²/tan θ), lie_poisson 1.7e-7 (bound 9.9e-4), seed_next 7.9e-5 (bound 3.1e-2).
+    lie_poisson4 1.5e-10, lie_poisson 1.7e-7 (bound 9.9e-4), seed_next 7.9e-5 (bound 3.1e-2).
     """
     f, theta0, options, t_end = REGIMES[regime]
     sc = build_scene("heavy_top", f, theta0, **options)
