@@ -6,6 +6,7 @@ renormalised after each step (a projection, so not symplectic).
 """
 from numba import njit, prange
 
+from .block import make_advance_block
 from .driver import make_advance
 from .rigid_body import euler_rhs, gravity_torque
 from .rotation import quat_mul, quat_normalize
@@ -62,3 +63,12 @@ advance_run = make_advance(step)
 def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
     for i in prange(w0.shape[0]):
         advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
+
+
+advance_block = make_advance_block(step)
+
+
+@njit(cache=True, parallel=True)
+def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts):
+    for b in prange(starts.size - 1):
+        advance_block(runs[starts[b]:starts[b + 1]], w0, q0, bodies, dts, strides, threshold, out, status, n_steps)

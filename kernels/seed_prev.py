@@ -5,6 +5,7 @@ write-up reports that this loses energy and lets the precession sink.
 """
 from numba import njit, prange
 
+from .block import make_advance_block
 from .driver import make_advance
 from .rigid_body import gravity_torque
 from .rotation import rotate_body_step
@@ -27,3 +28,12 @@ advance_run = make_advance(step)
 def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
     for i in prange(w0.shape[0]):
         advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
+
+
+advance_block = make_advance_block(step)
+
+
+@njit(cache=True, parallel=True)
+def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts):
+    for b in prange(starts.size - 1):
+        advance_block(runs[starts[b]:starts[b + 1]], w0, q0, bodies, dts, strides, threshold, out, status, n_steps)

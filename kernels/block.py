@@ -1,0 +1,183 @@
+"""Advance a block of runs together, the loop over runs innermost, so that it vectorises.
+
+A block holds up to a few dozen runs ("lanes") laid out structure-of-arrays
+(ω as W[3, n], q as Q[4, n], body as B[4, n]).  Each step runs the method's
+``lane_step`` (lanes.py) over all lanes in one branch-free loop that LLVM
+turns into packed AVX/AVX-512 code, then recomputes with ``ieee_step`` (the
+method's own ``step``, never raising) the rare lanes whose result came out
+non-finite (a rotation angle beyond the polynomial's range, or a run blowing
+up).  Every lane therefore gets exactly what ``step`` computes: results are
+bit-identical to the single-trajectory driver (driver.py), whatever the block
+size or thread count.  The one exception: where ``step`` would raise
+ZeroDivisionError (rk4 after its quaternion overflowed), the lane turns NaN
+and its run ends with status "non-finite"; driver.py's prange loses such an
+exception and returns that run half-written.
+
+Runs of a block may have different dt and strides: the block advances by the
+steps until the nearest lane's next sample, records the lanes due, and a run
+that is finished or diverged (driver._diverged) leaves the block by swapping
+with the last active lane, so it costs the others nothing.
+
+Each method module builds ``advance_block = make_advance_block(step)`` and a
+cached parallel ``run_blocks`` over blocks (as for ``run_batch``, the step is
+bound by a closure so that the kernel can be cached; after editing this file
+or lanes.py, clear the kernels' ``__pycache__``).
+"""
+import numpy as np
+from numba import njit
+
+from .driver import STATUS_OK, _diverged, _record
+from .lanes import ieee_step, lane_step
+from .rigid_body import kinetic_energy
+
+# The loop over lanes always covers whole vectors of this many lanes (8 doubles
+# fill an AVX-512 register): a scalar remainder of up to 7 lanes would cost as
+# much as the whole vectorised part of a 64-lane block.
+VECTOR = 8
+
+
+def make_block_steps(step):
+    """``steps(W, Q, B, DT, BAD, n_lanes, m)``: m steps of ``step`` on lanes 0 .. n_lanes − 1.
+
+    W (3, ≥ n_lanes) body ω (rad/s), Q (4, ·) quaternions, updated in place;
+    B (4, ·) bodies, DT (·,) steps (s), BAD (·,) uint8 scratch.
+    """
+    fast, exact = lane_step(step), ieee_step(step)
+
+    @njit(error_model="numpy")
+    def steps(W, Q, B, DT, BAD, n_lanes, m):
+        for _ in range(m):
+            n_bad = 0
+            for j in range(n_lanes):
+                w = (W[0, j], W[1, j], W[2, j])
+                q = (Q[0, j], Q[1, j], Q[2, j], Q[3, j])
+                w2, q2 = fast(w, q, DT[j], (B[0, j], B[1, j], B[2, j], B[3, j]))
+                x = w2[0] + w2[1] + w2[2] + q2[0] + q2[1] + q2[2] + q2[3]
+                ok = x - x == 0.0  # False for inf and NaN
+                BAD[j] = not ok
+                n_bad += not ok
+                W[0, j] = w2[0] if ok else w[0]
+                W[1, j] = w2[1] if ok else w[1]
+                W[2, j] = w2[2] if ok else w[2]
+                Q[0, j] = q2[0] if ok else q[0]
+                Q[1, j] = q2[1] if ok else q[1]
+                Q[2, j] = q2[2] if ok else q[2]
+                Q[3, j] = q2[3] if ok else q[3]
+            if n_bad:
+                for j in range(n_lanes):
+                    if BAD[j]:
+                        w, q = exact((W[0, j], W[1, j], W[2, j]), (Q[0, j], Q[1, j], Q[2, j], Q[3, j]), DT[j],
+                                     (B[0, j], B[1, j], B[2, j], B[3, j]))
+                        W[0, j], W[1, j], W[2, j] = w
+                        Q[0, j], Q[1, j], Q[2, j], Q[3, j] = q
+
+    return steps
+
+
+def make_advance_block(step):
+    """``advance_block(runs, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)``
+    for one method: integrates the runs listed in ``runs`` (int64 indices into the
+    batch arrays) exactly as driver.make_advance's ``advance_run`` does each of them."""
+    steps = make_block_steps(step)
+
+    @njit
+    def advance_block(runs, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
+        n = runs.size
+        size = -(-n // VECTOR) * VECTOR  # lanes n .. size − 1 are parked
+        W, Q, B = np.empty((3, size)), np.empty((4, size)), np.empty((4, size))
+        DT, TOL = np.zeros(size), np.zeros(size)
+        RUN, LEFT, K = np.empty(size, np.int64), np.zeros(size, np.int64), np.ones(size, np.int64)
+        BAD = np.zeros(size, np.uint8)
+        for j in range(size):
+            i = runs[min(j, n - 1)]
+            RUN[j] = i
+            for c in range(4):
+                B[c, j] = bodies[i, c]
+            if j >= n:
+                _park(W, Q, DT, j)
+                continue
+            for c in range(3):
+                W[c, j] = w0[i, c]
+            for c in range(4):
+                Q[c, j] = q0[i, c]
+            DT[j] = dts[i]
+            LEFT[j] = max(strides[i], 0)
+            w = (W[0, j], W[1, j], W[2, j])
+            body = (B[0, j], B[1, j], B[2, j], B[3, j])
+            _record(out, i, 0, w, (Q[0, j], Q[1, j], Q[2, j], Q[3, j]), body)
+            TOL[j] = threshold * (kinetic_energy(w, body) + abs(body[3]))
+            status[i] = STATUS_OK
+            n_steps[i] = 0
+        active = n if out.shape[1] > 1 else 0
+        while active > 0:
+            m = LEFT[0]
+            for j in range(1, active):
+                m = min(m, LEFT[j])
+            steps(W, Q, B, DT, BAD, -(-active // VECTOR) * VECTOR, m)
+            j = 0
+            while j < active:
+                LEFT[j] -= m
+                if LEFT[j] > 0:
+                    j += 1
+                    continue
+                i, k = RUN[j], K[j]
+                _record(out, i, k, (W[0, j], W[1, j], W[2, j]), (Q[0, j], Q[1, j], Q[2, j], Q[3, j]),
+                        (B[0, j], B[1, j], B[2, j], B[3, j]))
+                n_steps[i] += strides[i]
+                if _diverged(out, i, k, TOL[j], status) or k == out.shape[1] - 1:
+                    active -= 1
+                    _swap_lanes(j, active, W, Q, B, DT, TOL, RUN, LEFT, K)
+                    _park(W, Q, DT, active)
+                    continue  # the lane moved into j has not been counted down yet
+                K[j] = k + 1
+                LEFT[j] = max(strides[i], 0)
+                j += 1
+
+    return advance_block
+
+
+@njit(cache=True)
+def _park(W, Q, DT, j):
+    """Lane j no longer counts: rest it (ω = 0, q = 1, dt = 0) so that the loop over
+    lanes can keep stepping it, finite and cheap, for the sake of whole vectors."""
+    for c in range(3):
+        W[c, j] = 0.0
+    Q[0, j], Q[1, j], Q[2, j], Q[3, j] = 1.0, 0.0, 0.0, 0.0
+    DT[j] = 0.0
+
+
+@njit(cache=True)
+def _swap_lanes(j, last, W, Q, B, DT, TOL, RUN, LEFT, K):
+    for c in range(3):
+        W[c, j], W[c, last] = W[c, last], W[c, j]
+    for c in range(4):
+        Q[c, j], Q[c, last] = Q[c, last], Q[c, j]
+        B[c, j], B[c, last] = B[c, last], B[c, j]
+    DT[j], DT[last] = DT[last], DT[j]
+    TOL[j], TOL[last] = TOL[last], TOL[j]
+    RUN[j], RUN[last] = RUN[last], RUN[j]
+    LEFT[j], LEFT[last] = LEFT[last], LEFT[j]
+    K[j], K[last] = K[last], K[j]
+
+
+def plan_blocks(strides, threads, max_lanes):
+    """(runs, starts): run indices grouped into blocks runs[starts[b]:starts[b+1]].
+
+    Runs are grouped by stride (so by step count: a block's lanes finish
+    together), each group split into equal blocks of at most ``max_lanes``,
+    and blocks ordered by decreasing work (lanes × stride) so that a dynamic
+    schedule keeps every thread busy to the end.  Groups big enough for it
+    are split into at least 2 × ``threads`` blocks; blocks hold whole vectors
+    of ``VECTOR`` lanes where they can.
+    """
+    strides = np.asarray(strides, dtype=np.int64)
+    blocks = []
+    for s in np.unique(strides):
+        group = np.flatnonzero(strides == s)
+        n_blocks = max(-(-group.size // max_lanes), min(2 * threads, -(-group.size // VECTOR)))
+        lanes = -(-group.size // (n_blocks * VECTOR)) * VECTOR
+        blocks.extend((int(s) * b.size, b) for b in np.split(group, range(lanes, group.size, lanes)))
+    blocks.sort(key=lambda wb: -wb[0])
+    runs = np.concatenate([b for _, b in blocks]) if blocks else np.zeros(0, np.int64)
+    starts = np.cumsum([0] + [len(b) for _, b in blocks]).astype(np.int64)
+    return runs.astype(np.int64), starts

@@ -1,0 +1,91 @@
+"""A method's ``step`` recompiled for the vectorised loop over runs ("lanes").
+
+``lane_step(step)`` compiles the same Python source as ``step`` and every
+numba function it calls, with three changes and nothing else:
+
+- ``error_model="numpy"``: a float division does not test its divisor for zero
+  (Python's ZeroDivisionError check is a branch out of the loop that stops
+  LLVM from vectorising it); the quotient itself is the same IEEE division;
+- ``inline="always"``: the whole step is inlined into the loop over lanes;
+- ``quat_from_rotvec`` and ``half_angle``, the two helpers that branch between
+  the small-angle polynomial and libm, always take the polynomial and return
+  NaN where the original would have called libm (angle ≥ SMALL_ANGLE or NaN).
+
+So on every lane where the result is finite it is bit for bit what ``step``
+returns (same operations in the same order; numba never contracts a·b + c
+into an FMA without fastmath).  A lane whose result is not finite (a large
+rotation, or a run that is itself blowing up) is recomputed by the caller
+with the original ``step``.  Helpers must be called by their bare name (as
+the kernels do), not as ``module.function``, to be recompiled.
+
+``ieee_step(step)`` makes only the first change: bit for bit ``step``, except
+that where ``step`` would raise ZeroDivisionError (a quaternion whose norm
+overflowed to inf and was scaled to 0) it returns inf/NaN, which the drivers
+record as a non-finite run.  Inside a numba ``prange`` such an exception is
+lost, and the run would come back half-written with status "ok".
+"""
+import math
+import types
+
+from numba import njit
+from numba.core.dispatcher import Dispatcher
+
+from . import rotation
+from .rotation import SMALL_ANGLE, _cos_sinc_half
+
+_SMALL_ANGLE2 = SMALL_ANGLE * SMALL_ANGLE
+
+
+@njit
+def _quat_from_rotvec_or_nan(v0, v1, v2):
+    """rotation.quat_from_rotvec's small-angle branch; a = NaN where it would call libm."""
+    angle2 = v0 * v0 + v1 * v1 + v2 * v2
+    a, s = _cos_sinc_half(angle2)
+    if not angle2 < _SMALL_ANGLE2:
+        a = math.nan
+    return a, s * v0, s * v1, s * v2
+
+
+@njit
+def _half_angle_or_nan(phi):
+    """rotation.half_angle's small-angle branch; cos(φ/2) = NaN where it would call libm."""
+    c, s = _cos_sinc_half(phi * phi)
+    if not abs(phi) < SMALL_ANGLE:
+        c = math.nan
+    return c, s * phi
+
+
+_REPLACED = {rotation.quat_from_rotvec: _quat_from_rotvec_or_nan, rotation.half_angle: _half_angle_or_nan}
+
+
+def lane_step(step):
+    """njit ``(w, q, dt, body) -> (w, q)``: ``step`` recompiled as described above;
+    non-finite output means "recompute this lane with ``ieee_step(step)``"."""
+    return _recompile(step, {}, _REPLACED, "always")
+
+
+def ieee_step(step):
+    """njit ``(w, q, dt, body) -> (w, q)``: ``step`` with IEEE division (no ZeroDivisionError)."""
+    return _recompile(step, {}, {}, "never")
+
+
+def _recompile(dispatcher, done, replaced, inline):
+    """A fresh dispatcher of ``dispatcher``'s source, error_model="numpy", whose calls to
+    other numba functions go to their recompiled copies (or to ``replaced[original]``)."""
+    dispatcher = replaced.get(dispatcher, dispatcher)
+    if dispatcher not in done:
+        func = dispatcher.py_func
+        names = dict(func.__globals__)
+        for name in func.__code__.co_names:
+            if isinstance(names.get(name), Dispatcher):
+                names[name] = _recompile(names[name], done, replaced, inline)
+        cells = func.__closure__
+        if cells:
+            cells = tuple(
+                types.CellType(_recompile(c.cell_contents, done, replaced, inline))
+                if isinstance(c.cell_contents, Dispatcher) else c
+                for c in cells
+            )
+        copy = types.FunctionType(func.__code__, names, func.__name__, func.__defaults__, cells)
+        done[dispatcher] = njit(error_model="numpy", inline=inline)(copy)
+    return done[dispatcher]
