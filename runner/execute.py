@@ -16,25 +16,45 @@ from .grid import plan_chunks
 DELAY_ENV = "GYROLAB_TEST_CHUNK_DELAY"
 
 
+class BackendError(RuntimeError):
+    """A backend failed mid-sweep (e.g. a Dask cluster gave up on a chunk); the journal keeps
+    the chunks finished so far, so the sweep can be resumed."""
+
+
+def chunk_delay():
+    """Seconds of the GYROLAB_TEST_CHUNK_DELAY test hook (0 when unset)."""
+    return float(os.environ.get(DELAY_ENV, "0") or 0)
+
+
 def warm_up(grid):
     """Compile (or load from numba's cache) each method's kernel with the runner's argument
     types, so that JIT time is not charged to the first chunk's wall_time."""
-    first = np.zeros(1, dtype=np.int64)
-    for m in range(len(grid.methods)):
-        bodies, omega0, q0, dt, stride = grid.inputs(first)
-        integrate(grid.methods[m], bodies, omega0, q0, dt, np.ones(1, dtype=np.int64), 2, grid.threshold)
+    warm_up_methods(grid.methods, grid.inputs(np.zeros(1, dtype=np.int64)), grid.threshold)
+
+
+def warm_up_methods(methods, inputs, threshold):
+    """``warm_up`` without a grid: ``inputs`` are one run's kernel inputs (``Grid.inputs``)."""
+    bodies, omega0, q0, dt, _ = inputs
+    for method in methods:
+        integrate(method, bodies, omega0, q0, dt, np.ones(1, dtype=np.int64), 2, threshold)
 
 
 def run_chunk(grid, runs, threads):
-    """Integrate one chunk; returns the dict stored in the journal.
+    """Integrate one chunk of ``grid`` on this process; returns the dict stored in the journal."""
+    method = grid.methods[int(grid.index(runs[:1])[0][0])]
+    return integrate_chunk(method, runs, grid.inputs(runs), grid.n_samples, grid.threshold, threads)
+
+
+def integrate_chunk(method, runs, inputs, n_samples, threshold, threads):
+    """Integrate the runs (flat numbers) of one chunk from their kernel inputs (``Grid.inputs``);
+    returns the dict stored in the journal.
 
     wall_time (s) per run: the chunk's wall time × the threads it used, shared
     in proportion to the steps each run took.
     """
-    method = grid.methods[int(grid.index(runs[:1])[0][0])]
-    bodies, omega0, q0, dt, stride = grid.inputs(runs)
+    bodies, omega0, q0, dt, stride = inputs
     start = time.perf_counter()
-    samples, status, n_steps = integrate(method, bodies, omega0, q0, dt, stride, grid.n_samples, grid.threshold)
+    samples, status, n_steps = integrate(method, bodies, omega0, q0, dt, stride, n_samples, threshold)
     wall = time.perf_counter() - start
     share = n_steps / max(int(n_steps.sum()), 1)
     wall_time = wall * min(threads, len(runs)) * share
@@ -49,7 +69,7 @@ def run_missing(grid, journal, todo, threads, chunk_seconds, first_number, progr
     so each takes about ``chunk_seconds``.  ``progress(runs, steps)`` is called
     after each stored chunk.
     """
-    delay = float(os.environ.get(DELAY_ENV, "0") or 0)
+    delay = chunk_delay()
     rates = {}
     number = first_number
     remaining = np.sort(np.asarray(todo, dtype=np.int64))
