@@ -24,6 +24,7 @@ import shutil
 import sys
 import tempfile
 import time
+from contextlib import ExitStack
 from pathlib import Path
 
 import h5py
@@ -35,9 +36,11 @@ from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from .config import ConfigError, config_hash, register_configs
+from .execute import BackendError
 from .grid import build_grid, estimate_seconds, plan_chunks
 from .store import Journal, OutputLock, assemble, partial_dir
 
+EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
 COMPILE_SECONDS = 3.0  # rough JIT time of one method's kernel on a cold numba cache
@@ -190,11 +193,14 @@ def describe(grid):
             f"{grid.total_steps:.3g} steps, {grid.n_samples} samples each")
 
 
-def dry_run(grid, out, chunks, threads, peak, state):
+def dry_run(grid, out, chunks, threads, peak, state, cluster=None):
     steps = grid.steps(np.arange(grid.n_runs))
-    seconds = estimate_seconds(grid, chunks, threads)
+    if cluster is not None:
+        seconds, where = cluster.estimate_seconds(grid, chunks), cluster.describe()
+    else:
+        seconds, where = estimate_seconds(grid, chunks, threads), f"{threads} threads"
     print(f"gyrolab dry run: {describe(grid)}")
-    print(f"  steps per run: {steps.min():.3g} to {steps.max():.3g}; {len(chunks)} chunks on {threads} threads")
+    print(f"  steps per run: {steps.min():.3g} to {steps.max():.3g}; {len(chunks)} chunks on {where}")
     print(f"  estimated time: {seconds:.3g} s of integration "
           f"(+ up to ~{COMPILE_SECONDS * len(grid.methods):.0f} s of JIT on a cold numba cache)")
     print(f"  peak memory: ~{_size(peak)} of samples per chunk (+ ~0.3 GB for Python, numba, xarray)")
@@ -222,22 +228,45 @@ def file_attrs(cfg, grid, threads, chash):
     return attrs
 
 
+def open_cluster(runner):
+    """The Dask cluster of runner.backend=dask (runner/dask_backend.py); ConfigError on bad input."""
+    try:
+        from .dask_backend import open_cluster
+    except ImportError as err:
+        if (err.name or "").split(".")[0] in ("dask", "distributed"):
+            raise ConfigError("runner.backend=dask: needs dask.distributed (pip install 'gyrolab[dask]')") from None
+        raise
+    return open_cluster(runner)
+
+
 def run_sweep(cfg, run_dir):
     """Check everything, then run the grid (or only its missing runs) and write the results."""
+    with ExitStack() as stack:
+        return sweep(cfg, run_dir, stack)
+
+
+def sweep(cfg, run_dir, stack):
+    """``run_sweep``; a Dask cluster it connects to is closed by ``stack``."""
     import numba
 
     grid = build_grid(cfg)
-    threads = resolve_threads(cfg.runner.threads)
+    cluster = None
+    threads = 1 if cfg.runner.backend == "dask" else resolve_threads(cfg.runner.threads)
     out = resolve_output(cfg.output.path, run_dir)
     check_writable(out)
     OutputLock(out).check_free()
     chash = config_hash(cfg)
     overwrite, resume = bool(cfg.output.overwrite), bool(cfg.runner.resume)
     state = output_state(out, chash, overwrite, resume)
-    chunks = plan_chunks(grid, np.arange(grid.n_runs), threads, cfg.runner.chunk_seconds)
+    if cfg.runner.backend == "dask" and (state != "done" or cfg.runner.dry_run):
+        cluster = stack.enter_context(open_cluster(cfg.runner))  # unreachable: ConfigError, before any work
+        threads = cluster.threads
+        chunks = cluster.plan(grid, np.arange(grid.n_runs), cfg.runner.chunk_seconds)
+    else:
+        chunks = plan_chunks(grid, np.arange(grid.n_runs), threads, cfg.runner.chunk_seconds)
     peak = check_fits(grid, out, chunks)
     if cfg.runner.dry_run:
-        dry_run(grid, out, chunks, threads, peak, state)
+        dry_run(grid, out, chunks, threads, peak, state, cluster)
         return None
     if state == "done":
         if Journal(out).exists():  # killed between the rename and the clean-up
@@ -247,14 +276,18 @@ def run_sweep(cfg, run_dir):
         return str(out)
 
     out.parent.mkdir(parents=True, exist_ok=True)
-    numba.set_num_threads(threads)
+    if cluster is None:
+        numba.set_num_threads(threads)
     started = time.perf_counter()
     with OutputLock(out):
         state = output_state(out, chash, overwrite, resume)  # again, now that we hold the lock
         try:
-            computing = execute(cfg, grid, out, threads, chash, resume=state == "resume", run_dir=run_dir)
+            computing = execute(cfg, grid, out, threads, chash, resume=state == "resume", run_dir=run_dir,
+                                cluster=cluster)
         except KeyboardInterrupt:
             sys.exit(EXIT_INTERRUPTED)
+        except BackendError:
+            sys.exit(EXIT_FAILED)
     elapsed = time.perf_counter() - started
     with h5py.File(out, "r") as fh:
         failed = int((fh["status"][...] != 0).sum())
@@ -265,8 +298,9 @@ def run_sweep(cfg, run_dir):
     return str(out)
 
 
-def execute(cfg, grid, out, threads, chash, resume, run_dir):
-    """Run the missing runs with a progress bar, then assemble the results file (we hold the lock).
+def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
+    """Run the missing runs with a progress bar (on ``cluster`` if given, else here), then
+    assemble the results file (we hold the lock).
 
     Returns the seconds spent integrating (JIT warm-up excluded)."""
     from tqdm import tqdm
@@ -284,6 +318,8 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir):
     print(f"gyrolab: {describe(grid)}")
     if done.size:
         print(f"gyrolab: resuming: {done.size} runs already done, {todo.size} to go")
+    if cluster is not None:
+        print(f"gyrolab: running on {cluster.describe()}")
     print(f"gyrolab: writing {out}", flush=True)
     counter = {"runs": int(done.size)}
     bar = tqdm(total=int(grid.steps(todo).sum()) if todo.size else 0, unit="step", unit_scale=True,
@@ -296,16 +332,19 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir):
 
     try:
         if todo.size:
-            warm_up(grid)
+            (cluster.warm_up if cluster is not None else warm_up)(grid)
         start = time.perf_counter()
-        if todo.size:
+        if todo.size and cluster is not None:
+            cluster.run_missing(grid, journal, todo, cfg.runner.chunk_seconds, number, progress)
+        elif todo.size:
             run_missing(grid, journal, todo, threads, cfg.runner.chunk_seconds, number, progress)
         computing = time.perf_counter() - start
         bar.close()
         assemble(out, grid, journal, file_attrs(cfg, grid, threads, chash))
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, BackendError) as err:
         bar.close()
-        print(f"\ngyrolab: interrupted; {counter['runs']} of {grid.n_runs} runs are saved in {journal.dir}.\n"
+        why = "interrupted" if isinstance(err, KeyboardInterrupt) else f"error: {' '.join(str(err).split())}"
+        print(f"\ngyrolab: {why}; {counter['runs']} of {grid.n_runs} runs are saved in {journal.dir}.\n"
               f"Finish with: {resume_command(run_dir)}", file=sys.stderr)
         raise
     journal.discard()

@@ -19,7 +19,7 @@ from omegaconf import MISSING, OmegaConf
 
 from ..kernels.scenes import SCENES
 
-BACKENDS = ("local",)
+BACKENDS = ("local", "dask")
 
 
 class ConfigError(ValueError):
@@ -49,7 +49,9 @@ class OutputConfig:
 
 @dataclass
 class RunnerConfig:
-    """How the grid is run: resume, dry run, numba threads, chunk size (s), divergence test."""
+    """How the grid is run: resume, dry run, numba threads, chunk size (s), divergence test;
+    backend local (numba threads in this process) or dask (a Dask cluster at ``address``,
+    ``tcp://host:port`` or ``local``, or named by ``scheduler_file``; ``connect_timeout`` in s)."""
 
     resume: bool = False
     dry_run: bool = False
@@ -57,6 +59,9 @@ class RunnerConfig:
     chunk_seconds: float = 1.0
     divergence_threshold: float = 10.0
     backend: str = "local"
+    address: Optional[str] = None
+    scheduler_file: Optional[str] = None
+    connect_timeout: float = 10.0
 
 
 @dataclass
@@ -128,6 +133,22 @@ def check_values(cfg):
         raise ConfigError(f"runner.divergence_threshold={runner.divergence_threshold}: must be > 0")
     if runner.backend not in BACKENDS:
         raise ConfigError(f"runner.backend={runner.backend}: choose from {', '.join(BACKENDS)}")
+    check_cluster(runner)
+
+
+def check_cluster(runner):
+    """ConfigError unless the cluster keys fit the backend (no network: dask_backend connects)."""
+    given = [k for k in ("address", "scheduler_file") if runner[k] is not None]
+    if runner.backend == "local" and given:
+        raise ConfigError(f"runner.{given[0]}={runner[given[0]]}: only used with runner.backend=dask")
+    if runner.backend == "dask" and not given:
+        raise ConfigError("runner.backend=dask: needs runner.address=tcp://host:port (or local) "
+                          "or runner.scheduler_file=<path>")
+    if len(given) == 2:
+        raise ConfigError(f"runner.scheduler_file={runner.scheduler_file}: give runner.address "
+                          f"(here {runner.address}) or runner.scheduler_file, not both")
+    if not runner.connect_timeout > 0:
+        raise ConfigError(f"runner.connect_timeout={runner.connect_timeout}: must be > 0 s")
 
 
 def check_keys(cfg):
@@ -165,7 +186,9 @@ def check_finite(node, key=""):
 
 
 # Settings that change how a sweep is run, not its data: left out of the data hash.
-RUN_ONLY = {"output": ("path", "overwrite", "figures"), "runner": ("resume", "dry_run", "threads", "chunk_seconds", "backend")}
+RUN_ONLY = {"output": ("path", "overwrite", "figures"),
+            "runner": ("resume", "dry_run", "threads", "chunk_seconds", "backend", "address", "scheduler_file",
+                       "connect_timeout")}
 
 
 def data_config(cfg):

@@ -1,0 +1,323 @@
+"""Run the missing chunks of a grid on a Dask cluster (``runner.backend=dask``).
+
+The driver (the ``gyrolab`` process) plans every chunk up front with the
+local planner (``grid.plan_chunks``, made finer until each worker gets
+several chunks), submits one task per chunk, and writes each result through
+the local journal as it arrives: one writer, crash-safe, resumable, the same
+progress bar.  A worker integrates a chunk with the same batch kernel as the
+local backend; each run's result does not depend on its chunk nor on the
+thread count, so the file equals a local run's (wall_time aside).
+
+Workers: a worker plugin compiles (or loads from numba's cache) the sweep's
+kernels once per worker process, also on a worker that joins or restarts
+mid-sweep.  A worker process integrates one chunk at a time with as many
+numba threads as it has Dask threads (capped by its NUMBA_NUM_THREADS), so
+nothing is oversubscribed.  A worker lost mid-sweep loses only its running
+chunks: Dask reruns them elsewhere (up to ``distributed.scheduler.
+allowed-failures`` worker deaths per chunk); task errors are retried
+``RETRIES`` times.
+
+``runner.address=local`` starts a LocalCluster inside the process
+(``runner.threads`` or all cores as one-thread worker processes).
+"""
+import asyncio
+import json
+import logging
+import os
+import socket
+import threading
+import time
+import uuid
+from urllib.parse import urlsplit
+
+import numba
+import numpy as np
+from distributed import Client, LocalCluster, WorkerPlugin, as_completed, get_worker
+from numba.core import event
+
+from .. import __version__
+from .config import ConfigError
+from .execute import BackendError, chunk_delay, integrate_chunk, warm_up_methods
+from .grid import estimate_seconds, plan_chunks
+
+LOCAL = "local"  # runner.address that starts a LocalCluster in this process
+CHUNKS_PER_WORKER = 4  # at least this many chunks per worker: balance and small losses on a worker crash
+RETRIES = 2  # reruns of a chunk whose task raised (a lost worker is handled by Dask's allowed-failures)
+
+# --------------------------------------------------------------------------- worker side
+
+_CHUNK_LOCK = threading.Lock()  # one chunk (or warm-up) at a time per worker process
+# Counters of this worker process, read by tests through Client.run: warm-ups done, chunks
+# integrated, and numba JIT events (compile or cache load) that happened inside chunks.
+STATS = {"warm_ups": 0, "chunks": 0, "jit_in_chunks": 0}
+
+
+def numba_threads(nthreads):
+    """numba threads of one chunk on a worker with ``nthreads`` Dask threads."""
+    return max(1, min(int(nthreads), numba.config.NUMBA_NUM_THREADS))
+
+
+class _JitCount(event.Listener):
+    def __init__(self):
+        self.count = 0
+
+    def on_start(self, ev):
+        self.count += 1
+
+    def on_end(self, ev):
+        pass
+
+
+def run_chunk_task(method, runs, inputs, n_samples, threshold, delay=0.0):
+    """Dask task: integrate one chunk (``execute.integrate_chunk``) on this worker."""
+    threads = numba_threads(get_worker().state.nthreads)
+    with _CHUNK_LOCK:
+        numba.set_num_threads(threads)
+        jit = _JitCount()
+        with event.install_listener("numba:compiler_lock", jit):
+            result = integrate_chunk(method, runs, inputs, n_samples, threshold, threads)
+        STATS["chunks"] += 1
+        STATS["jit_in_chunks"] += jit.count
+    if delay:
+        time.sleep(delay)  # test hook (GYROLAB_TEST_CHUNK_DELAY of the driver)
+    return result
+
+
+class WarmUp(WorkerPlugin):
+    """Compiles (or loads) the sweep's kernels when a worker starts or the plugin is registered.
+
+    ``inputs`` are one run's kernel inputs (``Grid.inputs``): the argument types of every chunk."""
+
+    def __init__(self, methods, inputs, threshold):
+        self.methods, self.inputs, self.threshold = tuple(methods), inputs, float(threshold)
+
+    async def setup(self, worker):
+        # In a thread, so the worker keeps answering the scheduler while numba compiles.
+        await asyncio.get_running_loop().run_in_executor(None, self.warm)
+
+    def warm(self):
+        with _CHUNK_LOCK:
+            warm_up_methods(self.methods, self.inputs, self.threshold)
+            STATS["warm_ups"] += 1
+
+
+def worker_info(dask_worker):
+    """What the driver needs to know of a worker (run through ``Client.run``)."""
+    return {"nthreads": dask_worker.state.nthreads, "threads": numba_threads(dask_worker.state.nthreads),
+            "gyrolab": __version__, "numba": numba.__version__, "pid": os.getpid()}
+
+
+# --------------------------------------------------------------------------- connecting
+
+def read_scheduler_file(path):
+    """The scheduler address in a Dask scheduler file (JSON); ConfigError naming the key."""
+    key = f"runner.scheduler_file={path}"
+    try:
+        with open(os.path.expanduser(path)) as fh:
+            text = fh.read()
+    except FileNotFoundError:
+        raise ConfigError(f"{key}: no such file") from None
+    except OSError as err:
+        raise ConfigError(f"{key}: cannot read it ({err.strerror})") from None
+    try:
+        address = json.loads(text)["address"]
+    except (ValueError, KeyError, TypeError):
+        raise ConfigError(f"{key}: not a Dask scheduler file (JSON with an 'address')") from None
+    return str(address)
+
+
+def check_scheduler(address, key, timeout):
+    """ConfigError (naming ``key``) unless a Dask scheduler answers at ``address`` within ``timeout`` s."""
+    parts = urlsplit(address)
+    try:
+        host, port = parts.hostname, parts.port
+    except ValueError:
+        host = port = None
+    if parts.scheme != "tcp" or not host or not port:
+        raise ConfigError(f"{key}: expected tcp://host:port (or local)")
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except socket.gaierror:
+        raise ConfigError(f"{key}: unknown host {host}") from None
+    except ConnectionRefusedError:
+        raise ConfigError(f"{key}: nothing listens at {host}:{port} (connection refused)") from None
+    except OSError as err:
+        reason = f"no answer within {timeout:g} s" if isinstance(err, TimeoutError) else err.strerror or err
+        raise ConfigError(f"{key}: cannot connect to {host}:{port} ({reason})") from None
+    try:
+        reply = asyncio.run(asyncio.wait_for(_identity(address, timeout), timeout))
+    except Exception as err:  # whatever a non-Dask peer makes the protocol raise
+        raise ConfigError(f"{key}: not a Dask scheduler ({type(err).__name__})") from None
+    if not isinstance(reply, dict) or reply.get("type") != "Scheduler":
+        raise ConfigError(f"{key}: not a Dask scheduler")
+
+
+async def _identity(address, timeout):
+    from distributed.comm import connect
+
+    comm = await connect(address, timeout=timeout)
+    try:
+        await comm.write({"op": "identity", "reply": True})
+        return await comm.read()
+    finally:
+        await comm.close()
+
+
+def open_cluster(runner):
+    """Connect to the cluster of ``runner`` (its address or scheduler file), or start a
+    LocalCluster for ``address=local``.  ConfigError (one line naming the key and value)
+    when it cannot be reached, has no workers, or its workers run other versions."""
+    timeout = float(runner.connect_timeout)
+    if runner.address == LOCAL:
+        return DaskCluster.start_local(runner.threads)
+    if runner.threads is not None:
+        raise ConfigError(f"runner.threads={runner.threads}: with a Dask cluster the workers' threads decide "
+                          "(dask worker --nthreads); leave it unset")
+    if runner.scheduler_file is not None:
+        key = f"runner.scheduler_file={runner.scheduler_file}"
+        address = read_scheduler_file(runner.scheduler_file)
+        check_scheduler(address, f"{key} (scheduler {address})", timeout)
+    else:
+        key, address = f"runner.address={runner.address}", str(runner.address)
+        check_scheduler(address, key, timeout)
+    try:
+        client = Client(address, timeout=timeout, set_as_default=False)
+    except Exception as err:
+        raise ConfigError(f"{key}: cannot connect ({type(err).__name__}: {err})") from None
+    cluster = DaskCluster(client, None, address)
+    try:
+        cluster.check_workers(key, timeout)
+    except BaseException:
+        cluster.close()
+        raise
+    return cluster
+
+
+class DaskCluster:
+    """A connected Dask client (and the LocalCluster it started, if any) that runs chunks."""
+
+    def __init__(self, client, local, address):
+        self.client, self.local, self.address = client, local, address
+        self.workers = {}
+
+    @classmethod
+    def start_local(cls, threads=None):
+        """A LocalCluster of one-thread worker processes, one per core (or ``threads``)."""
+        n = int(threads) if threads is not None else len(os.sched_getaffinity(0))
+        local = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                             scheduler_kwargs={"dashboard_address": ":0"},  # its HTTP port: any free one
+                             silence_logs=logging.ERROR)
+        cluster = cls(Client(local, set_as_default=False), local, LOCAL)
+        try:
+            cluster.check_workers(f"runner.address={LOCAL}", 60.0)
+        except BaseException:
+            cluster.close()
+            raise
+        return cluster
+
+    def check_workers(self, key, timeout):
+        """Wait for a worker; ConfigError unless every worker imports this gyrolab and numba."""
+        try:
+            self.client.wait_for_workers(1, timeout=timeout)
+        except TimeoutError:
+            raise ConfigError(f"{key}: the scheduler has no workers (waited {timeout:g} s)") from None
+        try:
+            self.workers = self.client.run(worker_info)
+        except Exception as err:
+            raise ConfigError(f"{key}: its workers cannot run gyrolab ({type(err).__name__}: {err})") from None
+        for address, info in self.workers.items():
+            if (info["gyrolab"], info["numba"]) != (__version__, numba.__version__):
+                raise ConfigError(
+                    f"{key}: worker {address} runs gyrolab {info['gyrolab']} with numba {info['numba']}, "
+                    f"this process gyrolab {__version__} with numba {numba.__version__}"
+                )
+
+    @property
+    def threads(self):
+        """numba threads of the whole cluster (one chunk at a time per worker)."""
+        return sum(info["threads"] for info in self.workers.values())
+
+    def describe(self):
+        return f"{len(self.workers)} Dask workers ({self.threads} threads) at {self.address}"
+
+    @property
+    def chunk_threads(self):
+        """numba threads of one chunk on the smallest worker (chunks are sized for it)."""
+        return min((info["threads"] for info in self.workers.values()), default=1)
+
+    def estimate_seconds(self, grid, chunks):
+        """Estimated compute time (s) of the chunks spread evenly over the workers (no JIT)."""
+        return estimate_seconds(grid, chunks, self.chunk_threads) / max(len(self.workers), 1)
+
+    def plan(self, grid, runs, chunk_seconds):
+        """Chunks of ``runs`` as the local planner makes them (sized for the smallest worker),
+        made finer until there are CHUNKS_PER_WORKER per worker or chunks cannot shrink."""
+        threads = self.chunk_threads
+        target = CHUNKS_PER_WORKER * max(len(self.workers), 1)
+        seconds = float(chunk_seconds)
+        chunks = plan_chunks(grid, runs, threads, seconds)
+        while chunks and len(chunks) < target and max(len(c) for c in chunks) > threads:
+            seconds /= 2
+            chunks = plan_chunks(grid, runs, threads, seconds)
+        return chunks
+
+    def warm_up(self, grid):
+        """Register the warm-up plugin: every worker compiles the sweep's kernels now, and
+        every worker that joins later does so before its first chunk."""
+        self.plugin = f"gyrolab-warm-up-{uuid.uuid4().hex[:8]}"
+        inputs = grid.inputs(np.zeros(1, dtype=np.int64))
+        try:
+            self.client.register_plugin(WarmUp(grid.methods, inputs, grid.threshold), name=self.plugin)
+        except Exception as err:
+            raise BackendError(f"the warm-up of the kernels failed on the Dask workers at {self.address}: "
+                               f"{type(err).__name__}: {err}") from None
+
+    def run_missing(self, grid, journal, todo, chunk_seconds, first_number, progress=None):
+        """Run the runs in ``todo`` (flat numbers) on the cluster, storing each finished chunk
+        in ``journal`` as it arrives; ``progress(runs, steps)`` after each one.
+
+        BackendError when the cluster gives up on a chunk (the journal keeps the rest)."""
+        chunks = self.plan(grid, np.asarray(todo, dtype=np.int64), chunk_seconds)
+        token = uuid.uuid4().hex[:8]
+        method = [grid.methods[int(grid.index(c[:1])[0][0])] for c in chunks]
+        n = len(chunks)
+        futures = self.client.map(
+            run_chunk_task, method, chunks, [grid.inputs(c) for c in chunks], [grid.n_samples] * n,
+            [grid.threshold] * n, [chunk_delay()] * n, key=[f"gyrolab-chunk-{token}-{i}" for i in range(n)],
+            retries=RETRIES, pure=False,
+        )
+        pending = set(futures)
+        number = first_number
+        try:
+            for future, result in as_completed(futures, loop=self.client.loop, with_results=True,
+                                                  raise_errors=False):
+                pending.discard(future)
+                if future.status == "error":
+                    raise BackendError(f"the Dask cluster at {self.address} failed on a chunk: "
+                                       f"{type(result).__name__}: {result}")
+                journal.write_chunk(number, **result)
+                number += 1
+                future.release()
+                if progress is not None:
+                    progress(len(result["runs"]), int(grid.steps(result["runs"]).sum()))
+        finally:
+            if pending:
+                self.client.cancel(list(pending))
+
+    def close(self):
+        """Unregister the warm-up plugin, disconnect, stop a LocalCluster we started."""
+        try:
+            if getattr(self, "plugin", None) and self.client.status == "running":
+                self.client.unregister_worker_plugin(self.plugin)
+        except Exception:
+            pass  # the cluster is going away or already gone: nothing left to clean
+        finally:
+            self.client.close()
+            if self.local is not None:
+                self.local.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
