@@ -37,32 +37,22 @@ VECTOR = 8
 
 
 def make_block_steps(step):
-    """``steps(W, Q, B, DT, BAD, n_lanes, m)``: m steps of ``step`` on lanes 0 .. n_lanes − 1.
+    """``steps(W, Q, B, DT, BAD, n_lanes, m, symmetric)``: m steps of ``step`` on lanes 0 .. n_lanes − 1.
 
     W (3, ≥ n_lanes) body ω (rad/s), Q (4, ·) quaternions, updated in place;
-    B (4, ·) bodies, DT (·,) steps (s), BAD (·,) uint8 scratch.
+    B (4, ·) bodies, DT (·,) steps (s), BAD (·,) uint8 scratch.  ``symmetric``
+    promises I1 == I2 ≠ 0 on every lane (see _make_pass).
     """
     fast, exact = lane_step(step), ieee_step(step)
+    general, symmetric_pass = _make_pass(fast, False), _make_pass(fast, True)
 
     @njit(error_model="numpy")
-    def steps(W, Q, B, DT, BAD, n_lanes, m):
+    def steps(W, Q, B, DT, BAD, n_lanes, m, symmetric):
         for _ in range(m):
-            n_bad = 0
-            for j in range(n_lanes):
-                w = (W[0, j], W[1, j], W[2, j])
-                q = (Q[0, j], Q[1, j], Q[2, j], Q[3, j])
-                w2, q2 = fast(w, q, DT[j], (B[0, j], B[1, j], B[2, j], B[3, j]))
-                x = w2[0] + w2[1] + w2[2] + q2[0] + q2[1] + q2[2] + q2[3]
-                ok = x - x == 0.0  # False for inf and NaN
-                BAD[j] = not ok
-                n_bad += not ok
-                W[0, j] = w2[0] if ok else w[0]
-                W[1, j] = w2[1] if ok else w[1]
-                W[2, j] = w2[2] if ok else w[2]
-                Q[0, j] = q2[0] if ok else q[0]
-                Q[1, j] = q2[1] if ok else q[1]
-                Q[2, j] = q2[2] if ok else q[2]
-                Q[3, j] = q2[3] if ok else q[3]
+            if symmetric:
+                n_bad = symmetric_pass(W, Q, B, DT, BAD, n_lanes)
+            else:
+                n_bad = general(W, Q, B, DT, BAD, n_lanes)
             if n_bad:
                 for j in range(n_lanes):
                     if BAD[j]:
@@ -72,6 +62,47 @@ def make_block_steps(step):
                         Q[0, j], Q[1, j], Q[2, j], Q[3, j] = q
 
     return steps
+
+
+def _make_pass(fast, symmetric):
+    """One step of every lane with ``fast``; a lane whose result is not finite keeps its state and
+    is flagged in BAD.  Returns the number flagged.
+
+    The step's branches on the body (I1 == I2 in free_flow) are data to LLVM, so
+    the vectorised loop computes both sides.  With ``symmetric`` (a compile-time
+    constant) the loop passes the body as (I1, I1, I3, mgl), I1 made provably
+    not NaN: LLVM then folds I1 == I2 to true and drops the asymmetric free
+    flow (lie_poisson: 11.5 → 3.4 ns/step).  Bit for bit the same when every
+    lane has I1 == I2 ≠ 0 (so that not even the sign of a zero differs).
+    """
+
+    @njit(error_model="numpy", forceinline=True)
+    def lane_pass(W, Q, B, DT, BAD, n_lanes):
+        n_bad = 0
+        for j in range(n_lanes):
+            I1 = B[0, j]
+            if symmetric:
+                I1 = I1 if I1 == I1 else 1.0
+                I2 = I1
+            else:
+                I2 = B[1, j]
+            w = (W[0, j], W[1, j], W[2, j])
+            q = (Q[0, j], Q[1, j], Q[2, j], Q[3, j])
+            w2, q2 = fast(w, q, DT[j], (I1, I2, B[2, j], B[3, j]))
+            x = w2[0] + w2[1] + w2[2] + q2[0] + q2[1] + q2[2] + q2[3]
+            ok = x - x == 0.0  # False for inf and NaN
+            BAD[j] = not ok
+            n_bad += not ok
+            W[0, j] = w2[0] if ok else w[0]
+            W[1, j] = w2[1] if ok else w[1]
+            W[2, j] = w2[2] if ok else w[2]
+            Q[0, j] = q2[0] if ok else q[0]
+            Q[1, j] = q2[1] if ok else q[1]
+            Q[2, j] = q2[2] if ok else q[2]
+            Q[3, j] = q2[3] if ok else q[3]
+        return n_bad
+
+    return lane_pass
 
 
 def make_advance_block(step):
@@ -108,12 +139,15 @@ def make_advance_block(step):
             TOL[j] = threshold * (kinetic_energy(w, body) + abs(body[3]))
             status[i] = STATUS_OK
             n_steps[i] = 0
+        symmetric = True
+        for j in range(size):
+            symmetric = symmetric and B[0, j] == B[1, j] and B[0, j] != 0.0
         active = n if out.shape[1] > 1 else 0
         while active > 0:
             m = LEFT[0]
             for j in range(1, active):
                 m = min(m, LEFT[j])
-            steps(W, Q, B, DT, BAD, -(-active // VECTOR) * VECTOR, m)
+            steps(W, Q, B, DT, BAD, -(-active // VECTOR) * VECTOR, m, symmetric)
             j = 0
             while j < active:
                 LEFT[j] -= m

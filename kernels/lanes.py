@@ -6,7 +6,9 @@ numba function it calls, with three changes and nothing else:
 - ``error_model="numpy"``: a float division does not test its divisor for zero
   (Python's ZeroDivisionError check is a branch out of the loop that stops
   LLVM from vectorising it); the quotient itself is the same IEEE division;
-- ``inline="always"``: the whole step is inlined into the loop over lanes;
+- ``forceinline=True`` (LLVM's alwaysinline): the whole step is inlined into
+  the loop over lanes (numba's own ``inline="always"`` does the same on its
+  IR, but takes ~100 s for lie_poisson4's ~140 nested calls);
 - ``quat_from_rotvec`` and ``half_angle``, the two helpers that branch between
   the small-angle polynomial and libm, always take the polynomial and return
   NaN where the original would have called libm (angle ≥ SMALL_ANGLE or NaN).
@@ -15,7 +17,7 @@ So on every lane where the result is finite it is bit for bit what ``step``
 returns (same operations in the same order; numba never contracts a·b + c
 into an FMA without fastmath).  A lane whose result is not finite (a large
 rotation, or a run that is itself blowing up) is recomputed by the caller
-with the original ``step``.  Helpers must be called by their bare name (as
+with ``ieee_step(step)``.  Helpers must be called by their bare name (as
 the kernels do), not as ``module.function``, to be recompiled.
 
 ``ieee_step(step)`` makes only the first change: bit for bit ``step``, except
@@ -61,15 +63,15 @@ _REPLACED = {rotation.quat_from_rotvec: _quat_from_rotvec_or_nan, rotation.half_
 def lane_step(step):
     """njit ``(w, q, dt, body) -> (w, q)``: ``step`` recompiled as described above;
     non-finite output means "recompute this lane with ``ieee_step(step)``"."""
-    return _recompile(step, {}, _REPLACED, "always")
+    return _recompile(step, {}, _REPLACED, {"forceinline": True})
 
 
 def ieee_step(step):
     """njit ``(w, q, dt, body) -> (w, q)``: ``step`` with IEEE division (no ZeroDivisionError)."""
-    return _recompile(step, {}, {}, "never")
+    return _recompile(step, {}, {}, {})
 
 
-def _recompile(dispatcher, done, replaced, inline):
+def _recompile(dispatcher, done, replaced, options):
     """A fresh dispatcher of ``dispatcher``'s source, error_model="numpy", whose calls to
     other numba functions go to their recompiled copies (or to ``replaced[original]``)."""
     dispatcher = replaced.get(dispatcher, dispatcher)
@@ -78,14 +80,14 @@ def _recompile(dispatcher, done, replaced, inline):
         names = dict(func.__globals__)
         for name in func.__code__.co_names:
             if isinstance(names.get(name), Dispatcher):
-                names[name] = _recompile(names[name], done, replaced, inline)
+                names[name] = _recompile(names[name], done, replaced, options)
         cells = func.__closure__
         if cells:
             cells = tuple(
-                types.CellType(_recompile(c.cell_contents, done, replaced, inline))
+                types.CellType(_recompile(c.cell_contents, done, replaced, options))
                 if isinstance(c.cell_contents, Dispatcher) else c
                 for c in cells
             )
         copy = types.FunctionType(func.__code__, names, func.__name__, func.__defaults__, cells)
-        done[dispatcher] = njit(error_model="numpy", inline=inline)(copy)
+        done[dispatcher] = njit(error_model="numpy", **options)(copy)
     return done[dispatcher]

@@ -69,6 +69,17 @@ def test_blocks_equal_runs_bit_for_bit(method, scene):
     assert_same(run_blocks(method, inputs, n_samples, shuffled, np.r_[0:n:VECTOR, n]), reference)
 
 
+@pytest.mark.parametrize("method", ["lie_poisson", "seed_next"])
+def test_blocks_mixing_symmetric_and_asymmetric_bodies(method):
+    """Heavy tops (I1 = I2: the symmetric pass) and boxes (I1 ≠ I2) in the same blocks (general pass):
+    same bits as one by one."""
+    top, n_samples = mixed_batch("heavy_top", thetas=(60.0,))
+    box, _ = mixed_batch("free_asymmetric", thetas=(60.0,))
+    inputs = tuple(np.concatenate([a, b]) for a, b in zip(top, box))
+    assert_same(integrate(method, *inputs, n_samples, path="blocks"),
+                integrate(method, *inputs, n_samples, path="runs"))
+
+
 def test_blocks_do_not_depend_on_threads():
     """seed_next, heavy top, 100 runs: 1 and 2 threads give the same bits (blocks are planned per thread
     count, so the blocking differs too)."""
@@ -160,7 +171,7 @@ def test_block_loop_is_vectorised():
     n = VECTOR
     W, Q, B, DT, BAD = np.zeros((3, n)), np.zeros((4, n)), np.ones((4, n)), np.zeros(n), np.zeros(n, np.uint8)
     Q[0] = 1.0
-    steps(W, Q, B, DT, BAD, n, 1)
+    steps(W, Q, B, DT, BAD, n, 1, False)
     ir = steps.inspect_llvm(steps.signatures[0])
     assert "fdiv <" in ir and "fmul <" in ir and " x double>" in ir
 
