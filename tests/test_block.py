@@ -169,9 +169,9 @@ def test_block_loop_is_vectorised():
     lanes.py replaces, a helper called as module.function, a Python-error-model division)."""
     steps = make_block_steps(METHODS["seed_next"].step)
     n = VECTOR
-    W, Q, B, DT, BAD = np.zeros((3, n)), np.zeros((4, n)), np.ones((4, n)), np.zeros(n), np.zeros(n, np.uint8)
+    W, Q, B, DT = np.zeros((3, n)), np.zeros((4, n)), np.ones((4, n)), np.zeros(n)
     Q[0] = 1.0
-    steps(W, Q, B, DT, BAD, n, 1, False)
+    steps(W, Q, B, DT, np.empty((7, n)), np.zeros(n, np.uint8), n, 1, False)
     ir = steps.inspect_llvm(steps.signatures[0])
     assert "fdiv <" in ir and "fmul <" in ir and " x double>" in ir
 
