@@ -24,6 +24,7 @@ import asyncio
 import json
 import logging
 import os
+import signal
 import socket
 import threading
 import time
@@ -204,9 +205,15 @@ class DaskCluster:
     def start_local(cls, threads=None):
         """A LocalCluster of one-thread worker processes, one per core (or ``threads``)."""
         n = int(threads) if threads is not None else len(os.sched_getaffinity(0))
-        local = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                             scheduler_kwargs={"dashboard_address": ":0"},  # its HTTP port: any free one
-                             silence_logs=logging.ERROR)
+        # Worker processes inherit an ignored SIGINT: Ctrl-C in the terminal interrupts this
+        # driver (which stops them), not each worker with a traceback of its own.
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            local = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                                 scheduler_kwargs={"dashboard_address": ":0"},  # its HTTP port: any free one
+                                 silence_logs=logging.ERROR)
+        finally:
+            signal.signal(signal.SIGINT, previous)
         cluster = cls(Client(local, set_as_default=False), local, LOCAL)
         try:
             cluster.check_workers(f"runner.address={LOCAL}", 60.0)
