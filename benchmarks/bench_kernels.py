@@ -111,12 +111,46 @@ def kernel_table(args):
                   f"{block1 / block2:.2f}x | {single / block2:.0f}x |", flush=True)
 
 
+def balance_table(args):
+    """Mixed step counts and diverging runs: the blocks' load balance on 2 threads."""
+    name, f, theta0 = SCENES["heavy_top"]
+    bodies, omega0, q0 = batch_inputs(name, f, theta0, args.runs)
+    threads = min(2, numba.config.NUMBA_NUM_THREADS)
+    every, t_end = 1e-2, 0.5 if not args.quick else 0.05
+    n_samples = int(round(t_end / every)) + 1
+
+    def wall(dt, nthreads):
+        stride = np.rint(every / dt).astype(np.int64)
+        numba.set_num_threads(nthreads)
+        integrate("seed_next", bodies, omega0, q0, dt, stride, 2)
+        times = []
+        for _ in range(args.repeat):
+            start = time.perf_counter()
+            _, status, n_steps = integrate("seed_next", bodies, omega0, q0, dt, stride, n_samples)
+            times.append(time.perf_counter() - start)
+        return float(np.median(times)), status, int(n_steps.sum())
+
+    print(f"\n## 1b. Load balance: seed_next, heavy top, {args.runs} runs, {t_end:g} s, samples every {every:g} s\n")
+    print("| batch | steps done | ns/step, 1 thread | ns/step, 2 threads | speed-up |")
+    print("|---|---:|---:|---:|---:|")
+    mixed = np.resize([1e-4, 2e-4, 2.5e-4, 5e-4], args.runs)
+    half_bad = np.where(np.arange(args.runs) % 2 == 0, 1e-4, 1e-2)  # dt = 1e-2: ω dt = 3, diverges at once
+    for label, dt in [("all dt = 1e-4 s", np.full(args.runs, 1e-4)),
+                      ("dt 1e-4, 2e-4, 2.5e-4, 5e-4 s mixed", mixed),
+                      ("every other run diverges (dt = 1e-2 s)", half_bad)]:
+        w1, status, steps = wall(dt, 1)
+        w2, _, _ = wall(dt, threads)
+        extra = f" ({int((status != 0).sum())} diverged)" if (status != 0).any() else ""
+        print(f"| {label}{extra} | {steps} | {w1 / steps * 1e9:.2f} | {w2 / steps * 1e9:.2f} | {w1 / w2:.2f}x |",
+              flush=True)
+
+
 def ladders(args):
-    """{method: [(dt, nutation bound error, energy error)]} on the heavy top, dt halving from 1.6e-2 s."""
+    """{method: [(dt, nutation bound error, energy error)]} on the heavy top, dt halving from 3.2e-2 s."""
     scene = build_scene(*SCENES["heavy_top"])
     out = {}
     for method in METHODS:
-        rows, dt = [], 1.6e-2
+        rows, dt = [], 3.2e-2
         while T_ACCURACY / dt <= (MAX_SCAN_STEPS if not args.quick else MAX_SCAN_STEPS // 20):
             nut, en = precision.scan(method, scene, dt, T_ACCURACY)
             rows.append((dt, nut, en))
@@ -150,7 +184,7 @@ def accuracy_tables(args, sections):
         print(f"\n## 2. Cost of an accuracy: relative error of the nutation bounds θ_min, θ_max (heavy top 50 Hz, "
               f"45°, released, {T_ACCURACY:g} s, against the closed form)\n")
         print("dt: the step that reaches the error, log-log interpolated between the two dt of the ladder "
-              "(halving from 1.6e-2 s) that bracket it; `~`: extrapolated beyond the finest dt with the last "
+              "(halving from 3.2e-2 s) that bracket it; `~`: extrapolated beyond the finest dt with the last "
               "slope; `<=`: already reached at the coarsest. Cost in ms of CPU per simulated second: "
               "single run (run_batch), and per run in a batch of 64 (blocks, 1 thread).\n")
         dop = [(rtol,) + precision.dop853_point(scene, T_ACCURACY, rtol) for rtol in 10.0 ** -np.arange(4, 14.0)]
@@ -205,7 +239,8 @@ def accuracy_tables(args, sections):
         print("- scipy DOP853 (rtol = atol: ms per sim-s, nutation bound error, steps): "
               + "; ".join(f"{r:.0e}: {c * 1e3:.3g}, {e:.2g}, {n}" for r, c, e, n in dop))
     if "energy" in sections and mj:
-        print("- MuJoCo RK4 (dt: energy error, ns/step): " + "; ".join(f"{d:.3g}: {e:.2g}, {ns:.0f}" for d, e, ns in mj))
+        print("- MuJoCo RK4 (dt: energy error, ns/step): "
+              + "; ".join(f"{d:.3g}: {e:.2g}, {ns:.0f}" for d, e, ns in mj))
 
 
 def _interp_cost(points, x):
@@ -222,9 +257,13 @@ def _row(target, method, dt, flag, peer_ms, args):
         return
     single, block = cost_at(method, float(f"{dt:.3g}"), args)
     ms_single, ms_block = single / dt * 1e-6, block / dt * 1e-6
-    ratios = f"{peer_ms / ms_single:.0f}x | {peer_ms / ms_block:.0f}x" if peer_ms else " | "
+    ratios = f"{_ratio(peer_ms / ms_single)} | {_ratio(peer_ms / ms_block)}" if peer_ms else " | "
     print(f"| {target:g} | {method} | {_fmt_dt(dt, flag)} | {single:.1f} | {block:.2f} | {ms_single:.3g} | "
           f"{ms_block:.3g} | {ratios} |", flush=True)
+
+
+def _ratio(r):
+    return f"{r:.0f}x" if r >= 10 else f"{r:.2g}x"
 
 
 def main():
@@ -241,6 +280,7 @@ def main():
     header(args)
     if "kernels" in sections:
         kernel_table(args)
+        balance_table(args)
     if sections & {"nutation", "energy"}:
         accuracy_tables(args, sections)
     print(f"\n# load average at end (1, 5, 15 min): {' '.join(f'{x:.2f}' for x in os.getloadavg())}")

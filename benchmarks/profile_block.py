@@ -101,9 +101,9 @@ def main():
 
     shipped = make_block_steps(step)
     rows = [(f"shipped steps(): {m} steps, then the non-finite check (symmetric pass)",
-             timed(lambda k: shipped(W, Q, B, DT, S, BAD, n, k, True), n, m, args.repeat))]
+             timed(lambda k: shipped(W, Q, B, DT, S, BAD, n, k, True, 0), n, m, args.repeat))]
     rows.append(("  same, general pass (I2 read from B)",
-                 timed(lambda k: shipped(W, Q, B, DT, S, BAD, n, k, False), n, m, args.repeat)))
+                 timed(lambda k: shipped(W, Q, B, DT, S, BAD, n, k, False, 0), n, m, args.repeat)))
     for label, variant in [
         ("bare lane loop (as shipped, without checkpoint and check)", step),
         ("bare; divisions -> reciprocal multiplications (other bits)", _step_reciprocal),

@@ -6,9 +6,10 @@ A block holds up to a few dozen runs ("lanes") laid out structure-of-arrays
 turns into packed AVX/AVX-512 code; after the steps up to the next sample,
 the rare lanes whose state came out non-finite (a rotation angle beyond the
 polynomial's range, or a run blowing up) are redone from before those steps
-with ``ieee_step`` (the method's own ``step``, never raising).  Every lane therefore gets exactly what ``step`` computes: results are
-bit-identical to the single-trajectory driver (driver.py), whatever the block
-size or thread count.  The one exception: where ``step`` would raise
+with ``ieee_step`` (the method's own ``step``, never raising).  Every lane
+therefore gets exactly what ``step`` computes: results are bit-identical to
+the single-trajectory driver (driver.py), whatever the block size or thread
+count.  The one exception: where ``step`` would raise
 ZeroDivisionError (rk4 after its quaternion overflowed), the lane turns NaN
 and its run ends with status "non-finite"; driver.py's prange loses such an
 exception and returns that run half-written.
@@ -36,24 +37,47 @@ from .rigid_body import kinetic_energy
 VECTOR = 8
 
 
+# After a sample interval where more than 1/WIDE_FRACTION of a block's lanes
+# needed libm, the block redoes it and runs the next WIDE_INTERVALS intervals
+# with the libm pass (ieee_step inlined and vectorised) instead of lane_step.
+WIDE_FRACTION = 4
+WIDE_INTERVALS = 7
+
+
 def make_block_steps(step):
-    """``steps(W, Q, B, DT, S, BAD, n_lanes, m, symmetric)``: m steps of ``step`` on lanes 0 .. n_lanes − 1.
+    """``steps(W, Q, B, DT, S, BAD, n_lanes, m, symmetric, wide) -> wide``: m steps of ``step`` on
+    lanes 0 .. n_lanes − 1.
 
     W (3, ≥ n_lanes) body ω (rad/s), Q (4, ·) quaternions, updated in place;
     B (4, ·) bodies, DT (·,) steps (s); S (7, ·) float and BAD (·,) uint8
     scratch.  ``symmetric`` promises I1 == I2 ≠ 0 on every lane (_make_pass).
 
-    The m steps run unchecked; a lane that ends non-finite is redone from its
-    state before them with ``ieee_step``.  That catches every lane where
-    ``lane_step`` differed from ``step``: its NaN lands in q, and a NaN
-    quaternion stays NaN (each method multiplies or adds it into the next).
-    Checking once per m steps instead of after each one saves ~20 %.
+    The m steps run unchecked with ``lane_step``; a lane that ends non-finite
+    is redone from its state before them with ``ieee_step``.  That catches
+    every lane where ``lane_step`` differed from ``step``: its NaN lands in q,
+    and a NaN quaternion stays NaN (each method multiplies or adds it into the
+    next).  Checking once per m steps instead of after each one saves ~20 %.
+    When many lanes need libm (large rotations per step), all lanes are redone
+    with the vectorised libm pass, which is used for the next intervals too
+    (``wide`` counts them down).
     """
-    fast, exact = lane_step(step), ieee_step(step)
+    fast, exact, libm = lane_step(step), ieee_step(step), ieee_step(step, inline=True)
     general, symmetric_pass = _make_pass(fast, False), _make_pass(fast, True)
+    general_libm, symmetric_libm = _make_pass(libm, False), _make_pass(libm, True)
 
     @njit(error_model="numpy")
-    def steps(W, Q, B, DT, S, BAD, n_lanes, m, symmetric):
+    def with_libm(W, Q, B, DT, n_lanes, m, symmetric):
+        for _ in range(m):
+            if symmetric:
+                symmetric_libm(W, Q, B, DT, n_lanes)
+            else:
+                general_libm(W, Q, B, DT, n_lanes)
+
+    @njit(error_model="numpy")
+    def steps(W, Q, B, DT, S, BAD, n_lanes, m, symmetric, wide):
+        if wide > 0:
+            with_libm(W, Q, B, DT, n_lanes, m, symmetric)
+            return wide - 1
         for j in range(n_lanes):
             S[0, j], S[1, j], S[2, j] = W[0, j], W[1, j], W[2, j]
             S[3, j], S[4, j], S[5, j], S[6, j] = Q[0, j], Q[1, j], Q[2, j], Q[3, j]
@@ -68,6 +92,12 @@ def make_block_steps(step):
             bad = not x - x == 0.0  # inf or NaN somewhere
             BAD[j] = bad
             n_bad += bad
+        if WIDE_FRACTION * n_bad > n_lanes:
+            for j in range(n_lanes):
+                W[0, j], W[1, j], W[2, j] = S[0, j], S[1, j], S[2, j]
+                Q[0, j], Q[1, j], Q[2, j], Q[3, j] = S[3, j], S[4, j], S[5, j], S[6, j]
+            with_libm(W, Q, B, DT, n_lanes, m, symmetric)
+            return WIDE_INTERVALS
         if n_bad:
             for j in range(n_lanes):
                 if BAD[j]:
@@ -77,6 +107,7 @@ def make_block_steps(step):
                         w, q = exact(w, q, DT[j], body)
                     W[0, j], W[1, j], W[2, j] = w
                     Q[0, j], Q[1, j], Q[2, j], Q[3, j] = q
+        return 0
 
     return steps
 
@@ -143,7 +174,7 @@ def make_advance_block(step):
             TOL[j] = threshold * (kinetic_energy(w, body) + abs(body[3]))
             status[i] = STATUS_OK
             n_steps[i] = 0
-        symmetric = True
+        symmetric, wide = True, 0
         for j in range(size):
             symmetric = symmetric and B[0, j] == B[1, j] and B[0, j] != 0.0
         active = n if out.shape[1] > 1 else 0
@@ -151,7 +182,7 @@ def make_advance_block(step):
             m = LEFT[0]
             for j in range(1, active):
                 m = min(m, LEFT[j])
-            steps(W, Q, B, DT, S, BAD, -(-active // VECTOR) * VECTOR, m, symmetric)
+            wide = steps(W, Q, B, DT, S, BAD, -(-active // VECTOR) * VECTOR, m, symmetric, wide)
             j = 0
             while j < active:
                 LEFT[j] -= m

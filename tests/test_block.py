@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from gyrolab.kernels.batch import MIN_BLOCK_RUNS, integrate, sample_schedule
-from gyrolab.kernels.block import VECTOR, make_block_steps, plan_blocks
+from gyrolab.kernels.block import VECTOR, WIDE_INTERVALS, make_block_steps, plan_blocks
 from gyrolab.kernels.driver import N_FIELDS, STATUS_ENERGY, STATUS_NONFINITE, STATUS_OK
 from gyrolab.kernels.lanes import _half_angle_or_nan, _quat_from_rotvec_or_nan, ieee_step, lane_step
 from gyrolab.kernels.registry import METHODS
@@ -171,9 +171,32 @@ def test_block_loop_is_vectorised():
     n = VECTOR
     W, Q, B, DT = np.zeros((3, n)), np.zeros((4, n)), np.ones((4, n)), np.zeros(n)
     Q[0] = 1.0
-    steps(W, Q, B, DT, np.empty((7, n)), np.zeros(n, np.uint8), n, 1, False)
+    steps(W, Q, B, DT, np.empty((7, n)), np.zeros(n, np.uint8), n, 1, False, 0)
     ir = steps.inspect_llvm(steps.signatures[0])
     assert "fdiv <" in ir and "fmul <" in ir and " x double>" in ir
+
+
+def test_many_large_rotations_switch_the_block_to_the_libm_pass():
+    """seed_next, 8 lanes: 3 turn by < SMALL_ANGLE per step, 5 by more.  steps() redoes the interval with
+    the vectorised libm pass and asks for it for WIDE_INTERVALS more (returns that count); either way every
+    lane ends with the bits of 50 bare steps."""
+    step = METHODS["seed_next"].step
+    steps = make_block_steps(step)
+    sc = build_scene("heavy_top", 50.0, 45.0)
+    n, dt = VECTOR, 1e-4
+    spins = np.array([0.5, 1.0, 1.5, 3.0, 6.0, 10.0, 20.0, 40.0]) * SMALL_ANGLE / dt  # |ω| dt / SMALL_ANGLE
+    W = np.array([[0.0] * n, [0.0] * n, spins])
+    Q, B, DT = np.tile(np.array(sc.q0)[:, None], (1, n)), np.tile(np.array(sc.body)[:, None], (1, n)), np.full(n, dt)
+    expected = []
+    for j in range(n):
+        w, q = tuple(W[:, j]), tuple(Q[:, j])
+        for _ in range(100):
+            w, q = step(w, q, dt, sc.body)
+        expected.append(w + q)
+    S, BAD = np.empty((7, n)), np.zeros(n, np.uint8)
+    assert steps(W, Q, B, DT, S, BAD, n, 50, True, 0) == WIDE_INTERVALS
+    assert steps(W, Q, B, DT, S, BAD, n, 50, True, WIDE_INTERVALS) == WIDE_INTERVALS - 1
+    np.testing.assert_array_equal(np.vstack([W, Q]).T, np.array(expected))
 
 
 def test_plan_blocks():
