@@ -116,7 +116,7 @@ def balance_table(args):
     name, f, theta0 = SCENES["heavy_top"]
     bodies, omega0, q0 = batch_inputs(name, f, theta0, args.runs)
     threads = min(2, numba.config.NUMBA_NUM_THREADS)
-    every, t_end = 1e-2, 0.5 if not args.quick else 0.05
+    every, t_end = 2e-2, 2.0 if not args.quick else 0.2
     n_samples = int(round(t_end / every)) + 1
 
     def wall(dt, nthreads, threshold):
@@ -134,10 +134,10 @@ def balance_table(args):
     print("| batch | steps done | ns/step, 1 thread | ns/step, 2 threads | speed-up |")
     print("|---|---:|---:|---:|---:|")
     mixed = np.resize([1e-4, 2e-4, 2.5e-4, 5e-4], args.runs)
-    half_bad = np.where(np.arange(args.runs) % 2 == 0, 1e-4, 1e-2)  # dt = 1e-2: ω dt = 3 rad
+    half_bad = np.where(np.arange(args.runs) % 2 == 0, 1e-4, 2e-2)  # dt = 2e-2: ω dt = 6 rad, blows up
     for label, dt, threshold in [("all dt = 1e-4 s", np.full(args.runs, 1e-4), 10.0),
                                  ("dt 1e-4, 2e-4, 2.5e-4, 5e-4 s mixed", mixed, 10.0),
-                                 ("every other run at dt = 1e-2 s, energy check at 1 %", half_bad, 0.01)]:
+                                 ("every other run at dt = 2e-2 s", half_bad, 10.0)]:
         w1, status, steps = wall(dt, 1, threshold)
         w2, _, _ = wall(dt, threads, threshold)
         extra = f" ({int((status != 0).sum())} diverged)" if (status != 0).any() else ""
