@@ -296,12 +296,15 @@ class DaskCluster:
         pending = set(futures)
         number = first_number
         try:
-            for future, result in as_completed(futures, loop=self.client.loop, with_results=True,
-                                                  raise_errors=False):
+            # Results are fetched one at a time: until the driver has journaled a chunk, the
+            # chunks done after it wait in the workers' memory, not in the driver's.
+            for future in as_completed(futures, loop=self.client.loop):
                 pending.discard(future)
-                if future.status == "error":
+                try:
+                    result = future.result()
+                except Exception as error:  # the task raised on every retry, or Dask gave up on it
                     raise BackendError(f"the Dask cluster at {self.address} failed on a chunk: "
-                                       f"{type(result).__name__}: {result}")
+                                       f"{type(error).__name__}: {error}") from None
                 journal.write_chunk(number, **result)
                 number += 1
                 future.release()
