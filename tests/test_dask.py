@@ -6,7 +6,6 @@ import os
 import re
 import signal
 import socket
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -154,20 +153,22 @@ def no_workers():
         yield cluster.scheduler_address
 
 
+DASK = "runner.backend=dask"
 BAD = [
-    (["runner.backend=dask"], "runner.backend=dask: needs runner.address"),
-    (["runner.address=tcp://127.0.0.1:8786"], "runner.address=tcp://127.0.0.1:8786: only used with runner.backend=dask"),
-    (["runner.backend=dask", "runner.address=tcp://127.0.0.1:{port}"],
+    ([DASK], "runner.backend=dask: needs runner.address"),
+    (["runner.address=tcp://127.0.0.1:8786"],
+     "runner.address=tcp://127.0.0.1:8786: only used with runner.backend=dask"),
+    ([DASK, "runner.address=tcp://127.0.0.1:{port}"],
      "runner.address=tcp://127.0.0.1:{port}: nothing listens at 127.0.0.1:{port}"),
-    (["runner.backend=dask", "runner.address=scheduler:8786"], "runner.address=scheduler:8786: expected tcp://host:port"),
-    (["runner.backend=dask", "runner.address={no_workers}", "runner.connect_timeout=1"],
+    ([DASK, "runner.address=scheduler:8786"], "runner.address=scheduler:8786: expected tcp://host:port"),
+    ([DASK, "runner.address={no_workers}", "runner.connect_timeout=1"],
      "runner.address={no_workers}: the scheduler has no workers"),
-    (["runner.backend=dask", "runner.scheduler_file={tmp}/none.json"], "runner.scheduler_file={tmp}/none.json: no such file"),
-    (["runner.backend=dask", "runner.scheduler_file={tmp}/old.h5"], "runner.scheduler_file={tmp}/old.h5: not a Dask scheduler"),
-    (["runner.backend=dask", "runner.scheduler_file={tmp}/stale.json"],
+    ([DASK, "runner.scheduler_file={tmp}/none.json"], "runner.scheduler_file={tmp}/none.json: no such file"),
+    ([DASK, "runner.scheduler_file={tmp}/old.h5"], "runner.scheduler_file={tmp}/old.h5: not a Dask scheduler"),
+    ([DASK, "runner.scheduler_file={tmp}/stale.json"],
      "runner.scheduler_file={tmp}/stale.json (scheduler tcp://127.0.0.1:{port}): nothing listens"),
-    (["runner.backend=dask", "runner.address={cluster}", "runner.threads=4"], "runner.threads=4: with a Dask cluster"),
-    (["runner.backend=dask", "runner.address=local", "runner.connect_timeout=0"], "runner.connect_timeout=0.0"),
+    ([DASK, "runner.address={cluster}", "runner.threads=4"], "runner.threads=4: with a Dask cluster"),
+    ([DASK, "runner.address=local", "runner.connect_timeout=0"], "runner.connect_timeout=0.0"),
 ]
 
 
