@@ -3,7 +3,7 @@
 Every run has its own body, initial state, dt and sample stride; all runs share
 the number of samples.  The work happens in the method's ``run_blocks``
 (block.py: runs in blocks, the loop over runs vectorised, one prange over
-blocks handed out dynamically) or, for a handful of runs, its ``run_batch``
+threads, each with a balanced queue of blocks) or, for a handful of runs, its ``run_batch``
 (driver.py: one run after another, one prange over runs).  Both give
 bit-identical results, independent of the thread count and of the blocking.
 """
@@ -70,7 +70,6 @@ def integrate(method, bodies, omega0, q0, dt, stride, n_samples, threshold=DEFAU
     if path == "runs" or (path == "auto" and n < MIN_BLOCK_RUNS):
         module.run_batch(omega0, q0, bodies, dt, stride, float(threshold), out, status, n_steps)
     else:
-        runs, starts = plan_blocks(stride, numba.get_num_threads(), BLOCK_LANES)
-        with numba.parallel_chunksize(1):  # blocks to whichever thread is free
-            module.run_blocks(omega0, q0, bodies, dt, stride, float(threshold), out, status, n_steps, runs, starts)
+        plan = plan_blocks(stride, numba.get_num_threads(), BLOCK_LANES)
+        module.run_blocks(omega0, q0, bodies, dt, stride, float(threshold), out, status, n_steps, *plan)
     return out, status, n_steps

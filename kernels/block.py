@@ -19,10 +19,11 @@ steps until the nearest lane's next sample, records the lanes due, and a run
 that is finished or diverged (driver._diverged) leaves the block by swapping
 with the last active lane, so it costs the others nothing.
 
-Each method module builds ``advance_block = make_advance_block(step)`` and a
-cached parallel ``run_blocks`` over blocks (as for ``run_batch``, the step is
-bound by a closure so that the kernel can be cached; after editing this file
-or lanes.py, clear the kernels' ``__pycache__``).
+Each method module builds ``advance_queue = make_advance_queue(step)`` and a
+cached parallel ``run_blocks``, one prange iteration per thread, each running
+its queue of blocks planned by ``plan_blocks`` (as for ``run_batch``, the
+step is bound by a closure so that the kernel can be cached; after editing
+this file or lanes.py, clear the kernels' ``__pycache__``).
 """
 import numpy as np
 from numba import njit
@@ -205,6 +206,20 @@ def make_advance_block(step):
     return advance_block
 
 
+def make_advance_queue(step):
+    """``advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status,
+    n_steps)``: the blocks of queue t (see plan_blocks), one after another, with make_advance_block."""
+    advance_block = make_advance_block(step)
+
+    @njit
+    def advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
+        for b in range(queues[t], queues[t + 1]):
+            advance_block(runs[starts[b]:starts[b + 1]], w0, q0, bodies, dts, strides, threshold, out, status,
+                          n_steps)
+
+    return advance_queue
+
+
 @njit(cache=True)
 def _park(W, Q, DT, j):
     """Lane j no longer counts: rest it (ω = 0, q = 1, dt = 0) so that the loop over
@@ -230,14 +245,17 @@ def _swap_lanes(j, last, W, Q, B, DT, TOL, RUN, LEFT, K):
 
 
 def plan_blocks(strides, threads, max_lanes):
-    """(runs, starts): run indices grouped into blocks runs[starts[b]:starts[b+1]].
+    """(runs, starts, queues): blocks of run indices runs[starts[b]:starts[b+1]]; thread t of
+    run_blocks' prange runs blocks queues[t] .. queues[t+1] − 1, one after another.
 
     Runs are grouped by stride (so by step count: a block's lanes finish
-    together), each group split into equal blocks of at most ``max_lanes``,
-    and blocks ordered by decreasing work (lanes × stride) so that a dynamic
-    schedule keeps every thread busy to the end.  Groups big enough for it
-    are split into at least 2 × ``threads`` blocks; blocks hold whole vectors
-    of ``VECTOR`` lanes where they can.
+    together), each group split into equal blocks of at most ``max_lanes``
+    (whole vectors of ``VECTOR`` lanes where they can), into at least
+    2 × ``threads`` blocks when the group is big enough.  Blocks go to the
+    threads' queues largest first, each to the least loaded queue (work =
+    stride × padded lanes).  The plan is static: numba's OpenMP and
+    workqueue layers schedule a prange statically, so a block cannot move to
+    an idle thread; a run that diverges early only shortens its block.
     """
     strides = np.asarray(strides, dtype=np.int64)
     blocks = []
@@ -245,8 +263,16 @@ def plan_blocks(strides, threads, max_lanes):
         group = np.flatnonzero(strides == s)
         n_blocks = max(-(-group.size // max_lanes), min(2 * threads, -(-group.size // VECTOR)))
         lanes = -(-group.size // (n_blocks * VECTOR)) * VECTOR
-        blocks.extend((int(s) * b.size, b) for b in np.split(group, range(lanes, group.size, lanes)))
+        blocks.extend((max(int(s), 1) * -(-b.size // VECTOR) * VECTOR, b)
+                      for b in np.split(group, range(lanes, group.size, lanes)))
     blocks.sort(key=lambda wb: -wb[0])
-    runs = np.concatenate([b for _, b in blocks]) if blocks else np.zeros(0, np.int64)
-    starts = np.cumsum([0] + [len(b) for _, b in blocks]).astype(np.int64)
-    return runs.astype(np.int64), starts
+    load, queue = np.zeros(max(threads, 1)), [[] for _ in range(max(threads, 1))]
+    for work, b in blocks:
+        t = int(np.argmin(load))
+        load[t] += work
+        queue[t].append(b)
+    ordered = [b for q in queue for b in q]
+    runs = np.concatenate(ordered).astype(np.int64) if ordered else np.zeros(0, np.int64)
+    starts = np.cumsum([0] + [len(b) for b in ordered]).astype(np.int64)
+    queues = np.cumsum([0] + [len(q) for q in queue]).astype(np.int64)
+    return runs, starts, queues

@@ -7,7 +7,7 @@ Source: McLachlan (1993), Dullweber, Leimkuhler & McLachlan (1997).
 """
 from numba import njit, prange
 
-from .block import make_advance_block
+from .block import make_advance_queue
 from .driver import make_advance
 from .free_flow import free_flow, kick
 
@@ -31,10 +31,10 @@ def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
         advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
 
 
-advance_block = make_advance_block(step)
+advance_queue = make_advance_queue(step)
 
 
 @njit(cache=True, parallel=True)
-def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts):
-    for b in prange(starts.size - 1):
-        advance_block(runs[starts[b]:starts[b + 1]], w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
+def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts, queues):
+    for t in prange(queues.size - 1):
+        advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)

@@ -6,7 +6,7 @@ renormalised after each step (a projection, so not symplectic).
 """
 from numba import njit, prange
 
-from .block import make_advance_block
+from .block import make_advance_queue
 from .driver import make_advance
 from .rigid_body import euler_rhs, gravity_torque
 from .rotation import quat_mul, quat_normalize
@@ -65,10 +65,10 @@ def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
         advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
 
 
-advance_block = make_advance_block(step)
+advance_queue = make_advance_queue(step)
 
 
 @njit(cache=True, parallel=True)
-def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts):
-    for b in prange(starts.size - 1):
-        advance_block(runs[starts[b]:starts[b + 1]], w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
+def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts, queues):
+    for t in prange(queues.size - 1):
+        advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)

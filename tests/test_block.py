@@ -40,12 +40,14 @@ def assert_same(a, b):
 
 
 def run_blocks(method, inputs, n_samples, runs, starts, threshold=10.0):
-    """The method's block kernel with a hand-made block plan."""
+    """The method's block kernel with a hand-made block plan (blocks dealt to 2 queues)."""
     bodies, omega0, q0, dt, stride = inputs
     n = len(bodies)
     out, status, n_steps = np.empty((n, n_samples, N_FIELDS)), np.zeros(n, np.int8), np.zeros(n, np.int64)
+    n_blocks = len(starts) - 1
     METHODS[method].run_blocks(omega0, q0, bodies, dt, stride, threshold, out, status, n_steps,
-                               np.asarray(runs, np.int64), np.asarray(starts, np.int64))
+                               np.asarray(runs, np.int64), np.asarray(starts, np.int64),
+                               np.array([0, n_blocks // 2, n_blocks], np.int64))
     return out, status, n_steps
 
 
@@ -201,15 +203,22 @@ def test_many_large_rotations_switch_the_block_to_the_libm_pass():
 
 def test_plan_blocks():
     """Every run in exactly one block; one stride per block; at most max_lanes lanes, whole vectors but for
-    a group's last block; blocks by decreasing work; ≥ 2 blocks per thread when the runs allow."""
+    a group's last block; ≥ 2 blocks per thread when the runs allow; the threads' queues balanced (largest
+    block first to the least loaded queue: within one largest block of each other)."""
     strides = np.array([5, 1, 5, 2, 2, 5, 1, 1, 1, 1] * 30)
-    runs, starts = plan_blocks(strides, 2, 64)
-    assert sorted(runs) == list(range(strides.size))
-    sizes = np.diff(starts)
-    work = [strides[runs[a]] * (b - a) for a, b in zip(starts, starts[1:])]
-    assert all(len(set(strides[runs[a:b]])) == 1 for a, b in zip(starts, starts[1:]))
-    assert sizes.max() <= 64 and work == sorted(work, reverse=True)
-    assert sum(size % VECTOR != 0 for size in sizes) <= len(set(strides))
-    runs, starts = plan_blocks(np.full(256, 7), 2, 64)
-    assert list(np.diff(starts)) == [64] * 4
+    for threads in (1, 2, 3):
+        runs, starts, queues = plan_blocks(strides, threads, 64)
+        assert sorted(runs) == list(range(strides.size)) and queues[0] == 0 and queues[-1] == len(starts) - 1
+        sizes = np.diff(starts)
+        assert all(len(set(strides[runs[a:b]])) == 1 for a, b in zip(starts, starts[1:]))
+        assert sizes.max() <= 64 and sum(size % VECTOR != 0 for size in sizes) <= len(set(strides))
+        work = np.array([strides[runs[a]] * -(-(b - a) // VECTOR) * VECTOR for a, b in zip(starts, starts[1:])])
+        load = [work[queues[t]:queues[t + 1]].sum() for t in range(threads)]
+        assert len(queues) == threads + 1 and max(load) - min(load) <= work.max()
+    assert list(np.diff(plan_blocks(np.full(256, 7), 2, 64)[1])) == [64] * 4
     assert list(np.diff(plan_blocks(np.full(12, 7), 2, 64)[1])) == [8, 4]
+    # half the runs 200 steps per sample, half 1: each thread gets half of the long blocks
+    strides = np.resize([200, 1], 256)
+    runs, starts, queues = plan_blocks(strides, 2, 64)
+    long_blocks = strides[runs[starts[:-1]]] == 200
+    assert long_blocks[queues[0]:queues[1]].sum() == long_blocks[queues[1]:queues[2]].sum() == 2
