@@ -3,9 +3,10 @@
 Every run has its own body, initial state, dt and sample stride; all runs share
 the number of samples.  The work happens in the method's ``run_blocks``
 (block.py: runs in blocks, the loop over runs vectorised, one prange over
-threads, each with a balanced queue of blocks) or, for a handful of runs, its ``run_batch``
-(driver.py: one run after another, one prange over runs).  Both give
-bit-identical results, independent of the thread count and of the blocking.
+threads, each with a balanced queue of blocks) or, for a handful of runs, in
+its ``run_batch`` (driver.py: one run after another, one prange over runs).
+Both give bit-identical results, independent of the thread count and of the
+blocking.
 """
 import math
 
