@@ -147,7 +147,7 @@ def make_advance_block(step):
     batch arrays) exactly as driver.make_advance's ``advance_run`` does each of them."""
     steps = make_block_steps(step)
 
-    @njit
+    @njit(error_model="numpy")
     def advance_block(runs, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
         n = runs.size
         size = -(-n // VECTOR) * VECTOR  # lanes n .. size − 1 are parked
@@ -211,7 +211,7 @@ def make_advance_queue(step):
     n_steps)``: the blocks of queue t (see plan_blocks), one after another, with make_advance_block."""
     advance_block = make_advance_block(step)
 
-    @njit
+    @njit(error_model="numpy")
     def advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
         for b in range(queues[t], queues[t + 1]):
             advance_block(runs[starts[b]:starts[b + 1]], w0, q0, bodies, dts, strides, threshold, out, status,
@@ -220,7 +220,7 @@ def make_advance_queue(step):
     return advance_queue
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _park(W, Q, DT, j):
     """Lane j no longer counts: rest it (ω = 0, q = 1, dt = 0) so that the loop over
     lanes can keep stepping it, finite and cheap, for the sake of whole vectors."""
@@ -230,7 +230,7 @@ def _park(W, Q, DT, j):
     DT[j] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _swap_lanes(j, last, W, Q, B, DT, TOL, RUN, LEFT, K):
     for c in range(3):
         W[c, j], W[c, last] = W[c, last], W[c, j]

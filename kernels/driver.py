@@ -4,9 +4,14 @@ Each method module defines ``step(w, q, dt, body) -> (w, q)``, builds
 ``advance_run = make_advance(step)`` and a ``run_batch`` that calls it inside
 one ``prange`` over runs.  The step is bound by a closure, not passed as an
 argument: numba lowers a dispatcher passed by value to a raw pointer, which
-makes the calling kernel uncacheable.  The parallel kernel is cached in the
-method's module; after editing this file or rigid_body.py, clear the
-``__pycache__`` folders (numba only checks the kernel's own file).
+makes the calling kernel uncacheable.  Every kernel function is compiled with
+``error_model="numpy"``: a division by zero (a blown-up run) gives inf/NaN and
+the run is flagged non-finite, where the default would raise an exception that
+a ``prange`` loses, leaving the run unwritten with status ok.
+
+The parallel kernel is cached in the method's module; after editing this file
+or rigid_body.py, clear the ``__pycache__`` folders (numba only checks the
+kernel's own file).
 
 Sample layout, last axis of ``out`` (n_runs, n_samples, N_FIELDS):
 axis_x, axis_y, axis_z (R e3, lab), omega_1..3 (body, rad/s),
@@ -32,7 +37,7 @@ STATUS_LEGEND = {
 }
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _record(out, i, k, w, q, body):
     ax = axis_lab(q)
     L = lab_momentum(w, q, body)
@@ -57,7 +62,7 @@ def make_advance(step):
     energy scale T0 + M g l (so a top released at θ0 = 90°, E0 = T0, is fine).
     """
 
-    @njit
+    @njit(error_model="numpy")
     def advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
         body = (bodies[i, 0], bodies[i, 1], bodies[i, 2], bodies[i, 3])
         w = (w0[i, 0], w0[i, 1], w0[i, 2])
@@ -80,7 +85,7 @@ def make_advance(step):
     return advance_run
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _diverged(out, i, k, tolerance, status):
     """Flag run i if sample k is non-finite or off in energy; NaN-fill what follows."""
     if abs(out[i, k, 6] - out[i, 0, 6]) <= tolerance:  # False for NaN too

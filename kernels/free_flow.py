@@ -16,14 +16,14 @@ from .rigid_body import gravity_torque
 from .rotation import half_angle, quat_mul, quat_normalize, rotate_body_step
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def kick(w, q, h, body):
     """ω after the potential's flow for h seconds (q unchanged)."""
     t1, t2, t3 = gravity_torque(q, body[3])
     return w[0] + h * t1 / body[0], w[1] + h * t2 / body[1], w[2] + h * t3 / body[2]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _axis_rotation(w, q, axis, h, body):
     """Flow of L_k²/(2 I_k): the body turns by φ = ω_k h about e_k, L_b by −φ."""
     c, s = half_angle(w[axis] * h)
@@ -43,7 +43,7 @@ def _axis_rotation(w, q, axis, h, body):
     return (L[0] / I[0], L[1] / I[1], L[2] / I[2]), q
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def free_flow(w, q, h, body):
     """Torque-free motion of (ω, q) for h seconds; exact when I1 = I2."""
     I1, I2, I3, _ = body

@@ -15,7 +15,7 @@ ORDER = 2
 SYMPLECTIC = True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def step(w, q, dt, body):
     w = kick(w, q, 0.5 * dt, body)
     w, q = free_flow(w, q, dt, body)
@@ -25,7 +25,7 @@ def step(w, q, dt, body):
 advance_run = make_advance(step)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
     for i in prange(w0.shape[0]):
         advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
@@ -34,7 +34,7 @@ def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
 advance_queue = make_advance_queue(step)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts, queues):
     for t in prange(queues.size - 1):
         advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)

@@ -17,7 +17,7 @@ W1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
 W0 = 1.0 - 2.0 * W1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def step(w, q, dt, body):
     w, q = strang_step(w, q, W1 * dt, body)
     w, q = strang_step(w, q, W0 * dt, body)
@@ -27,7 +27,7 @@ def step(w, q, dt, body):
 advance_run = make_advance(step)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
     for i in prange(w0.shape[0]):
         advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
@@ -36,7 +36,7 @@ def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
 advance_queue = make_advance_queue(step)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts, queues):
     for t in prange(queues.size - 1):
         advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)

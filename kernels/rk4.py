@@ -15,14 +15,14 @@ ORDER = 4
 SYMPLECTIC = False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _rhs(w, q, body):
     wd = euler_rhs(w, gravity_torque(q, body[3]), body)
     qd = quat_mul(q, (0.0, w[0], w[1], w[2]))
     return wd, (0.5 * qd[0], 0.5 * qd[1], 0.5 * qd[2], 0.5 * qd[3])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _stage(w, q, h, k):
     kw, kq = k
     return (
@@ -31,7 +31,7 @@ def _stage(w, q, h, k):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def step(w, q, dt, body):
     h = 0.5 * dt
     k1 = _rhs(w, q, body)
@@ -59,7 +59,7 @@ def step(w, q, dt, body):
 advance_run = make_advance(step)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
     for i in prange(w0.shape[0]):
         advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
@@ -68,7 +68,7 @@ def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
 advance_queue = make_advance_queue(step)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, error_model="numpy")
 def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts, queues):
     for t in prange(queues.size - 1):
         advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)

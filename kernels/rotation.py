@@ -21,7 +21,7 @@ from numba import njit
 SMALL_ANGLE = 0.2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _cos_sinc_half(angle2):
     """(cos(h), sin(h)/(2h)) with h = √angle2 / 2, for angle2 < SMALL_ANGLE² (Taylor, exact)."""
     h2 = 0.25 * angle2
@@ -30,7 +30,7 @@ def _cos_sinc_half(angle2):
     return c, s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def quat_from_rotvec(v0, v1, v2):
     """CK parameters of the active rotation by |v| (rad) about v/|v|.
 
@@ -46,7 +46,7 @@ def quat_from_rotvec(v0, v1, v2):
     return a, s * v0, s * v1, s * v2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def half_angle(phi):
     """(cos(φ/2), sin(φ/2)) for a signed angle φ (rad), without libm when |φ| is small."""
     if abs(phi) < SMALL_ANGLE:
@@ -55,7 +55,7 @@ def half_angle(phi):
     return math.cos(0.5 * phi), math.sin(0.5 * phi)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def quat_mul(p, q):
     """Hamilton product p ⊗ q, so that R(p ⊗ q) = R(p) R(q)."""
     pa, pb, pc, pd = p
@@ -68,20 +68,20 @@ def quat_mul(p, q):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def quat_normalize(q):
     a, b, c, d = q
     inv = 1.0 / math.sqrt(a * a + b * b + c * c + d * d)
     return a * inv, b * inv, c * inv, d * inv
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rotate_body_step(q, v0, v1, v2):
     """q ⊗ q_v: the orientation after rotating the body by v (body frame, rad)."""
     return quat_mul(q, quat_from_rotvec(v0, v1, v2))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def lab_up_in_body(q):
     """γ = Rᵀ ẑ: the lab's up direction in body coordinates (third row of R)."""
     a, b, c, d = q
@@ -92,7 +92,7 @@ def lab_up_in_body(q):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def body_to_lab(q, v0, v1, v2):
     """R v: a body-frame vector in lab coordinates."""
     a, b, c, d = q
@@ -112,7 +112,7 @@ def body_to_lab(q, v0, v1, v2):
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ck_matrix(q):
     """The write-up's CK rotation matrix R(q) as a 3×3 array (tests, not hot loops)."""
     a, b, c, d = q
