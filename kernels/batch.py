@@ -21,9 +21,12 @@ DEFAULT_DIVERGENCE_THRESHOLD = 10.0
 # Most runs per block: state, body and scratch of 64 lanes take ~8 kB of L1;
 # 32 .. 128 lanes run equally fast, 8 lanes ~35 % slower.
 BLOCK_LANES = 64
-# Fewer runs than this go one by one: a block always steps whole vectors of 8
-# lanes, which for 1 .. 3 runs costs about what the scalar loop does per run.
-MIN_BLOCK_RUNS = 4
+# Fewer runs than this go one by one.  LLVM vectorises the lane loop 8 wide and
+# interleaved 4 times, so a block of fewer than 32 lanes runs its scalar
+# remainder loop: measured (seed_next, heavy top, 2 threads, ns/step aggregate)
+# 8 runs: blocks 35.7 vs one by one 23.7; 32 runs: 17.8 (two blocks of 16);
+# 48 runs: 2.9; 64 runs: 2.2.  From 64 runs every thread's block vectorises.
+MIN_BLOCK_RUNS = 64
 PATHS = ("auto", "blocks", "runs")
 
 
@@ -63,8 +66,9 @@ def integrate(method, bodies, omega0, q0, dt, stride, n_samples, threshold=DEFAU
     n = bodies.shape[0]
     omega0 = np.ascontiguousarray(omega0, dtype=np.float64).reshape(n, 3)
     q0 = np.ascontiguousarray(q0, dtype=np.float64).reshape(n, 4)
-    dt = np.ascontiguousarray(np.broadcast_to(dt, (n,)), dtype=np.float64)
-    stride = np.ascontiguousarray(np.broadcast_to(stride, (n,)), dtype=np.int64)
+    # Writable copies: numba compiles a separate kernel for read-only arrays.
+    dt = np.require(np.broadcast_to(dt, (n,)), np.float64, ["C", "W"])
+    stride = np.require(np.broadcast_to(stride, (n,)), np.int64, ["C", "W"])
     out = np.empty((n, int(n_samples), N_FIELDS))
     status = np.zeros(n, dtype=np.int8)
     n_steps = np.zeros(n, dtype=np.int64)

@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 
-from ..kernels.batch import integrate
+from ..kernels.batch import MIN_BLOCK_RUNS, integrate
 from .grid import plan_chunks
 
 # Test hook: seconds to sleep after each stored chunk, so a test can kill a sweep mid-way.
@@ -27,16 +27,19 @@ def chunk_delay():
 
 
 def warm_up(grid):
-    """Compile (or load from numba's cache) each method's kernel with the runner's argument
-    types, so that JIT time is not charged to the first chunk's wall_time."""
-    warm_up_methods(grid.methods, grid.inputs(np.zeros(1, dtype=np.int64)), grid.threshold)
+    """Compile (or load from numba's cache) each method's kernels with the runner's argument
+    types, so that JIT time is not charged to the first chunk's wall_time.  The block
+    kernel (slow to compile cold) only when some chunk can have MIN_BLOCK_RUNS runs."""
+    blocks = grid.n_runs // len(grid.methods) >= MIN_BLOCK_RUNS
+    warm_up_methods(grid.methods, grid.inputs(np.zeros(1, dtype=np.int64)), grid.threshold, blocks)
 
 
-def warm_up_methods(methods, inputs, threshold):
+def warm_up_methods(methods, inputs, threshold, blocks=False):
     """``warm_up`` without a grid: ``inputs`` are one run's kernel inputs (``Grid.inputs``)."""
     bodies, omega0, q0, dt, _ = inputs
     for method in methods:
-        integrate(method, bodies, omega0, q0, dt, np.ones(1, dtype=np.int64), 2, threshold)
+        for path in ("runs", "blocks") if blocks else ("runs",):
+            integrate(method, bodies, omega0, q0, dt, np.ones(1, dtype=np.int64), 2, threshold, path=path)
 
 
 def run_chunk(grid, runs, threads):

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from omegaconf import OmegaConf
 
-from ..kernels.batch import sample_schedule
+from ..kernels.batch import MIN_BLOCK_RUNS, sample_schedule
 from ..kernels.driver import N_FIELDS
 from ..kernels.registry import METHODS
 from ..kernels.scenes import SCENES, build_scene
@@ -22,6 +22,8 @@ from .config import ConfigError, check_values
 # (heavy top, warm JIT cache); only used to size chunks and for dry-run estimates.
 STEP_RATE = {"seed_next": 1.2e7, "seed_prev": 1.2e7, "rk4": 1.2e7, "lie_poisson": 1.2e7, "lie_poisson4": 5e6}
 DEFAULT_STEP_RATE = 5e6
+# Blocks of >= MIN_BLOCK_RUNS runs against one by one, per run (docs/benchmarks.md: 10-22x).
+BLOCK_SPEEDUP = 10
 # Float64 values per sample: stored (axis 3, theta, phi, energy, Lz, L3, omega 3)
 # and computed by the kernel (driver.FIELDS).
 STORED_PER_SAMPLE = 11
@@ -136,9 +138,15 @@ def _prefix_sweep(message):
 
 def chunk_size(steps_per_run, rate, threads, chunk_seconds, bytes_per_run, max_bytes=MAX_CHUNK_BYTES):
     """Runs per chunk: about ``chunk_seconds`` of work at ``rate`` steps/s per thread,
-    a multiple of ``threads`` (so every thread gets equal work), within ``max_bytes``."""
+    a multiple of ``threads`` (so every thread gets equal work), within ``max_bytes``.
+
+    Raised to the batch kernels' MIN_BLOCK_RUNS when that many runs would take at
+    most ``chunk_seconds`` in vectorised blocks (BLOCK_SPEEDUP times faster per
+    run than one by one); the measured rate then sizes the next chunks."""
     by_time = chunk_seconds * rate * threads / max(int(steps_per_run), 1)
     k = max(threads, int(by_time // threads) * threads)
+    if by_time * BLOCK_SPEEDUP >= MIN_BLOCK_RUNS:
+        k = max(k, MIN_BLOCK_RUNS)
     by_memory = max(1, int(max_bytes // max(bytes_per_run, 1)))
     if k > by_memory:
         k = max(threads, by_memory // threads * threads) if by_memory >= threads else by_memory

@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 from hydra import compose, initialize_config_module
 
+from gyrolab.kernels.batch import MIN_BLOCK_RUNS
 from gyrolab.kernels.scenes import build_scene
 from gyrolab.runner.config import ConfigError, register_configs
 from gyrolab.runner.execute import run_chunk
@@ -59,8 +60,11 @@ def test_small_dt_groups_are_pooled_not_left_as_tiny_chunks():
 
 
 def test_chunk_size_targets_the_time_and_respects_memory():
-    # 1e6 steps/s per thread, 2 threads, 1 s: 2e6 steps = 20 runs of 1e5 steps
-    assert chunk_size(1e5, 1e6, 2, 1.0, bytes_per_run=1) == 20
+    # 2e6 steps/s per thread, 2 threads, 1 s: 4e6 steps = 4 runs of 1e6 steps (64 runs in
+    # blocks, ~10x faster per run, would take 6.4 s: too long for one chunk)
+    assert chunk_size(1e6, 2e6, 2, 1.0, bytes_per_run=1) == 4
+    # 1e6 steps/s: 20 runs of 1e5 steps by time, but 64 runs in blocks take ~0.3 s: one block chunk
+    assert chunk_size(1e5, 1e6, 2, 1.0, bytes_per_run=1) == MIN_BLOCK_RUNS
     assert chunk_size(1e9, 1e6, 2, 1.0, bytes_per_run=1) == 2  # never fewer runs than threads...
     assert chunk_size(1e5, 1e6, 2, 1.0, bytes_per_run=100, max_bytes=1000) == 10  # ...nor over memory
     assert chunk_size(1e5, 1e6, 4, 1.0, bytes_per_run=100, max_bytes=250) == 2
