@@ -38,11 +38,6 @@ def lock_path(out):
     return Path(f"{out}.lock")
 
 
-def temp_path(out):
-    out = Path(out)
-    return out.with_name(f".{out.name}.tmp")
-
-
 def fsync_dir(directory):
     fd = os.open(directory, os.O_RDONLY)
     try:
@@ -51,20 +46,30 @@ def fsync_dir(directory):
         os.close(fd)
 
 
-def atomic_write(path, write):
-    """Call ``write(fileobj)`` on a temporary file, fsync it and rename it to ``path``."""
+def atomic_replace(path, write_to):
+    """Call ``write_to(tmp_path)``, fsync that file and rename it to ``path``; the
+    temporary file is removed if anything fails, so ``path`` is old or whole."""
     path = Path(path)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
-        with open(tmp, "wb") as fh:
-            write(fh)
-            fh.flush()
+        write_to(tmp)
+        with open(tmp, "rb") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, path)
     finally:
         if tmp.exists():
             tmp.unlink()
     fsync_dir(path.parent)
+
+
+def atomic_write(path, write):
+    """Call ``write(fileobj)`` on a temporary file, then as :func:`atomic_replace`."""
+
+    def write_to(tmp):
+        with open(tmp, "wb") as fh:
+            write(fh)
+
+    atomic_replace(path, write_to)
 
 
 class OutputLock:
@@ -194,17 +199,7 @@ class Journal:
 
 def assemble(out, grid, journal, attrs):
     """Write the results file from the journal into a temporary name, fsync it, rename it to ``out``."""
-    out = Path(out)
-    tmp = temp_path(out)
-    try:
-        write_results(tmp, grid, journal.chunks(), attrs)
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, out)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    fsync_dir(out.parent)
+    atomic_replace(out, lambda tmp: write_results(tmp, grid, journal.chunks(), attrs))
 
 
 def write_results(path, grid, chunks, attrs):
