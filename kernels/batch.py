@@ -19,7 +19,7 @@ from .registry import get_method
 
 DEFAULT_DIVERGENCE_THRESHOLD = 10.0
 # Most runs per block: state, body and scratch of 64 lanes take ~8 kB of L1;
-# 32 .. 128 lanes run equally fast, 8 lanes ~35 % slower.
+# 32 .. 128 lanes run equally fast (see MIN_BLOCK_RUNS for fewer).
 BLOCK_LANES = 64
 # Fewer runs than this go one by one.  LLVM vectorises the lane loop 8 wide and
 # interleaved 4 times, so a block of fewer than 32 lanes runs its scalar

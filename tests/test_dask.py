@@ -18,7 +18,9 @@ from distributed import Client, LocalCluster  # noqa: E402
 from gyrolab.runner import dask_backend  # noqa: E402
 from gyrolab.runner.config import register_configs  # noqa: E402
 from gyrolab.runner.grid import build_grid  # noqa: E402
-from test_runner_cli import SLOW, TINY, assert_ok, chunk_count, data, gyrolab, start, wait_for  # noqa: E402
+from test_runner_cli import (  # noqa: E402
+    SLOW, TINY, assert_ok, chunk_count, data, gyrolab, start, tiny_reference, wait_for,
+)
 
 N_RUNS = 16  # TINY: 2 methods x 2 f x 2 theta0 x 2 dt; with SLOW chunking, one run per chunk on 1-thread workers
 TIMEOUT = ["runner.connect_timeout=5"]
@@ -39,10 +41,7 @@ def client():
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
     """TINY on the local backend (numba threads in-process)."""
-    root = tmp_path_factory.mktemp("local")
-    result = gyrolab(*TINY, *SLOW, f"hydra.run.dir={root / 'run'}", cwd=root)
-    assert_ok(result)
-    return root / "run" / "results.h5"
+    return tiny_reference(tmp_path_factory.mktemp("local"))
 
 
 def on_cluster(client):

@@ -69,13 +69,18 @@ def assert_ok(result):
     assert "Traceback" not in result.stderr
 
 
-@pytest.fixture(scope="module")
-def reference(tmp_path_factory):
-    """An uninterrupted run of TINY (+ SLOW chunking) on all threads."""
-    root = tmp_path_factory.mktemp("reference")
+def tiny_reference(root):
+    """Run TINY (+ SLOW chunking) uninterrupted on the local backend, all threads, in ``root``;
+    returns the results file."""
     result = gyrolab(*TINY, *SLOW, f"hydra.run.dir={root / 'run'}", cwd=root)
     assert_ok(result)
     return root / "run" / "results.h5"
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """An uninterrupted run of TINY (+ SLOW chunking) on all threads."""
+    return tiny_reference(tmp_path_factory.mktemp("reference"))
 
 
 def test_tiny_sweep_file_opens_with_xarray_and_matches_simulate(reference):
