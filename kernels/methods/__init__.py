@@ -1,0 +1,1 @@
+"""Integration methods, one module each (see README.md in this folder)."""
