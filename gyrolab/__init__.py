@@ -1,16 +1,33 @@
 """gyrolab: batch experiments with rigid-body rotation schemes.
 
-``simulate(...)`` runs one trajectory, ``methods()`` lists the integrators;
-the ``gyrolab`` command runs whole sweeps (see README).
+``simulate(...)`` runs one trajectory, ``methods()`` lists the integrators,
+``scenes()`` the scenes; the ``gyrolab`` command runs whole sweeps (see
+README).
+
+The source tree keeps the package's sub-packages at its top level
+(kernels/, runner/, analysis/, conf/; pyproject.toml maps them under
+gyrolab).  When Python finds this file in a checkout rather than in an
+installation (``python -c "import gyrolab"`` from the checkout root puts the
+checkout first on sys.path), the checkout's top level joins the package's
+path, so ``gyrolab.kernels`` is the checkout's kernels/ and the checkout's
+code runs, whole and consistent, instead of an ImportError.
 """
 from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
 
-from .kernels.registry import methods
-from .runner.simulate import simulate
+_HERE = Path(__file__).resolve().parent
+_CHECKOUT = _HERE.parent
+if not (_HERE / "kernels").is_dir() and (_CHECKOUT / "pyproject.toml").is_file() and (
+        _CHECKOUT / "kernels" / "registry.py").is_file():
+    __path__.append(str(_CHECKOUT))  # noqa: F821 (the package's own __path__)
+
+from .kernels.registry import methods  # noqa: E402
+from .kernels.scenes import scenes  # noqa: E402
+from .runner.simulate import simulate  # noqa: E402
 
 try:
     __version__ = version("gyrolab")
 except PackageNotFoundError:  # running from a source tree
     __version__ = "0+unknown"
 
-__all__ = ["simulate", "methods", "__version__"]
+__all__ = ["simulate", "methods", "scenes", "__version__"]

@@ -14,8 +14,9 @@ import numba
 import numpy as np
 
 from .block import plan_blocks
+from .body import N_FIELDS as N_BODY
 from .driver import N_FIELDS
-from .registry import get_method
+from .registry import get_method, uses_blocks
 
 DEFAULT_DIVERGENCE_THRESHOLD = 10.0
 # Most runs per block: state, body and scratch of 64 lanes take ~8 kB of L1;
@@ -52,17 +53,17 @@ def integrate(method, bodies, omega0, q0, dt, stride, n_samples, threshold=DEFAU
               path="auto"):
     """Integrate a batch of runs with one method, in parallel over runs.
 
-    bodies (n, 4): I1, I2, I3 (kg m²), M g l (N m); omega0 (n, 3) body rates
+    bodies (n, body.N_FIELDS): rows of body.Body (I1, I2, I3 in kg m², M g l in N m); omega0 (n, 3) body rates
     (rad/s); q0 (n, 4) quaternions; dt (n,) step (s); stride (n,) steps per
-    sample.  Returns (samples (n, n_samples, 9) float64 in the field order of
+    sample.  Returns (samples (n, n_samples, driver.N_FIELDS) float64 in the field order of
     ``driver.FIELDS``, status (n,) int8, n_steps (n,) int64).  ``path``
     "blocks" or "runs" forces a kernel ("auto": blocks from MIN_BLOCK_RUNS
-    runs up); the results are the same bits.
+    runs up, for methods that allow it: ``BLOCKS``); the results are the same bits.
     """
     if path not in PATHS:
         raise ValueError(f"path={path!r}: choose from {', '.join(PATHS)}")
     module = get_method(method)
-    bodies = np.ascontiguousarray(bodies, dtype=np.float64).reshape(-1, 4)
+    bodies = np.ascontiguousarray(bodies, dtype=np.float64).reshape(-1, N_BODY)
     n = bodies.shape[0]
     omega0 = np.ascontiguousarray(omega0, dtype=np.float64).reshape(n, 3)
     q0 = np.ascontiguousarray(q0, dtype=np.float64).reshape(n, 4)
@@ -72,7 +73,7 @@ def integrate(method, bodies, omega0, q0, dt, stride, n_samples, threshold=DEFAU
     out = np.empty((n, int(n_samples), N_FIELDS))
     status = np.zeros(n, dtype=np.int8)
     n_steps = np.zeros(n, dtype=np.int64)
-    if path == "runs" or (path == "auto" and n < MIN_BLOCK_RUNS):
+    if path == "runs" or not uses_blocks(module) or (path == "auto" and n < MIN_BLOCK_RUNS):
         module.run_batch(omega0, q0, bodies, dt, stride, float(threshold), out, status, n_steps)
     else:
         plan = plan_blocks(stride, numba.get_num_threads(), BLOCK_LANES)

@@ -1,7 +1,7 @@
 """Advance a block of runs together, the loop over runs innermost, so that it vectorises.
 
 A block holds up to a few dozen runs ("lanes") laid out structure-of-arrays
-(ω as W[3, n], q as Q[4, n], body as B[4, n]).  Each step runs the method's
+(ω as W[3, n], q as Q[4, n], body as B[body.N_FIELDS, n]).  Each step runs the method's
 ``lane_step`` (lanes.py) over all lanes in one branch-free loop that LLVM
 turns into packed AVX/AVX-512 code; after the steps up to the next sample,
 the rare lanes whose state came out non-finite (a rotation angle beyond the
@@ -21,13 +21,14 @@ with the last active lane, so it costs the others nothing.
 
 Each method module builds ``advance_queue = make_advance_queue(step)`` and a
 cached parallel ``run_blocks``, one prange iteration per thread, each running
-its queue of blocks planned by ``plan_blocks`` (as for ``run_batch``, the
-step is bound by a closure so that the kernel can be cached; after editing
-this file or lanes.py, clear the kernels' ``__pycache__``).
+its queue of blocks planned by ``plan_blocks`` (entry.py: as for ``run_batch``, the
+step is bound as a global so that the kernel can be cached).
 """
 import numpy as np
 from numba import njit
 
+from .body import N_FIELDS as N_BODY
+from .body import body_lane, body_lane_with_moments
 from .driver import STATUS_OK, _diverged, _record
 from .lanes import ieee_step, lane_step
 from .rigid_body import kinetic_energy
@@ -103,7 +104,7 @@ def make_block_steps(step):
             for j in range(n_lanes):
                 if BAD[j]:
                     w, q = (S[0, j], S[1, j], S[2, j]), (S[3, j], S[4, j], S[5, j], S[6, j])
-                    body = (B[0, j], B[1, j], B[2, j], B[3, j])
+                    body = body_lane(B, j)
                     for _ in range(m):
                         w, q = exact(w, q, DT[j], body)
                     W[0, j], W[1, j], W[2, j] = w
@@ -134,7 +135,7 @@ def _make_pass(fast, symmetric):
             else:
                 I2 = B[1, j]
             w, q = fast((W[0, j], W[1, j], W[2, j]), (Q[0, j], Q[1, j], Q[2, j], Q[3, j]), DT[j],
-                        (I1, I2, B[2, j], B[3, j]))
+                        body_lane_with_moments(B, j, I1, I2))
             W[0, j], W[1, j], W[2, j] = w
             Q[0, j], Q[1, j], Q[2, j], Q[3, j] = q
 
@@ -151,14 +152,14 @@ def make_advance_block(step):
     def advance_block(runs, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
         n = runs.size
         size = -(-n // VECTOR) * VECTOR  # lanes n .. size − 1 are parked
-        W, Q, B = np.empty((3, size)), np.empty((4, size)), np.empty((4, size))
+        W, Q, B = np.empty((3, size)), np.empty((4, size)), np.empty((N_BODY, size))
         DT, TOL = np.zeros(size), np.zeros(size)
         RUN, LEFT, K = np.empty(size, np.int64), np.zeros(size, np.int64), np.ones(size, np.int64)
         S, BAD = np.empty((7, size)), np.zeros(size, np.uint8)
         for j in range(size):
             i = runs[min(j, n - 1)]
             RUN[j] = i
-            for c in range(4):
+            for c in range(N_BODY):
                 B[c, j] = bodies[i, c]
             if j >= n:
                 _park(W, Q, DT, j)
@@ -170,7 +171,7 @@ def make_advance_block(step):
             DT[j] = dts[i]
             LEFT[j] = max(strides[i], 0)
             w = (W[0, j], W[1, j], W[2, j])
-            body = (B[0, j], B[1, j], B[2, j], B[3, j])
+            body = body_lane(B, j)
             _record(out, i, 0, w, (Q[0, j], Q[1, j], Q[2, j], Q[3, j]), body)
             TOL[j] = threshold * (kinetic_energy(w, body) + abs(body[3]))
             status[i] = STATUS_OK
@@ -192,7 +193,7 @@ def make_advance_block(step):
                     continue
                 i, k = RUN[j], K[j]
                 _record(out, i, k, (W[0, j], W[1, j], W[2, j]), (Q[0, j], Q[1, j], Q[2, j], Q[3, j]),
-                        (B[0, j], B[1, j], B[2, j], B[3, j]))
+                        body_lane(B, j))
                 n_steps[i] += strides[i]
                 if _diverged(out, i, k, TOL[j], status) or k == out.shape[1] - 1:
                     active -= 1
@@ -236,6 +237,7 @@ def _swap_lanes(j, last, W, Q, B, DT, TOL, RUN, LEFT, K):
         W[c, j], W[c, last] = W[c, last], W[c, j]
     for c in range(4):
         Q[c, j], Q[c, last] = Q[c, last], Q[c, j]
+    for c in range(B.shape[0]):
         B[c, j], B[c, last] = B[c, last], B[c, j]
     DT[j], DT[last] = DT[last], DT[j]
     TOL[j], TOL[last] = TOL[last], TOL[j]

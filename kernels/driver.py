@@ -9,22 +9,26 @@ makes the calling kernel uncacheable.  Every kernel function is compiled with
 the run is flagged non-finite, where the default would raise an exception that
 a ``prange`` loses, leaving the run unwritten with status ok.
 
-The parallel kernel is cached in the method's module; after editing this file
-or rigid_body.py, clear the ``__pycache__`` folders (numba only checks the
-kernel's own file).
+The parallel kernels are cached with the method (entry.py); the cache
+directory is keyed by a hash of every kernel source (kernels/__init__.py), so
+an edit of this file or of any helper never runs stale machine code.
 
 Sample layout, last axis of ``out`` (n_runs, n_samples, N_FIELDS):
 axis_x, axis_y, axis_z (R e3, lab), omega_1..3 (body, rad/s),
-energy (J), Lz and L3 (kg m²/s).
+energy (J), L_x, L_y, L_z (lab angular momentum, kg m²/s), L3 (kg m²/s).
+A new per-sample quantity is one more field here and in ``_record``, and one
+entry in the results layout (gyrolab/layout.py).
 """
 import math
 
 import numpy as np
 from numba import njit
 
+from .body import body_row
 from .rigid_body import axis_lab, energy, kinetic_energy, lab_momentum
 
-FIELDS = ("axis_x", "axis_y", "axis_z", "omega_1", "omega_2", "omega_3", "energy", "Lz", "L3")
+FIELDS = ("axis_x", "axis_y", "axis_z", "omega_1", "omega_2", "omega_3", "energy", "L_x", "L_y", "L_z", "L3")
+ENERGY = FIELDS.index("energy")
 N_FIELDS = len(FIELDS)
 
 STATUS_OK = 0
@@ -48,8 +52,10 @@ def _record(out, i, k, w, q, body):
     out[i, k, 4] = w[1]
     out[i, k, 5] = w[2]
     out[i, k, 6] = energy(w, q, body)
-    out[i, k, 7] = L[2]
-    out[i, k, 8] = body[2] * w[2]
+    out[i, k, 7] = L[0]
+    out[i, k, 8] = L[1]
+    out[i, k, 9] = L[2]
+    out[i, k, 10] = body[2] * w[2]
 
 
 def make_advance(step):
@@ -64,7 +70,7 @@ def make_advance(step):
 
     @njit(error_model="numpy")
     def advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
-        body = (bodies[i, 0], bodies[i, 1], bodies[i, 2], bodies[i, 3])
+        body = body_row(bodies, i)
         w = (w0[i, 0], w0[i, 1], w0[i, 2])
         q = (q0[i, 0], q0[i, 1], q0[i, 2], q0[i, 3])
         dt = dts[i]
@@ -88,7 +94,7 @@ def make_advance(step):
 @njit(cache=True, error_model="numpy")
 def _diverged(out, i, k, tolerance, status):
     """Flag run i if sample k is non-finite or off in energy; NaN-fill what follows."""
-    if abs(out[i, k, 6] - out[i, 0, 6]) <= tolerance:  # False for NaN too
+    if abs(out[i, k, ENERGY] - out[i, 0, ENERGY]) <= tolerance:  # False for NaN too
         return False
     finite = True
     for f in range(N_FIELDS):

@@ -10,6 +10,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .closed_form import scene_rotation
+from .driver import N_FIELDS
 
 
 def rhs(_t, y, I1, I2, I3, mgl):
@@ -29,17 +30,17 @@ def rhs(_t, y, I1, I2, I3, mgl):
 
 
 def samples_from_states(body, omega, R):
-    """Samples (n, 9) in driver.FIELDS order from ω (n, 3) and R (n, 3, 3)."""
+    """Samples (n, driver.N_FIELDS) in driver.FIELDS order from ω (n, 3) and R (n, 3, 3)."""
     I = np.asarray(body[:3], dtype=float)
     mgl = body[3]
     Iw = omega * I
     L = np.einsum("nij,nj->ni", R, Iw)
-    out = np.empty((omega.shape[0], 9))
+    out = np.empty((omega.shape[0], N_FIELDS))
     out[:, 0:3] = R[:, :, 2]
     out[:, 3:6] = omega
     out[:, 6] = 0.5 * np.sum(omega * Iw, axis=1) + mgl * R[:, 2, 2]
-    out[:, 7] = L[:, 2]
-    out[:, 8] = Iw[:, 2]
+    out[:, 7:10] = L
+    out[:, 10] = Iw[:, 2]
     return out
 
 

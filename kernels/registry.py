@@ -1,17 +1,53 @@
 """The registered integration methods: one line each.
 
-A method is a module with ``ORDER``, ``SYMPLECTIC``, a docstring, a numba
-``step(w, q, dt, body) -> (w, q)`` and a parallel ``run_batch``.
+A method is one module in kernels/methods/ written to the contract in
+kernels/methods/README.md (``step`` and its declarations); ``register``
+checks that contract and gives the module its batch entry points
+(entry.py), so nothing else needs to change for a new method.
 """
-from . import lie_poisson, lie_poisson4, rk4, seed_next, seed_prev
+from numba.core.dispatcher import Dispatcher
 
-METHODS = {
+from .entry import add_entry_points
+from .invariants import check_names
+from .methods import explicit_euler, lie_poisson, lie_poisson4, lie_trotter, rk4, seed_next, seed_prev
+
+
+def register(name, module):
+    """Check ``module`` against the method contract and add its entry points; TypeError if it breaks it."""
+    doc = (module.__doc__ or "").strip()
+    problems = []
+    if not doc.startswith(f"{name}:"):
+        problems.append(f'its docstring must start with "{name}: <one-line summary>"')
+    if not (isinstance(getattr(module, "ORDER", None), int) and module.ORDER >= 1):
+        problems.append("ORDER must be an int >= 1")
+    if not isinstance(getattr(module, "SYMPLECTIC", None), bool):
+        problems.append("SYMPLECTIC must be a bool")
+    preserves = getattr(module, "PRESERVES", None)
+    if not isinstance(preserves, tuple):
+        problems.append("PRESERVES must be a tuple of invariant names (kernels/invariants.py)")
+    else:
+        try:
+            check_names(preserves, f"{name}.PRESERVES")
+        except ValueError as err:
+            problems.append(str(err))
+    if not isinstance(getattr(module, "step", None), Dispatcher):
+        problems.append("step(w, q, dt, body) -> (w, q) must be a numba @njit function")
+    if not isinstance(getattr(module, "BLOCKS", True), bool):
+        problems.append("BLOCKS, when given, must be a bool")
+    if problems:
+        raise TypeError(f"method {name!r} ({module.__name__}): " + "; ".join(problems))
+    return add_entry_points(module)
+
+
+METHODS = {name: register(name, module) for name, module in {
     "seed_next": seed_next,
     "seed_prev": seed_prev,
     "rk4": rk4,
     "lie_poisson": lie_poisson,
     "lie_poisson4": lie_poisson4,
-}
+    "explicit_euler": explicit_euler,
+    "lie_trotter": lie_trotter,
+}.items()}
 
 
 def get_method(name):
@@ -22,12 +58,18 @@ def get_method(name):
         raise ValueError(f"unknown method {name!r}; choose from {', '.join(METHODS)}") from None
 
 
+def uses_blocks(module):
+    """Whether the method runs on the vectorised block path (``BLOCKS``, default True)."""
+    return getattr(module, "BLOCKS", True)
+
+
 def methods():
-    """{name: {"order", "symplectic", "doc"}} for every registered method."""
+    """{name: {"order", "symplectic", "preserves", "doc"}} for every registered method."""
     return {
         name: {
             "order": mod.ORDER,
             "symplectic": mod.SYMPLECTIC,
+            "preserves": mod.PRESERVES,
             "doc": (mod.__doc__ or "").strip().splitlines()[0],
         }
         for name, mod in METHODS.items()

@@ -4,15 +4,14 @@ q̇ = ½ q ⊗ (0, ω) and I ω̇ = τ(q) − ω × Iω, both stages of every RK
 substep see the torque of the current stage orientation.  The quaternion is
 renormalised after each step (a projection, so not symplectic).
 """
-from numba import njit, prange
+from numba import njit
 
-from .block import make_advance_queue
-from .driver import make_advance
-from .rigid_body import euler_rhs, gravity_torque
-from .rotation import quat_mul, quat_normalize
+from ..rigid_body import euler_rhs, gravity_torque
+from ..rotation import quat_mul, quat_normalize
 
 ORDER = 4
 SYMPLECTIC = False
+PRESERVES = ("L3",)
 
 
 @njit(cache=True, error_model="numpy")
@@ -54,21 +53,3 @@ def step(w, q, dt, body):
         q[3] + s * (k1[1][3] + 2.0 * (k2[1][3] + k3[1][3]) + k4[1][3]),
     )
     return w_next, quat_normalize(q_next)
-
-
-advance_run = make_advance(step)
-
-
-@njit(cache=True, parallel=True, error_model="numpy")
-def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
-    for i in prange(w0.shape[0]):
-        advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
-
-
-advance_queue = make_advance_queue(step)
-
-
-@njit(cache=True, parallel=True, error_model="numpy")
-def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts, queues):
-    for t in prange(queues.size - 1):
-        advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)

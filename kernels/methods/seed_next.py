@@ -1,19 +1,18 @@
-"""seed_next: the 2014 write-up's scheme, exactly as SPEC §2 states it.
+"""seed_next: the 2014 write-up's scheme, exactly as docs/design.md states it.
 
 Per step: torque from the orientation at t; classic RK4 on Euler's equations
 with that torque frozen, giving ω(t+dt); then R(t+dt) = R(t) · CK(ω(t+dt) dt).
 Source: the write-up's eq. (8) and its argument around eq. (9) for using
 ω(t+dt).  Freezing the torque over the step makes it first order overall.
 """
-from numba import njit, prange
+from numba import njit
 
-from .block import make_advance_queue
-from .driver import make_advance
-from .rigid_body import euler_rhs, gravity_torque
-from .rotation import rotate_body_step
+from ..rigid_body import euler_rhs, gravity_torque
+from ..rotation import rotate_body_step
 
 ORDER = 1
 SYMPLECTIC = False
+PRESERVES = ("L3",)  # ω3 is untouched when I1 = I2 and τ3 = 0
 
 
 @njit(cache=True, error_model="numpy")
@@ -36,21 +35,3 @@ def rk4_frozen_torque(w, tau, dt, body):
 def step(w, q, dt, body):
     w_next = rk4_frozen_torque(w, gravity_torque(q, body[3]), dt, body)
     return w_next, rotate_body_step(q, w_next[0] * dt, w_next[1] * dt, w_next[2] * dt)
-
-
-advance_run = make_advance(step)
-
-
-@njit(cache=True, parallel=True, error_model="numpy")
-def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
-    for i in prange(w0.shape[0]):
-        advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
-
-
-advance_queue = make_advance_queue(step)
-
-
-@njit(cache=True, parallel=True, error_model="numpy")
-def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts, queues):
-    for t in prange(queues.size - 1):
-        advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)

@@ -1,10 +1,22 @@
 """Scenes: a body, the forces on it and how its initial state is built.
 
-A scene module provides ``OPTIONS`` (defaults of its options, the keys of
-``conf/scene/<name>.yaml``) and ``build(f, theta0, **options) -> Scene``;
-register it here.  What a scene declares through its body is all the kernels
-compute: M g l = 0 skips the torque, I1 = I2 takes the closed-form free flow.
+A scene is one module here plus ``conf/scene/<name>.yaml`` and one line in
+``SCENES``.  The module provides:
+
+- a docstring whose first line is "name: summary";
+- ``OPTIONS``: defaults of its options (exactly the keys of the yaml);
+- ``CONSERVED``: the invariants the exact motion keeps (names from
+  kernels/invariants.py); figures, tests and verdicts read this, never the
+  scene's name;
+- ``CLOSED_FORM``: the name of its exact solution in kernels/closed_form.py
+  (``"heavy_top_nutation"``, ``"free_symmetric"``) or None;
+- ``build(f, theta0, **options) -> Scene``: the body (kernels/body.py) and
+  initial state for spin f (Hz) and tilt θ0 (deg).
+
+What a scene declares through its body is all the kernels compute: M g l = 0
+skips the torque, I1 = I2 takes the closed-form free flow.
 """
+from ..invariants import check_names
 from . import free_asymmetric, free_symmetric, heavy_top
 from .common import Scene, check_finite, tilt_quaternion
 
@@ -13,6 +25,23 @@ SCENES = {
     "free_symmetric": free_symmetric,
     "free_asymmetric": free_asymmetric,
 }
+
+
+for _name, _module in SCENES.items():
+    check_names(_module.CONSERVED, f"scene {_name}.CONSERVED")
+
+
+def scenes():
+    """{name: {"options", "conserved", "closed_form", "doc"}} for every registered scene."""
+    return {
+        name: {
+            "options": dict(mod.OPTIONS),
+            "conserved": mod.CONSERVED,
+            "closed_form": mod.CLOSED_FORM,
+            "doc": (mod.__doc__ or "").strip().splitlines()[0],
+        }
+        for name, mod in SCENES.items()
+    }
 
 
 def get_scene(name):
@@ -41,4 +70,4 @@ def build_scene(name, f, theta0, **options):
     return module.build(float(f), float(theta0), **merged)
 
 
-__all__ = ["SCENES", "Scene", "build_scene", "get_scene", "tilt_quaternion"]
+__all__ = ["SCENES", "Scene", "build_scene", "get_scene", "scenes", "tilt_quaternion"]

@@ -9,8 +9,8 @@ import numpy as np
 class Scene:
     """A body and its initial state.
 
-    body: (I1, I2, I3, M g l) in kg m² and N m, moments about the pivot
-    (about the centre of mass for a free body); omega0: body angular
+    body: a kernels.body.Body (I1, I2, I3 in kg m², M g l in N m), moments
+    about the pivot (about the centre of mass for a free body); omega0: body angular
     velocity (rad/s); q0: orientation quaternion (a, b, c, d), R(q0) maps body
     to lab coordinates.
     """

@@ -13,9 +13,12 @@ gets M g l for the torque.  Initial states (SPEC §3), all with body spin
 """
 import math
 
+from ..body import Body
 from .common import Scene, body_rates, check_positive, tilt_quaternion
 
 OPTIONS = {"M": 1.0, "r": 0.05, "l": 0.1, "g": 10.0, "init": "release", "phidot0": 0.0}
+CONSERVED = ("energy", "Lz", "L3")
+CLOSED_FORM = "heavy_top_nutation"
 INITS = ("release", "precession", "steady_slow", "steady_fast", "sleeping")
 
 
@@ -74,4 +77,4 @@ def build(f, theta0, M, r, l, g, init, phidot0):
     # ψ̇ is fixed by ω3 = φ̇ cos θ + ψ̇ = 2πf.
     psidot = omega3 - phidot * math.cos(theta)
     omega0 = body_rates(phidot, 0.0, psidot, theta)
-    return Scene("heavy_top", (I1, I2, I3, mgl), omega0, tilt_quaternion(theta0))
+    return Scene("heavy_top", Body(I1, I2, I3, mgl), omega0, tilt_quaternion(theta0))
