@@ -79,3 +79,21 @@ def animate(ds, out, sel=None, seconds=None, fps=20, max_frames=120):
     anim.save(out, writer=PillowWriter(fps=fps))
     plt.close(fig)
     return out
+
+
+def _render(ds, out, sel=None, seconds=None, fps=20):
+    out = Path(out)
+    return animate(ds, out.with_suffix(".gif") if out.suffix != ".gif" else out, sel=sel, seconds=seconds, fps=fps)
+
+
+def _make_figure():
+    from .figure import Figure
+
+    return Figure("animation", "GIF of the top (disc, axis, tip trace) from a stored run",
+                  options={"--seconds": {"type": float, "default": None,
+                                         "help": "simulated seconds shown (default: up to 2 s)"},
+                           "--fps": {"type": int, "default": 20, "help": "frames per second of the GIF (default 20)"}},
+                  file_name="animation.gif", render=_render)
+
+
+FIGURE = _make_figure()

@@ -37,41 +37,20 @@ def _common(p, many=False):
 
 
 def build_parser():
+    from .figures import FIGURES
+
     parser = argparse.ArgumentParser(
         prog="gyrolab-plot", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="Run `gyrolab-plot KIND --help` for each kind's options.")
     sub = parser.add_subparsers(dest="kind", metavar="KIND", required=True)
-    p = sub.add_parser("nutation", help="θ(t) per method with the closed-form θ_min/θ_max",
-                       description="θ(t) (deg) per method with the closed-form nutation bounds; "
-                                   "first and last nutation periods of the run.")
-    _common(p)
-    p.add_argument("--periods", type=float, default=3.0, help="nutation periods per window (default 3)")
-    p = sub.add_parser("tip", help="locus of the axis tip seen from above (write-up figs 6-9)",
-                       description="Lab x, y of the unit symmetry axis for one method and dt, one panel per f.")
-    _common(p)
-    p.add_argument("--t-max", type=float, default=None, help="last time drawn (s); default one precession turn")
-    p = sub.add_parser("energy", help="relative drift of E, L_z or L_3 vs time (log scale)",
-                       description="|X(t) − X0|/|X0| per method (colour) and dt (line style), one panel per f.")
-    _common(p)
-    p.add_argument("--quantity", choices=["energy", "Lz", "L3"], default="energy")
-    p.add_argument("--raw", action="store_true", help="raw error instead of its running maximum")
-    p = sub.add_parser("invariants", help="E, L_z and L_3 drift in one figure")
-    _common(p)
-    p.add_argument("--raw", action="store_true", help="raw error instead of its running maximum")
-    p = sub.add_parser("work-precision", help="error vs cost on log-log axes, DOP853 as a peer",
-                       description="Error against the closed-form nutation (or DOP853) vs wall time per "
-                                   "simulated second and steps; re-runs scipy DOP853/RK45 as peers.")
-    _common(p)
-    p.add_argument("--no-peers", action="store_true", help="do not run the scipy peers")
-    p = sub.add_parser("stability", help="heatmap of log10 max energy error over dt x f per method")
-    _common(p)
-    p = sub.add_parser("animation", help="GIF of the top (disc, axis, tip trace) from a stored run")
-    _common(p)
-    p.add_argument("--seconds", type=float, default=None, help="simulated seconds shown (default: up to 2 s)")
-    p.add_argument("--fps", type=int, default=20, help="frames per second of the GIF (default 20)")
+    for name, figure in FIGURES.items():
+        p = sub.add_parser(name, help=figure.help, description=figure.help)
+        _common(p)
+        for flag, kwargs in figure.options.items():
+            p.add_argument(flag, **kwargs)
     p = sub.add_parser("seed", help="the write-up's figures from a seed_figures multirun directory")
     _common(p, many=True)
-    p = sub.add_parser("standard", help="the runner's standard figures into a directory")
+    p = sub.add_parser("standard", help="the figures the file's study asks for (output.figures) into a directory")
     p.add_argument("file", metavar="FILE")
     p.add_argument("-o", "--output", help="output directory (default: figures/ next to FILE)")
     return parser
@@ -84,7 +63,8 @@ def _fail(message):
 
 def run(args):
     """Make the figure ``args.kind``; return the written path(s)."""
-    from .io import open_results, parse_selection, save_figure
+    from .figures import FIGURES
+    from .io import open_results, parse_selection
 
     kind = args.kind
     if kind == "standard":
@@ -98,45 +78,14 @@ def run(args):
 
         out = Path(args.output or Path(args.file[0]) / "seed_figures.png")
         return seed_figures(args.file, out, formats=args.format)
+    figure = FIGURES[kind]  # argparse has already refused anything else
     ds = open_results(args.file)
     sel = parse_selection(args.selection)
     default = Path(args.file).with_name(f"{kind.replace('-', '_')}.png")
     out = Path(args.output) if args.output else default
-    if kind == "animation":
-        from .animation import animate
-
-        return animate(ds, out.with_suffix(".gif") if out.suffix != ".gif" else out, sel=sel,
-                       seconds=args.seconds, fps=args.fps)
-    if kind == "nutation":
-        from .nutation import theta_figure
-
-        fig = theta_figure(ds, sel, n_periods=args.periods)
-    elif kind == "tip":
-        from .nutation import tip_locus_figure
-
-        one = {k: v[0] for k, v in sel.items() if k in ("method", "dt")}
-        fig = tip_locus_figure(ds, one.get("method"), sel.get("f", [None])[0] if len(sel.get("f", [])) == 1
-                               else None, sel.get("theta0", [None])[0], one.get("dt"), t_max=args.t_max)
-    elif kind == "energy":
-        from .energy import drift_figure
-
-        fig = drift_figure(ds, args.quantity, sel, envelope=not args.raw)
-    elif kind == "invariants":
-        from .energy import invariants_figure
-
-        fig = invariants_figure(ds, sel, envelope=not args.raw)
-    elif kind == "work-precision":
-        from .work_precision import work_precision_figure
-
-        fig = work_precision_figure(ds, sel, peers=not args.no_peers)
-    elif kind == "stability":
-        from .stability import stability_figure
-
-        fig = stability_figure(ds, sel)
-    else:  # argparse has already refused anything else
-        raise AssertionError(kind)
-    paths = [save_figure(fig, out, formats=args.format)]
-    return paths
+    options = {flag.lstrip("-").replace("-", "_"): getattr(args, flag.lstrip("-").replace("-", "_"))
+               for flag in figure.options}
+    return [figure.write(ds, out, sel, formats=args.format, **options)]
 
 
 def main(argv=None):

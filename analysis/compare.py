@@ -1,4 +1,4 @@
-"""Compare two results files (SPEC §4 layout) variable by variable: ``gyrolab-compare A B``.
+"""Compare two results files (the layout of gyrolab/layout.py) variable by variable: ``gyrolab-compare A B``.
 
     gyrolab-compare new.h5 stored.h5 --rtol 1e-10 --atol energy=1e-12 --atol 1e-13
     gyrolab-compare new.h5 stored.h5 --scaled 1e-10      # what the regression tests use
@@ -28,7 +28,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-RUN_DIMS = ("method", "f", "theta0", "dt")
+from ..layout import GRID_DIMS as RUN_DIMS
+from ..layout import INPUT_VARIABLES
+
 EXACT = ("status", "n_steps")
 IGNORED = {"wall_time": "timing, not physics"}
 VERSION_ATTRS = ("gyrolab_version", "numba_version", "numpy_version")
@@ -261,7 +263,7 @@ def data_config(text):
     """The flattened config of a file's ``config`` attr, without the keys that do not change data."""
     import yaml
 
-    from ..runner.config import RUN_ONLY
+    from ..layout import RUN_ONLY
 
     data = yaml.safe_load(text) or {}
     for group, keys in RUN_ONLY.items():
@@ -351,8 +353,11 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
         raise CompareError(f"different scenes: {da.attrs.get('scene')} in A and {db.attrs.get('scene')} in B")
     versions, configs = version_notes(da, db), config_notes(da, db)
     da, db, dropped = align(da, db, shared_runs)
-    va = [v for v in da.data_vars if v not in ignored]
-    vb = [v for v in db.data_vars if v not in ignored]
+    # The runs' inputs (body, initial state) are not results: a difference is a provenance note, and
+    # files written before they were stored compare with files that have them.
+    configs = configs + input_notes(da, db)
+    va = [v for v in da.data_vars if v not in ignored and v not in INPUT_VARIABLES]
+    vb = [v for v in db.data_vars if v not in ignored and v not in INPUT_VARIABLES]
     for v in va:
         if v not in vb:
             raise CompareError(f"missing variables: {v} is in A but not in B")
@@ -398,6 +403,17 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
         report.worst_run = {d: coords[d][i] for d, i in zip(RUN_DIMS, at)}
         report.worst_run_detail = _detail(best_var[at], *(x[at] for x in best))
     return report
+
+
+def input_notes(da, db):
+    """Notes on the stored run inputs (body, omega0, q0) that differ between two aligned files."""
+    notes = []
+    for name in INPUT_VARIABLES:
+        if name in da.data_vars and name in db.data_vars:
+            a, b = da[name].values, db[name].transpose(*da[name].dims).values
+            if a.shape != b.shape or not np.array_equal(a, b):
+                notes.append(f"run inputs differ: {name}")
+    return notes
 
 
 def variable_atol(atol, scaled, name, reference):

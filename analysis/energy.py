@@ -9,7 +9,18 @@ marked "diverged" in the legend.
 import matplotlib.pyplot as plt
 import numpy as np
 
-from .io import (DT_STYLES, FLOOR, QUANTITY_LABELS, color, fmt_dt, relative_error, scene_label, select)
+from .io import (
+    DT_STYLES,
+    FLOOR,
+    QUANTITY_LABELS,
+    color,
+    drawable_invariants,
+    fmt_dt,
+    invariant_error,
+    relative_error,
+    scene_label,
+    select,
+)
 
 
 def drift_table(ds, quantity="energy", sel=None):
@@ -36,7 +47,7 @@ def _panel(ax, sub, quantity, f, th, envelope=True):
     for m in sub.method.values:
         for k, dt in enumerate(sub.dt.values):
             run = sub.sel({"method": m, "f": f, "theta0": th, "dt": dt})
-            err = relative_error(run[quantity].values)
+            err = invariant_error(run, quantity)
             if envelope:  # running maximum: the drift, without the oscillation within each nutation
                 err = np.fmax.accumulate(err)
             any_zero |= bool(np.all(err[np.isfinite(err)] == 0))
@@ -87,11 +98,14 @@ def drift_figure(ds, quantity="energy", sel=None, envelope=True):
 
 
 def invariants_figure(ds, sel=None, envelope=True):
-    """Rows E, L_z, L_3 by columns f (θ0): every invariant's relative drift on log axes."""
+    """One row per invariant the scene declares (layout.conserved), by columns f (θ0): every
+    invariant's relative drift on log axes.  Quantities the scene does not conserve are not drawn."""
     sub = select(ds, sel)
     panels = [(f, th) for f in sub.f.values for th in sub.theta0.values]
-    quantities = list(QUANTITY_LABELS)
-    fig, axes = plt.subplots(len(quantities), len(panels), figsize=(4.4 * len(panels) + 0.6, 3.0 * 3 + 0.5),
+    quantities = drawable_invariants(sub)
+    if not quantities:
+        raise ValueError("the file's scene declares no invariant that its variables hold")
+    fig, axes = plt.subplots(len(quantities), len(panels), figsize=(4.4 * len(panels) + 0.6, 3.0 * len(quantities) + 0.5),
                              squeeze=False, sharex=True)
     for r, q in enumerate(quantities):
         for c, (f, th) in enumerate(panels):
@@ -100,9 +114,27 @@ def invariants_figure(ds, sel=None, envelope=True):
                 axes[r, c].set_xlabel("")
             if r > 0:
                 axes[r, c].set_title("")
-    fig.suptitle(f"Invariants E, L_z, L_3: relative drift, {scene_label(sub)}", fontsize=11)
+    names = ", ".join(QUANTITY_LABELS.get(q, q) for q in quantities)
+    fig.suptitle(f"Invariants {names}: relative drift, {scene_label(sub)}", fontsize=11)
     fig.tight_layout()
     handles, labels = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=min(len(labels), 5),
                fontsize=8, frameon=False)
     return fig
+
+
+def _make_figures():
+    from .figure import Figure
+
+    raw = {"--raw": {"action": "store_true", "help": "raw error instead of its running maximum"}}
+    drift = Figure("energy", "relative drift of an invariant vs time (log scale)",
+                   lambda ds, sel=None, quantity="energy", raw=False: drift_figure(ds, quantity, sel, not raw),
+                   {"--quantity": {"choices": list(QUANTITY_LABELS), "default": "energy"}, **raw},
+                   file_name="energy_drift.png")
+    invariants = Figure("invariants", "drift of every invariant the scene conserves, in one figure",
+                        lambda ds, sel=None, raw=False: invariants_figure(ds, sel, not raw), raw,
+                        file_name="invariants.png")
+    return drift, invariants
+
+
+DRIFT, INVARIANTS = _make_figures()

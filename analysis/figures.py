@@ -1,13 +1,16 @@
-"""The standard figures the runner writes after a sweep (``output.figures=true``).
+"""The figure registry, and the figures a sweep writes after it finishes.
 
-``standard_figures(results_path, out_dir)`` reads one results file and writes
-PNGs that read well from any grid shape: θ(t) against the closed-form bounds,
-the tip locus seen from above, the energy drift and all three invariants.
-Large grids are thinned for these line figures (at most 4 values of f, 3 of
-dt, 2 of θ0).  A file named after a pinned study (``output.path`` =
-``stability.h5`` or ``work_precision.h5``, as set by conf/experiment) also
-gets that study's figure.  A figure that fails is reported on stderr and
-skipped, so a sweep's results are never lost to a plotting problem.
+A figure kind is a ``Figure`` record (analysis/figure.py) defined in its own module and listed
+once in ``FIGURES``; ``gyrolab-plot KIND`` (analysis/cli.py), the runner's
+figure step and the tests all iterate over this registry.  A study names the
+figures it wants in its config (``output.figures: [stability, energy]``;
+``true`` means ``DEFAULT``, ``false`` none); the resolved config is stored in
+the results file, so ``gyrolab-plot standard FILE`` draws the same set.
+
+The line figures read well from any grid shape because large grids are
+thinned (at most 4 values of f, 3 of dt, 2 of θ0; ``thin``).  A figure that
+fails is reported on stderr and skipped, so a sweep's results are never lost
+to a plotting problem.
 """
 import sys
 import time
@@ -15,7 +18,43 @@ from pathlib import Path
 
 import numpy as np
 
-from .io import open_results, save_figure
+from .figure import Figure  # noqa: F401 (the record each figure module defines)
+from .io import open_results
+
+
+def _registry():
+    from . import animation, energy, nutation, stability, work_precision
+
+    figures = (
+        nutation.THETA,
+        nutation.TIP,
+        energy.DRIFT,
+        energy.INVARIANTS,
+        work_precision.FIGURE,
+        stability.FIGURE,
+        animation.FIGURE,
+    )
+    return {f.name: f for f in figures}
+
+
+FIGURES = _registry()
+# What a sweep draws when its config says ``output.figures: true``.
+DEFAULT = ("nutation", "tip", "energy", "invariants")
+
+
+def figure_names(setting):
+    """The figure names a config's ``output.figures`` asks for (True: DEFAULT, False/None: none);
+    ValueError naming the first unknown one."""
+    if setting is None or setting is False:
+        return ()
+    if setting is True:
+        return DEFAULT
+    names = [setting] if isinstance(setting, str) else list(setting)
+    for name in names:
+        if name not in FIGURES:
+            raise ValueError(f"output.figures={name}: unknown figure; choose from {', '.join(FIGURES)} "
+                             "(or true for the default set, false for none)")
+    return tuple(names)
 
 
 def thin(ds, max_f=4, max_dt=3, max_theta0=2):
@@ -29,53 +68,36 @@ def thin(ds, max_f=4, max_dt=3, max_theta0=2):
     return sel
 
 
-def study_of(path):
-    """The pinned study a results file belongs to, from its file name (or None)."""
-    stem = Path(path).stem
-    for study in ("work_precision", "stability"):
-        if stem.startswith(study):
-            return study
-    return None
+def requested_figures(ds):
+    """The figures the file's own config asked for (its ``config`` attr), else DEFAULT."""
+    import yaml
+
+    try:
+        config = yaml.safe_load(ds.attrs.get("config", "")) or {}
+        setting = (config.get("output") or {}).get("figures", True)
+        return figure_names(setting) or DEFAULT
+    except (yaml.YAMLError, AttributeError, ValueError):
+        return DEFAULT
 
 
-def standard_figures(results_path, out_dir):
-    """Write the standard PNGs of ``results_path`` into ``out_dir``; return their paths."""
-    from .energy import drift_figure, invariants_figure
-    from .nutation import theta_figure, tip_locus_figure
-
+def standard_figures(results_path, out_dir, names=None):
+    """Write the figures ``names`` (default: those the file's config asks for) of ``results_path``
+    into ``out_dir``; return the written paths."""
     ds = open_results(results_path)
     out_dir = Path(out_dir)
+    names = requested_figures(ds) if names is None else figure_names(names)
     sel = thin(ds)
     small = ds.sel(sel) if sel else ds
-    jobs = [
-        ("nutation_theta.png", lambda: theta_figure(small)),
-        ("tip_locus.png", lambda: tip_locus_figure(small, method=_best_method(small))),
-        ("energy_drift.png", lambda: drift_figure(small, "energy")),
-        ("invariants.png", lambda: invariants_figure(small)),
-    ]
-    study = study_of(results_path)
-    if study == "stability":
-        from .stability import stability_figure
-
-        jobs.insert(0, ("stability_map.png", lambda: stability_figure(ds)))
-    elif study == "work_precision":
-        from .work_precision import work_precision_figure
-
-        jobs.insert(0, ("work_precision.png", lambda: work_precision_figure(ds)))
     paths = []
-    for name, make in jobs:
+    for name in names:
+        figure = FIGURES[name]
         started = time.perf_counter()
         try:
-            paths.append(save_figure(make(), out_dir / name))
+            paths.append(figure.write(small if figure.thinned else ds,
+                                      out_dir / (figure.file_name or f"{name.replace('-', '_')}.png")))
         except Exception as err:  # a figure must never cost the user the results
             print(f"gyrolab: figure {name} skipped: {type(err).__name__}: {err}", file=sys.stderr)
         else:
             if time.perf_counter() - started > 30:
                 print(f"gyrolab: figure {name} took {time.perf_counter() - started:.0f} s", file=sys.stderr)
     return paths
-
-
-def _best_method(ds):
-    """The method drawn in the single-run figures: seed_next when present (the write-up's scheme)."""
-    methods = [str(m) for m in ds.method.values]
-    return "seed_next" if "seed_next" in methods else methods[0]

@@ -1,6 +1,6 @@
 """Reading stored results and choosing runs: the helpers every figure shares.
 
-A results file (SPEC §4) opens as an xarray Dataset with dims
+A results file (gyrolab/layout.py) opens as an xarray Dataset with dims
 ``method, f, theta0, dt, time, xyz``.  A *selection* is a dict (or the CLI
 text ``method=seed_next,rk4 f=10 dt=1e-4``) of coordinate values; numbers
 match their coordinate to a relative 1e-9, so ``dt=1e-4`` finds 0.0001.
@@ -15,9 +15,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 
-GRID_DIMS = ("method", "f", "theta0", "dt")
+from ..layout import GRID_DIMS  # noqa: E402
+
 FORMATS = ("png", "svg", "pdf")
-# One colour per registered method (stable across figures), then peers.
+# Fixed colours of the first methods and the peers; any other method gets one from PALETTE
+# by its place in the registry, so a new method is drawn without touching this file.
 METHOD_COLORS = {
     "seed_next": "#d62728",
     "seed_prev": "#1f77b4",
@@ -28,7 +30,7 @@ METHOD_COLORS = {
     "RK45": "#7f7f7f",
 }
 DT_STYLES = ("-", "--", ":", "-.")
-QUANTITY_LABELS = {"energy": "E", "Lz": "L_z", "L3": "L_3"}
+QUANTITY_LABELS = {"energy": "E", "Lz": "L_z", "L3": "L_3", "L": "L", "L_norm": "|L|"}
 
 
 class SelectionError(ValueError):
@@ -134,9 +136,17 @@ def scene_name(ds):
 
 
 def build_run_scene(ds, f, theta0):
-    """The kernel Scene of grid point (f Hz, theta0 deg) of this file."""
-    from ..kernels.scenes import build_scene
+    """The kernel Scene of grid point (f Hz, theta0 deg) of this file: its stored body and
+    initial state (``body``, ``omega0``, ``q0``), or for files written before those were
+    stored, the scene rebuilt from the file's scene options."""
+    from ..kernels.body import Body
+    from ..kernels.scenes import Scene, build_scene
 
+    if all(name in ds.data_vars for name in ("body", "omega0", "q0")):
+        at = {"f": _match(ds["f"], [f], "f")[0], "theta0": _match(ds["theta0"], [theta0], "theta0")[0]}
+        run = ds[["body", "omega0", "q0"]].sel(at)
+        return Scene(scene_name(ds), Body(*map(float, run["body"].values)),
+                     tuple(map(float, run["omega0"].values)), tuple(map(float, run["q0"].values)))
     return build_scene(scene_name(ds), float(f), float(theta0), **scene_options(ds))
 
 
@@ -174,6 +184,26 @@ def relative_error(values, reference=None):
     return np.abs(values - x0) / scale
 
 
+def invariant_error(run, name):
+    """Relative error series of invariant ``name`` of one run (a Dataset over time):
+    |X(t) − X0| / |X0|, with |·| the vector norm for L (layout.invariant gives X)."""
+    from ..layout import invariant
+
+    values = np.asarray(invariant(run, name).values, dtype=float)
+    if values.ndim == 2:  # (time, xyz): the distance from the initial vector over its length
+        scale = np.linalg.norm(values[0]) or np.nanmax(np.linalg.norm(values, axis=-1))
+        return np.linalg.norm(values - values[:1], axis=-1) / scale
+    return relative_error(values)
+
+
+def drawable_invariants(ds):
+    """The invariants the file's scene declares (layout.conserved) that its variables can give."""
+    from ..layout import conserved
+
+    have = set(ds.data_vars)
+    return [q for q in conserved(ds) if (q in have) or (q == "L_norm" and "L" in have)]
+
+
 FLOOR = 1e-17  # plotted instead of an exact 0 on log axes (below double precision)
 
 
@@ -192,5 +222,17 @@ def save_figure(fig, out, formats=("png",)):
     return paths[0]
 
 
+PALETTE = ("#8c564b", "#e377c2", "#17becf", "#bcbd22", "#393b79", "#637939", "#8c6d31", "#843c39",
+           "#7b4173", "#3182bd", "#e6550d", "#31a354")
+
+
 def color(method):
-    return METHOD_COLORS.get(str(method), None)
+    """The colour of ``method`` in every figure: fixed for the first methods and peers, else from
+    PALETTE by its place among the registered methods."""
+    method = str(method)
+    if method in METHOD_COLORS:
+        return METHOD_COLORS[method]
+    from ..kernels.registry import METHODS
+
+    others = [m for m in METHODS if m not in METHOD_COLORS]
+    return PALETTE[others.index(method) % len(PALETTE)] if method in others else None

@@ -11,12 +11,14 @@ import math
 import matplotlib.pyplot as plt
 import numpy as np
 
-from .io import (DT_STYLES, build_run_scene, color, fmt_dt, pick, scene_label, scene_name, select)
+from .io import DT_STYLES, build_run_scene, color, fmt_dt, pick, scene_label, select
 
 
 def closed_form_nutation(ds, f, theta0):
     """Closed-form Nutation of grid point (f, theta0), or None when the scene has none."""
-    if scene_name(ds) != "heavy_top":
+    from ..layout import closed_form
+
+    if closed_form(ds) != "heavy_top_nutation":
         return None
     from ..kernels.closed_form import heavy_top_nutation
 
@@ -143,3 +145,43 @@ def tip_locus_figure(ds, method=None, f=None, theta0=None, dt=None, t_max=None):
                  "dashed: closed-form sin θ_min, sin θ_max", fontsize=10)
     fig.tight_layout()
     return fig
+
+
+def _tip(ds, sel=None, t_max=None):
+    """tip_locus_figure from a CLI selection: one method and dt; f and θ0 when a single value is given."""
+    sel = sel or {}
+
+    def one(key):
+        values = sel.get(key) or [None]
+        return values[0] if len(values) == 1 else None
+
+    return tip_locus_figure(ds, one("method"), one("f"), one("theta0"), one("dt"), t_max=t_max)
+
+
+def _best_method(ds):
+    """The method drawn in the single-run figures: seed_next when present (the write-up's scheme)."""
+    methods = [str(m) for m in ds.method.values]
+    return "seed_next" if "seed_next" in methods else methods[0]
+
+
+def _standard_tip(ds, sel=None, t_max=None):
+    if not (sel or {}).get("method"):
+        sel = {**(sel or {}), "method": [_best_method(ds)]}
+    return _tip(ds, sel, t_max)
+
+
+def _make_figures():
+    from .figure import Figure
+
+    theta = Figure("nutation", "θ(t) per method with the closed-form θ_min/θ_max",
+                   lambda ds, sel=None, periods=3.0: theta_figure(ds, sel, n_periods=periods),
+                   {"--periods": {"type": float, "default": 3.0, "help": "nutation periods per window (default 3)"}},
+                   file_name="nutation_theta.png")
+    tip = Figure("tip", "locus of the axis tip seen from above (write-up figs 6-9)", _standard_tip,
+                 {"--t-max": {"type": float, "default": None,
+                              "help": "last time drawn (s); default one precession turn"}},
+                 file_name="tip_locus.png")
+    return theta, tip
+
+
+THETA, TIP = _make_figures()

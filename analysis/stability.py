@@ -92,3 +92,13 @@ def stability_figure(ds, sel=None, theta0=None):
                  "\nnumbers: log10 error; red × hatched: diverged; dotted: ω3·dt = 0.01, 0.1, 1 rad per step", fontsize=10.5,
                  y=1.06)
     return fig
+
+
+def _make_figure():
+    from .figure import Figure
+
+    return Figure("stability", "heatmap of log10 max energy error over dt x f per method",
+                  lambda ds, sel=None: stability_figure(ds, sel), file_name="stability_map.png", thinned=False)
+
+
+FIGURE = _make_figure()

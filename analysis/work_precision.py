@@ -156,3 +156,15 @@ def work_precision_figure(ds, sel=None, retime=True, peers=True, data=None):
     handles, labels = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=4, fontsize=8, frameon=False)
     return fig
+
+
+def _make_figure():
+    from .figure import Figure
+
+    return Figure("work-precision", "error vs cost on log-log axes, DOP853 as a peer",
+                  lambda ds, sel=None, no_peers=False: work_precision_figure(ds, sel, peers=not no_peers),
+                  {"--no-peers": {"action": "store_true", "help": "do not run the scipy peers"}},
+                  file_name="work_precision.png", thinned=False)
+
+
+FIGURE = _make_figure()

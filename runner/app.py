@@ -35,6 +35,7 @@ from hydra.errors import HydraException
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from ..layout import RAW_PER_SAMPLE, scene_attrs
 from .config import ConfigError, config_hash, register_configs
 from .execute import BackendError
 from .grid import build_grid, estimate_seconds, plan_chunks
@@ -160,7 +161,7 @@ def check_fits(grid, out, chunks):
 
 def disk_needed(grid):
     """Peak disk use (bytes): the journal of raw samples plus the results file being assembled."""
-    journal = grid.n_runs * grid.n_samples * 9 * 8
+    journal = grid.n_runs * grid.n_samples * RAW_PER_SAMPLE * 8
     return journal + grid.bytes_stored()
 
 
@@ -218,11 +219,11 @@ def resume_command(run_dir):
 
 
 def file_attrs(cfg, grid, threads, chash):
+    from ..kernels.scenes import get_scene
     from .provenance import provenance
 
-    attrs = {"scene": grid.scene}
-    for key, value in grid.options.items():
-        attrs[f"scene_{key}"] = int(value) if isinstance(value, bool) else value
+    declared = get_scene(grid.scene)
+    attrs = scene_attrs(grid.scene, grid.options, declared.CONSERVED, declared.CLOSED_FORM)
     attrs.update(t_end=grid.t_end, every=grid.every, divergence_threshold=grid.threshold, config_hash=chash)
     attrs.update(provenance(OmegaConf.to_yaml(cfg, resolve=True), threads))
     return attrs
@@ -293,8 +294,9 @@ def sweep(cfg, run_dir, stack):
         failed = int((fh["status"][...] != 0).sum())
     print(f"gyrolab: results: {out} ({_size(out.stat().st_size)}, {grid.n_runs} runs, "
           f"{failed} diverged) in {elapsed:.1f} s ({computing:.1f} s integrating)")
-    if cfg.output.figures:
-        make_figures(out)
+    figures = cfg.output.figures
+    if figures:
+        make_figures(out, OmegaConf.to_container(figures) if OmegaConf.is_list(figures) else figures)
     return str(out)
 
 
@@ -351,16 +353,12 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
     return computing
 
 
-def make_figures(out):
-    """The analysis' standard figures into ``figures/`` next to the results file."""
-    try:
-        from ..analysis.figures import standard_figures
-    except ModuleNotFoundError as err:
-        if err.name and err.name.startswith("gyrolab.analysis"):
-            print("gyrolab: figures skipped: gyrolab.analysis.figures is not available", file=sys.stderr)
-            return []
-        raise
-    paths = standard_figures(str(out), str(out.parent / "figures"))
+def make_figures(out, names):
+    """The figures ``names`` (output.figures) into ``figures/`` next to the results file."""
+    from ..analysis import figure_names, standard_figures
+
+    print(f"gyrolab: drawing {len(figure_names(names))} figures ...", flush=True)
+    paths = standard_figures(str(out), str(out.parent / "figures"), names)
     print(f"gyrolab: figures: {out.parent / 'figures'} ({len(paths)} PNG)")
     return paths
 

@@ -18,6 +18,7 @@ from typing import Any, List, Optional
 from omegaconf import MISSING, OmegaConf
 
 from ..kernels.scenes import SCENES
+from ..layout import RUN_ONLY  # settings that change how a sweep is run, not its data
 
 BACKENDS = ("local", "dask")
 
@@ -39,12 +40,14 @@ class SweepConfig:
 
 @dataclass
 class OutputConfig:
-    """every: sample interval (s); path: results file, relative to Hydra's output dir."""
+    """every: sample interval (s); path: results file, relative to Hydra's output dir; figures: the
+    figure kinds to draw after the sweep (names from analysis/figures.py's registry; true: the
+    default set, false: none)."""
 
     every: float = 1e-3
     path: str = "results.h5"
     overwrite: bool = False
-    figures: bool = True
+    figures: Any = True
 
 
 @dataclass
@@ -91,6 +94,20 @@ def register_configs():
         cs.store(group="schema/scene", name=name, node=scene_schema(name, module))
 
 
+def check_figures(setting):
+    """ConfigError unless ``output.figures`` is true, false or a list of registered figure names."""
+    from ..analysis import figure_names
+
+    if isinstance(setting, (bool, str)) or setting is None:
+        pass
+    elif not OmegaConf.is_list(setting) and not isinstance(setting, (list, tuple)):
+        raise ConfigError(f"output.figures={setting}: a list of figure names, or true / false")
+    try:
+        figure_names(OmegaConf.to_container(setting) if OmegaConf.is_list(setting) else setting)
+    except ValueError as err:
+        raise ConfigError(str(err)) from None
+
+
 def check_values(cfg):
     """ConfigError for the first value a type cannot rule out: NaN/inf, empty or
     duplicated axes, non-positive times and sizes, unknown backend, bad threads."""
@@ -123,6 +140,7 @@ def check_values(cfg):
         raise ConfigError(f"output.every={output.every}: the sample interval must be > 0 s")
     if sweep.t_end < output.every:
         raise ConfigError(f"sweep.t_end={sweep.t_end}: shorter than the sample interval output.every={output.every}")
+    check_figures(output.figures)
     if not str(output.path).strip():
         raise ConfigError("output.path='': needs a file name")
     if runner.threads is not None and runner.threads < 1:
@@ -185,10 +203,6 @@ def check_finite(node, key=""):
         raise ConfigError(f"{key}={node}: must be a finite number")
 
 
-# Settings that change how a sweep is run, not its data: left out of the data hash.
-RUN_ONLY = {"output": ("path", "overwrite", "figures"),
-            "runner": ("resume", "dry_run", "threads", "chunk_seconds", "backend", "address", "scheduler_file",
-                       "connect_timeout")}
 
 
 def data_config(cfg):

@@ -13,9 +13,10 @@ import numpy as np
 from omegaconf import OmegaConf
 
 from ..kernels.batch import MIN_BLOCK_RUNS, sample_schedule
-from ..kernels.driver import N_FIELDS
+from ..kernels.body import N_FIELDS as N_BODY
 from ..kernels.registry import METHODS
 from ..kernels.scenes import SCENES, build_scene
+from ..layout import RAW_PER_SAMPLE, STORED_PER_SAMPLE
 from .config import ConfigError, check_values
 
 # Rough steps per second per thread of each method on the development machine
@@ -24,10 +25,6 @@ STEP_RATE = {"seed_next": 1.2e7, "seed_prev": 1.2e7, "rk4": 1.2e7, "lie_poisson"
 DEFAULT_STEP_RATE = 5e6
 # Blocks of >= MIN_BLOCK_RUNS runs against one by one, per run (docs/benchmarks.md: 10-22x).
 BLOCK_SPEEDUP = 10
-# Float64 values per sample: stored (axis 3, theta, phi, energy, Lz, L3, omega 3)
-# and computed by the kernel (driver.FIELDS).
-STORED_PER_SAMPLE = 11
-RAW_PER_SAMPLE = N_FIELDS
 MAX_CHUNK_BYTES = 256 * 2**20
 
 
@@ -35,7 +32,7 @@ MAX_CHUNK_BYTES = 256 * 2**20
 class Grid:
     """All runs of a sweep.  Axes: methods (str), f (Hz), theta0 (deg), dt (s);
     t_end and every (s); strides[l] steps per sample at dt[l]; bodies/omega0/q0
-    of each (f, theta0) as arrays (nf, nt, 4|3|4)."""
+    of each (f, theta0) as arrays (nf, nt, N_BODY|3|4)."""
 
     scene: str
     options: dict
@@ -112,7 +109,7 @@ def build_grid(cfg):
             raise ConfigError(_prefix_sweep(str(err))) from None
         strides.append(stride)
     nf, nt = len(sweep.f), len(sweep.theta0)
-    bodies, omega0, q0 = np.empty((nf, nt, 4)), np.empty((nf, nt, 3)), np.empty((nf, nt, 4))
+    bodies, omega0, q0 = np.empty((nf, nt, N_BODY)), np.empty((nf, nt, 3)), np.empty((nf, nt, 4))
     for j, f in enumerate(sweep.f):
         for k, theta0 in enumerate(sweep.theta0):
             try:

@@ -2,12 +2,11 @@
 import time
 
 import numpy as np
-import xarray as xr
 
 from ..kernels.batch import DEFAULT_DIVERGENCE_THRESHOLD, integrate, sample_schedule
 from ..kernels.registry import get_method
-from ..kernels.scenes import build_scene
-from .dataset import COORD_ATTRS, VARIABLE_ATTRS, sample_variables
+from ..kernels.scenes import build_scene, get_scene
+from ..layout import scene_attrs, to_dataset
 
 
 def simulate(
@@ -25,9 +24,10 @@ def simulate(
 
     f in Hz (ω3 = 2πf), theta0 in degrees, dt, t_end and every (sample
     interval, a multiple of dt) in seconds.  ``scene_options`` are the scene's
-    options (for heavy_top: M, r, l, g, init, phidot0).  Variables: axis (lab),
-    theta, phi (rad), energy (J), Lz, L3, omega (body, rad/s); status,
-    n_steps, wall_time (s).
+    options (for heavy_top: M, r, l, g, init, phidot0).  Variables as in a
+    results file (gyrolab/layout.py): axis (lab), theta, phi (rad), energy (J),
+    L (lab), Lz, L3 (kg m²/s), omega (body, rad/s); status, n_steps,
+    wall_time (s); the run's body, omega0 and q0.
     """
     get_method(method)
     sc = build_scene(scene, f, theta0, **scene_options)
@@ -38,17 +38,11 @@ def simulate(
         divergence_threshold,
     )
     wall = time.perf_counter() - start
-    data = {}
-    for name, values in sample_variables(samples[0]).items():
-        dims = ("time", "xyz") if values.ndim == 2 else ("time",)
-        data[name] = (dims, values, VARIABLE_ATTRS[name])
-    data["status"] = ((), status[0], VARIABLE_ATTRS["status"])
-    data["n_steps"] = ((), n_steps[0], VARIABLE_ATTRS["n_steps"])
-    data["wall_time"] = ((), wall, VARIABLE_ATTRS["wall_time"])
-    coords = {
-        "time": ("time", np.arange(n_samples) * every, COORD_ATTRS["time"]),
-        "xyz": ("xyz", np.array(["x", "y", "z"]), COORD_ATTRS["xyz"]),
-    }
-    attrs = {"scene": scene, "method": method, "f": f, "theta0": theta0, "dt": dt,
-             **{f"scene_{k}": v for k, v in scene_options.items()}}
-    return xr.Dataset(data, coords=coords, attrs=attrs)
+    declared = get_scene(scene)
+    attrs = scene_attrs(scene, scene_options, declared.CONSERVED, declared.CLOSED_FORM)
+    attrs.update(method=method, f=f, theta0=theta0, dt=dt)
+    return to_dataset(
+        samples[0], {"status": status[0], "n_steps": n_steps[0], "wall_time": wall},
+        {"time": np.arange(n_samples) * every},
+        inputs={"body": sc.body, "omega0": sc.omega0, "q0": sc.q0}, attrs=attrs,
+    )

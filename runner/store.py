@@ -7,10 +7,7 @@ into a temporary name and renamed into place only when complete; then the
 journal is removed.  ``OutputLock`` (``fcntl.flock`` on ``<out>.lock``)
 refuses a second writer to the same output.
 
-Results layout (SPEC §4): dims method, f, theta0, dt, time, xyz; per-sample
-variables (method, f, theta0, dt, time[, xyz]); per-run status, n_steps,
-wall_time (method, f, theta0, dt); units and long names from
-``dataset.VARIABLE_ATTRS`` / ``COORD_ATTRS``.
+The results layout (dims, variables, units, attrs) is gyrolab/layout.py's.
 """
 import fcntl
 import json
@@ -20,14 +17,20 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import ConfigError
-from .dataset import COORD_ATTRS, VARIABLE_ATTRS, sample_variables
-
-DIMS = ("method", "f", "theta0", "dt")
-WALL_TIME_NOTE = (
-    "chunk wall-clock time x threads used, shared among the chunk's runs in proportion to their steps "
-    "(runs of one chunk run in parallel; JIT compilation excluded)"
+from ..layout import (
+    COORD_ATTRS,
+    FIXED_COORDS,
+    GRID_DIMS,
+    INPUT_DIMS,
+    INPUT_VARIABLES,
+    RUN_VARIABLES,
+    SAMPLE_VARIABLES,
+    VARIABLE_ATTRS,
+    WALL_TIME_NOTE,
+    sample_dims,
+    sample_variables,
 )
+from .config import ConfigError
 
 
 def partial_dir(out):
@@ -172,7 +175,8 @@ class Journal:
             tmp.unlink()
 
     def write_chunk(self, number, runs, samples, status, n_steps, wall_time):
-        """Store one finished chunk durably: runs (flat numbers), samples (n, time, 9), per-run arrays."""
+        """Store one finished chunk durably: runs (flat numbers), raw samples (n, time, RAW_PER_SAMPLE),
+        per-run arrays."""
 
         def write(fh):
             np.savez(fh, runs=runs, samples=samples, status=status, n_steps=n_steps, wall_time=wall_time)
@@ -213,31 +217,34 @@ def write_results(path, grid, chunks, attrs):
     shape = grid.shape
     ns = grid.n_samples
     with h5netcdf.File(path, "w") as nc:
-        nc.dimensions = dict(zip(DIMS, shape)) | {"time": ns, "xyz": 3}
+        fixed = {d: np.array(v, dtype=object) for d, v in FIXED_COORDS.items()}
+        nc.dimensions = dict(zip(GRID_DIMS, shape)) | {"time": ns} | {d: len(v) for d, v in fixed.items()}
         coords = {
             "method": np.array(grid.methods, dtype=object),
             "f": np.array(grid.f),
             "theta0": np.array(grid.theta0),
             "dt": np.array(grid.dt),
             "time": np.arange(ns) * grid.every,
-            "xyz": np.array(["x", "y", "z"], dtype=object),
+            **fixed,
         }
         for name, values in coords.items():
             dtype = h5py.string_dtype() if values.dtype == object else values.dtype
             var = nc.create_variable(name, (name,), dtype, data=values)
             var.attrs.update(COORD_ATTRS[name])
         variables = {}
-        for name in ("axis", "theta", "phi", "energy", "Lz", "L3", "omega"):
-            vector = name in ("axis", "omega")
-            dims = DIMS + (("time", "xyz") if vector else ("time",))
-            chunking = (1, 1, 1, 1, ns) + ((3,) if vector else ())
+        for name in SAMPLE_VARIABLES:
+            dims = GRID_DIMS + sample_dims(name)
+            chunking = (1,) * len(GRID_DIMS) + (ns,) + ((3,) if len(dims) > len(GRID_DIMS) + 1 else ())
             variables[name] = nc.create_variable(name, dims, np.float64, chunks=chunking)
-        for name, dtype in (("status", np.int8), ("n_steps", np.int64), ("wall_time", np.float64)):
-            variables[name] = nc.create_variable(name, DIMS, dtype)
+        for name, (dtype, _) in RUN_VARIABLES.items():
+            variables[name] = nc.create_variable(name, GRID_DIMS, dtype)
+        inputs = {"body": grid.bodies, "omega0": grid.omega0, "q0": grid.q0}
+        for name, (own, _) in INPUT_VARIABLES.items():
+            variables[name] = nc.create_variable(name, INPUT_DIMS + (own,), np.float64, data=inputs[name])
         for name, var in variables.items():
             var.attrs.update(VARIABLE_ATTRS[name])
         variables["wall_time"].attrs["description"] = WALL_TIME_NOTE
-        per_run = {name: np.zeros(shape, dtype=variables[name].dtype) for name in ("status", "n_steps", "wall_time")}
+        per_run = {name: np.zeros(shape, dtype=variables[name].dtype) for name in RUN_VARIABLES}
         written = np.zeros(shape, dtype=bool)
         for chunk in chunks:
             index = grid.index(chunk["runs"])

@@ -1,0 +1,199 @@
+"""The results layout: dims, variables, units and attrs, in one place for every writer and reader.
+
+A results file (netCDF4/HDF5, written with h5netcdf, read by xarray and by
+netCDF-C) holds, for a grid of runs over ``GRID_DIMS``:
+
+- coordinates ``method`` (str), ``f`` (Hz), ``theta0`` (deg), ``dt`` (s),
+  ``time`` (s), ``xyz`` (vector components), ``quat`` (a, b, c, d) and
+  ``body_param`` (the fields of kernels/body.py's Body);
+- per sample ``SAMPLE_VARIABLES`` (dims GRID_DIMS + time [+ xyz]), derived
+  from the kernels' raw fields (kernels/driver.py FIELDS) by
+  ``sample_variables``;
+- per run ``RUN_VARIABLES`` (dims GRID_DIMS);
+- each run's inputs ``INPUT_VARIABLES`` (dims f, theta0 + their own): the
+  body and the initial state, so analysis never rebuilds physics from
+  today's scene code;
+- file attrs: ``layout_version``, the scene and its options (``scene_<key>``),
+  the scene's declared invariants (``conserved``) and closed form, the
+  resolved config as YAML and the provenance of the code
+  (runner/provenance.py).
+
+Adding a per-sample variable: a field in kernels/driver.py (``FIELDS`` and
+``_record``) if the kernels must compute it, and one entry in
+``SAMPLE_VARIABLES`` here; every writer, reader and size estimate follows.
+"""
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .kernels.body import FIELDS as BODY_FIELDS
+from .kernels.body import UNITS as BODY_UNITS
+from .kernels.driver import FIELDS as RAW_FIELDS
+from .kernels.driver import STATUS_LEGEND
+
+LAYOUT_VERSION = 1
+GRID_DIMS = ("method", "f", "theta0", "dt")
+INPUT_DIMS = ("f", "theta0")  # a run's body and initial state depend on these only
+RAW_PER_SAMPLE = len(RAW_FIELDS)
+
+
+def _raw(*names):
+    """Column indices of the named raw kernel fields."""
+    return [RAW_FIELDS.index(n) for n in names]
+
+
+@dataclass(frozen=True)
+class SampleVariable:
+    """A per-sample variable: ``vector`` adds the xyz dim; ``derive(raw)`` maps raw
+    kernel samples (..., time, RAW_PER_SAMPLE) to its values (..., time[, 3])."""
+
+    units: str
+    long_name: str
+    derive: Callable
+    vector: bool = False
+
+
+def _theta(raw):
+    return np.arccos(np.clip(raw[..., RAW_FIELDS.index("axis_z")], -1.0, 1.0))
+
+
+def _phi(raw):
+    ax, ay = _raw("axis_x", "axis_y")
+    return unwrap_nan(np.arctan2(raw[..., ay], raw[..., ax]))
+
+
+SAMPLE_VARIABLES = {
+    "axis": SampleVariable("1", "symmetry axis R e3 in the lab frame",
+                           lambda r: r[..., _raw("axis_x", "axis_y", "axis_z")], vector=True),
+    "theta": SampleVariable("rad", "tilt: angle between e3 and lab z", _theta),
+    "phi": SampleVariable("rad", "azimuth of the axis tip, unwrapped", _phi),
+    "energy": SampleVariable("J", "total energy 1/2 w.Iw + M g l cos(theta)",
+                             lambda r: r[..., RAW_FIELDS.index("energy")]),
+    "L": SampleVariable("kg m2 s-1", "angular momentum about the pivot in the lab frame, R I w",
+                        lambda r: r[..., _raw("L_x", "L_y", "L_z")], vector=True),
+    "Lz": SampleVariable("kg m2 s-1", "lab vertical angular momentum (R I w).z",
+                         lambda r: r[..., RAW_FIELDS.index("L_z")]),
+    "L3": SampleVariable("kg m2 s-1", "angular momentum along the symmetry axis I3 w3",
+                         lambda r: r[..., RAW_FIELDS.index("L3")]),
+    "omega": SampleVariable("rad s-1", "body angular velocity (body-frame components)",
+                            lambda r: r[..., _raw("omega_1", "omega_2", "omega_3")], vector=True),
+}
+RUN_VARIABLES = {
+    "status": (np.int8, {"units": "1", "long_name": "run status",
+                         "legend": "; ".join(f"{k}: {v}" for k, v in STATUS_LEGEND.items())}),
+    "n_steps": (np.int64, {"units": "1", "long_name": "time steps taken"}),
+    "wall_time": (np.float64, {"units": "s", "long_name": "wall-clock time of the run"}),
+}
+INPUT_VARIABLES = {
+    "body": ("body_param", {"units": ", ".join(f"{k}: {BODY_UNITS[k]}" for k in BODY_FIELDS),
+                            "long_name": "body parameters (kernels/body.py), one value per body_param"}),
+    "omega0": ("xyz", {"units": "rad s-1", "long_name": "initial body angular velocity"}),
+    "q0": ("quat", {"units": "1", "long_name": "initial orientation quaternion (a, b, c, d), body to lab"}),
+}
+COORD_ATTRS = {
+    "method": {"long_name": "integration method"},
+    "f": {"units": "Hz", "long_name": "spin frequency (w3 = 2 pi f)"},
+    "theta0": {"units": "deg", "long_name": "initial tilt"},
+    "dt": {"units": "s", "long_name": "time step"},
+    "time": {"units": "s", "long_name": "time"},
+    "xyz": {"long_name": "vector component (lab x, y, z or body 1, 2, 3)"},
+    "quat": {"long_name": "quaternion component (scalar first)"},
+    "body_param": {"long_name": "body parameter (kernels/body.py)"},
+}
+FIXED_COORDS = {"xyz": ["x", "y", "z"], "quat": ["a", "b", "c", "d"], "body_param": list(BODY_FIELDS)}
+VARIABLE_ATTRS = {name: {"units": v.units, "long_name": v.long_name} for name, v in SAMPLE_VARIABLES.items()}
+VARIABLE_ATTRS.update({name: attrs for name, (_, attrs) in RUN_VARIABLES.items()})
+VARIABLE_ATTRS.update({name: attrs for name, (_, attrs) in INPUT_VARIABLES.items()})
+# Float64 values per stored sample of one run (the results file's main cost).
+STORED_PER_SAMPLE = sum(3 if v.vector else 1 for v in SAMPLE_VARIABLES.values())
+WALL_TIME_NOTE = (
+    "chunk wall-clock time x threads used, shared among the chunk's runs in proportion to their steps "
+    "(runs of one chunk run in parallel; JIT compilation excluded)"
+)
+# Config keys that change how a sweep is run, not its data: left out of the data hash and of comparisons.
+RUN_ONLY = {"output": ("path", "overwrite", "figures"),
+            "runner": ("resume", "dry_run", "threads", "chunk_seconds", "backend", "address", "scheduler_file",
+                       "connect_timeout")}
+
+
+def sample_dims(name):
+    """Dims of per-sample variable ``name`` after the grid dims: (time,) or (time, xyz)."""
+    return ("time", "xyz") if SAMPLE_VARIABLES[name].vector else ("time",)
+
+
+def sample_variables(raw):
+    """{name: values} of every per-sample variable from raw kernel samples (..., time, RAW_PER_SAMPLE)."""
+    return {name: v.derive(raw) for name, v in SAMPLE_VARIABLES.items()}
+
+
+def unwrap_nan(phase):
+    """np.unwrap along the last axis that leaves trailing NaN (diverged runs) in place."""
+    filled = np.where(np.isnan(phase), 0.0, phase)
+    return np.where(np.isnan(phase), np.nan, np.unwrap(filled, axis=-1))
+
+
+def scene_attrs(scene, options, conserved, closed_form):
+    """File attrs naming the scene, its options and its declarations (space-separated invariant names)."""
+    attrs = {"scene": scene, "conserved": " ".join(conserved), "closed_form": closed_form or "",
+             "layout_version": LAYOUT_VERSION}
+    for key, value in options.items():
+        attrs[f"scene_{key}"] = int(value) if isinstance(value, bool) else value
+    return attrs
+
+
+def _text(value):
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+def conserved(ds):
+    """The invariants the file's scene declares: its ``conserved`` attr, or for files written
+    before that attr existed, the scene's current declaration."""
+    if "conserved" in ds.attrs:
+        return tuple(_text(ds.attrs["conserved"]).split())
+    from .kernels.scenes import get_scene
+
+    return tuple(get_scene(_text(ds.attrs.get("scene", "heavy_top"))).CONSERVED)
+
+
+def closed_form(ds):
+    """The name of the file's scene's closed form (kernels/closed_form.py), or None."""
+    if "closed_form" in ds.attrs:
+        return _text(ds.attrs["closed_form"]) or None
+    from .kernels.scenes import get_scene
+
+    return get_scene(_text(ds.attrs.get("scene", "heavy_top"))).CLOSED_FORM
+
+
+def invariant(ds, name):
+    """The invariant ``name`` (kernels/invariants.py) per sample: a stored variable, or |L| from L."""
+    if name == "L_norm":
+        return np.sqrt((ds["L"] ** 2).sum("xyz"))
+    return ds[name]
+
+
+def to_dataset(raw, per_run, coords, inputs=None, attrs=None):
+    """An in-memory results Dataset from raw kernel samples.
+
+    raw: (*grid_shape, time, RAW_PER_SAMPLE); per_run: {name: (*grid_shape)};
+    coords: {dim: values} for the grid dims (those of ``raw``'s leading axes,
+    in GRID_DIMS order, or none for a single run) and ``time``; inputs:
+    {"body", "omega0", "q0"} arrays over (f, theta0, ·) or one run's (·).
+    """
+    import xarray as xr
+
+    grid = tuple(d for d in GRID_DIMS if d in coords)
+    data = {}
+    for name, values in sample_variables(raw).items():
+        data[name] = (grid + sample_dims(name), values, VARIABLE_ATTRS[name])
+    for name, values in per_run.items():
+        data[name] = (grid, np.asarray(values, dtype=RUN_VARIABLES[name][0]), VARIABLE_ATTRS[name])
+    for name, values in (inputs or {}).items():
+        own = INPUT_VARIABLES[name][0]
+        data[name] = (tuple(d for d in INPUT_DIMS if d in coords) + (own,), np.asarray(values, dtype=float),
+                      VARIABLE_ATTRS[name])
+    all_coords = {d: (d, np.asarray(v), COORD_ATTRS[d]) for d, v in coords.items()}
+    for d, v in FIXED_COORDS.items():
+        if any(d in spec[0] for spec in data.values()):
+            all_coords[d] = (d, np.array(v), COORD_ATTRS[d])
+    return xr.Dataset(data, coords=all_coords, attrs=dict(attrs or {}))
