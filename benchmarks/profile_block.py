@@ -17,10 +17,10 @@ from numba import njit
 
 from gyrolab.kernels.block import make_block_steps
 from gyrolab.kernels.lanes import lane_step
+from gyrolab.kernels.methods.seed_next import rk4_frozen_torque, step
 from gyrolab.kernels.rigid_body import gravity_torque
 from gyrolab.kernels.rotation import rotate_body_step
 from gyrolab.kernels.scenes import build_scene
-from gyrolab.kernels.seed_next import rk4_frozen_torque, step
 
 
 @njit

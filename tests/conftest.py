@@ -1,4 +1,6 @@
-"""Fixtures for the physics tests: one run of a scene, and a bare step loop.
+"""Fixtures: one run of a scene, a bare step loop, and small stored results files.
+
+Helpers that are not fixtures live in helpers.py.
 
 Tests that sweep methods parametrise over ``registry.METHODS``, so a newly
 registered method inherits every one of them.
@@ -12,7 +14,7 @@ from gyrolab.kernels.registry import METHODS
 
 
 def _run_scene(method, scene, dt, t_end, every, threshold=1e9):
-    """Samples (n_samples, 9) of one run through the batch engine; asserts status ok.
+    """Raw samples (n_samples, driver.N_FIELDS) of one run through the batch engine; asserts status ok.
 
     The default divergence threshold is huge so that runs which gain or lose
     energy on purpose (seed_prev) are recorded rather than cut off.
@@ -50,7 +52,7 @@ def _step_loop(method):
 
 @pytest.fixture(scope="session")
 def run_scene():
-    """``run_scene(method, scene, dt, t_end, every, threshold=1e9) -> samples (n_samples, 9)``."""
+    """``run_scene(method, scene, dt, t_end, every, threshold=1e9) -> raw samples (n_samples, N_FIELDS)``."""
     return _run_scene
 
 
@@ -58,3 +60,23 @@ def run_scene():
 def step_loop():
     """``step_loop(method)(w, q, dt, body, n) -> (w, q)``: n bare steps, compiled once per method."""
     return _step_loop
+
+
+@pytest.fixture(scope="session")
+def results_file(tmp_path_factory):
+    """3 methods x f 10, 50 Hz x θ0 45° x dt 1e-3, 5e-4 s, heavy top released, 1 s."""
+    from helpers import build_dataset
+
+    path = tmp_path_factory.mktemp("analysis") / "results.h5"
+    build_dataset(path)
+    return path
+
+
+@pytest.fixture(scope="session")
+def single_run_file(tmp_path_factory):
+    """One method, one f, one dt: the smallest grid a figure must survive."""
+    from helpers import build_dataset
+
+    path = tmp_path_factory.mktemp("analysis1") / "results.h5"
+    build_dataset(path, {"method": ["lie_poisson"], "f": [20.0], "dt": [1e-3]}, t_end=0.5)
+    return path

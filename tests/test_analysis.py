@@ -7,7 +7,6 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
-from test_analysis_data import results_file, single_run_file  # noqa: E402,F401
 
 from gyrolab.analysis import cli  # noqa: E402
 from gyrolab.analysis.energy import drift_figure, drift_table, invariants_figure  # noqa: E402

@@ -1,5 +1,4 @@
 """Study figures (stability map, seed figures, work-precision, animation) on small simulate-built files."""
-import math
 
 import matplotlib
 
@@ -7,7 +6,6 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
-from test_analysis_data import build_dataset, results_file  # noqa: E402,F401
 
 from gyrolab.analysis.animation import animate  # noqa: E402
 from gyrolab.analysis.figures import standard_figures  # noqa: E402
@@ -15,6 +13,8 @@ from gyrolab.analysis.io import open_results  # noqa: E402
 from gyrolab.analysis.seed_figures import load_jobs, next_vs_prev_figure, regimes_figure, seed_figures  # noqa: E402
 from gyrolab.analysis.stability import stability_figure  # noqa: E402
 from gyrolab.analysis.work_precision import work_precision_data, work_precision_figure  # noqa: E402
+
+from helpers import build_dataset  # noqa: E402
 
 
 @pytest.fixture(autouse=True)

@@ -1,7 +1,7 @@
 """gyrolab-compare: the comparison rules, the table, the exit status and the provenance notes.
 
-The files here are assembled from ``gyrolab.simulate`` runs in the SPEC §4
-layout (dims method, f, theta0, dt, time, xyz) and written with h5netcdf,
+The files here are built by helpers.make_dataset in the results layout
+(gyrolab/layout.py) and written with h5netcdf,
 so these tests do not depend on the runner; tests/test_regression.py runs
 the same code on files the ``gyrolab`` command wrote.
 """
@@ -14,8 +14,10 @@ import pytest
 import xarray as xr
 import yaml
 
-import gyrolab
 from gyrolab.analysis.compare import CompareError, compare_files, main, parse_tolerances
+from gyrolab.layout import SAMPLE_VARIABLES
+
+from helpers import make_dataset
 
 METHODS = ("seed_next", "lie_poisson")
 F = (10.0, 20.0)
@@ -34,23 +36,12 @@ def config_text(scene="heavy_top", t_end=0.1, path="results.h5", **scene_options
 
 
 def assemble(scene="heavy_top", t_end=0.1, every=0.01, **scene_options):
-    """Results Dataset (SPEC §4 layout) of METHODS x F x [45 deg] x DT from gyrolab.simulate."""
-    def one(m, f, dt):
-        ds = gyrolab.simulate(scene=scene, method=m, f=f, theta0=45.0, dt=dt, t_end=t_end, every=every,
-                              **scene_options)
-        return ds.drop_attrs() if hasattr(ds, "drop_attrs") else ds.assign_attrs({})
-
-    by_method = []
-    for m in METHODS:
-        by_f = [xr.concat([one(m, f, dt) for dt in DT], dim="dt", combine_attrs="drop") for f in F]
-        by_method.append(xr.concat(by_f, dim="f", combine_attrs="drop"))
-    ds = xr.concat(by_method, dim="method", combine_attrs="drop")
-    ds = ds.expand_dims(theta0=[45.0], axis=2)
-    ds = ds.assign_coords(method=list(METHODS), f=list(F), dt=list(DT))
-    ds = ds.transpose("method", "f", "theta0", "dt", "time", "xyz")
-    ds.attrs = {"scene": scene, "config": config_text(scene, t_end, **scene_options), "gyrolab_version": "0.1.0",
-                "git_commit": "0" * 40, "git_dirty": 0, "numba_version": "0.68.1", "numpy_version": "2.4.6",
-                "threads": 2, "created": "2026-01-01T00:00:00+00:00"}
+    """Results Dataset (gyrolab/layout.py) of METHODS x F x [45 deg] x DT, built by helpers.make_dataset."""
+    ds = make_dataset({"method": list(METHODS), "f": list(F), "theta0": [45.0], "dt": list(DT)}, scene, t_end,
+                      every, **scene_options)
+    ds.attrs.update({"config": config_text(scene, t_end, **scene_options), "gyrolab_version": "0.1.0",
+                     "git_commit": "0" * 40, "git_dirty": 0, "numba_version": "0.68.1", "numpy_version": "2.4.6",
+                     "threads": 2, "created": "2026-01-01T00:00:00+00:00"})
     return ds
 
 
@@ -93,8 +84,7 @@ def test_identical_files_pass_with_zero_tolerance(pair):
     assert report.ok and report.exit_status == 0
     assert all(v.max_abs == 0 and v.n_bad == 0 for v in report.variables)
     assert report.worst_run is None
-    assert {v.name for v in report.variables} == {"axis", "theta", "phi", "energy", "Lz", "L3", "omega", "status",
-                                                 "n_steps"}
+    assert {v.name for v in report.variables} == set(SAMPLE_VARIABLES) | {"status", "n_steps"}
     assert "ignored: wall_time (timing, not physics)" in report.text()
 
 

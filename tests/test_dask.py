@@ -18,8 +18,17 @@ from distributed import Client, LocalCluster  # noqa: E402
 from gyrolab.runner import dask_backend  # noqa: E402
 from gyrolab.runner.config import register_configs  # noqa: E402
 from gyrolab.runner.grid import build_grid  # noqa: E402
-from test_runner_cli import (  # noqa: E402
-    SLOW, TINY, assert_ok, chunk_count, data, gyrolab, start, tiny_reference, wait_for,
+
+from helpers import (  # noqa: E402
+    SLOW,
+    TINY,
+    assert_ok,
+    chunk_count,
+    data,
+    gyrolab,
+    start,
+    tiny_reference,
+    wait_for,
 )
 
 N_RUNS = 16  # TINY: 2 methods x 2 f x 2 theta0 x 2 dt; with SLOW chunking, one run per chunk on 1-thread workers

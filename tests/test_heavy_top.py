@@ -15,24 +15,20 @@ from scipy.special import ellipk
 
 import gyrolab
 from gyrolab.kernels.closed_form import heavy_top_nutation, nutation_roots
-from gyrolab.kernels.reference import rhs as reference_rhs
+from gyrolab.kernels.driver import FIELDS
 from gyrolab.kernels.reference import dop853
+from gyrolab.kernels.reference import rhs as reference_rhs
 from gyrolab.kernels.registry import METHODS
 from gyrolab.kernels.rigid_body import gravity_torque
 from gyrolab.kernels.rotation import ck_matrix, lab_up_in_body, quat_from_rotvec, quat_mul
 from gyrolab.kernels.scenes import build_scene
 
+from helpers import method_params
+
 # seed_prev pumps energy into the top (see test_seed_prev_gains_energy_as_predicted):
 # over 2 s at dt = 1e-4 its θ extrema are off by 6–20 %, far beyond a first-order
 # (ω3 dt) bound.  Strict: if seed_prev ever passes, this mark must go.
 SEED_PREV_PUMPS = "seed_prev gains energy at O(dt) per unit time (measured: θ_min off by 6-20 % after 2 s)"
-
-
-def method_params(known_failures):
-    return [
-        pytest.param(m, marks=pytest.mark.xfail(strict=True, reason=known_failures[m])) if m in known_failures else m
-        for m in METHODS
-    ]
 
 
 def order_tolerance(name, omega3, dt):
@@ -275,7 +271,7 @@ def test_slow_sleeping_top_falls(name, run_scene):
 def energy_prediction(samples, body, dt, every, scheme):
     I1, _, I3, mgl = body
     t = np.arange(len(samples)) * every
-    cos_theta, w3, Lz, L3 = samples[:, 2], samples[:, 5], samples[:, 7], samples[:, 8]
+    cos_theta, w3, Lz, L3 = samples[:, 2], samples[:, 5], samples[:, FIELDS.index("L_z")], samples[:, FIELDS.index("L3")]
     tau_dot_omega = -mgl * np.gradient(cos_theta, every)
     if scheme == "seed_next":
         return -0.5 * dt * tau_dot_omega

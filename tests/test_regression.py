@@ -1,5 +1,7 @@
-"""Regression: re-run every regression config with the real ``gyrolab`` command and compare the
-fresh file with its stored dataset in tests/data/, using gyrolab-compare's own ``compare_files``.
+"""Regression: re-run every regression config for every registered method with the real ``gyrolab``
+command and compare each fresh file with its stored dataset (tests/data/regression/<config>/<method>.h5),
+using gyrolab-compare's own ``compare_files``.  A method or config without stored data fails with
+the one command that adds it (``python tests/data/regenerate.py --add``).
 
 Tolerance (tests/data/README.md explains the numbers): a value passes when
 |fresh − stored| <= 1e-10 × the largest |value| of that variable in the stored
@@ -21,12 +23,11 @@ import xarray as xr
 import yaml
 
 import gyrolab
-
 from gyrolab.analysis.compare import compare_files
 from gyrolab.kernels.batch import sample_schedule
 from gyrolab.kernels.registry import METHODS
 from gyrolab.kernels.scenes import SCENES, build_scene
-from gyrolab.runner.dataset import sample_variables
+from gyrolab.layout import sample_variables
 
 _spec = importlib.util.spec_from_file_location("regenerate", Path(__file__).parent / "data" / "regenerate.py")
 regen = importlib.util.module_from_spec(_spec)
@@ -35,13 +36,17 @@ _spec.loader.exec_module(regen)
 MAX_TOTAL_BYTES = 5 * 2**20
 
 
-def check_against_stored(fresh, name, stored=None):
+def check_against_stored(fresh, name, method, stored=None):
     """Fail with the comparison table (and how to regenerate) unless ``fresh`` matches the stored
-    dataset of regression config ``name`` (or the file ``stored``) and was made by the same config."""
-    stored = Path(stored or regen.stored_path(name))
+    dataset of regression config ``name`` for ``method`` (or the file ``stored``) and was made by the
+    same config."""
+    stored = Path(stored or regen.stored_path(name, method))
+    if not stored.exists():
+        pytest.fail(f"no stored regression data for method {method} on {name}; add it with:\n"
+                    f"    {regen.ADD_COMMAND}", pytrace=False)
     report = compare_files(fresh, stored, scaled=regen.SCALED_TOL)
     hint = (f"If the change is intended, regenerate on purpose and commit the new file:\n"
-            f"    python tests/data/regenerate.py --write {name}")
+            f"    python tests/data/regenerate.py --write {name}:{method}")
     text = f"A = fresh run, B = {stored.name}\n{report.text()}\n{hint}"
     if report.configs:
         pytest.fail(f"{stored.name} was made with a different config than "
@@ -49,33 +54,38 @@ def check_against_stored(fresh, name, stored=None):
     if report.versions:
         warnings.warn(f"{stored.name}: {'; '.join(report.versions)} (compared within tolerance anyway)")
     if not report.ok:
-        pytest.fail(f"regression {name}: fresh run differs from the stored dataset\n{text}", pytrace=False)
+        pytest.fail(f"regression {name}/{method}: fresh run differs from the stored dataset\n{text}", pytrace=False)
     return report
 
 
 @pytest.fixture(scope="module")
 def fresh(tmp_path_factory):
-    """``fresh(name)``: path of a fresh run of regression config ``name`` (each run once per module)."""
+    """``fresh(name, method)``: path of a fresh run of regression config ``name`` for ``method``
+    (each run once per module)."""
     work = tmp_path_factory.mktemp("regression")
     done = {}
 
-    def get(name):
-        if name not in done:
-            done[name] = regen.run_config(name, work / f"regression_{name}.h5", work)
-        return done[name]
+    def get(name, method):
+        if (name, method) not in done:
+            done[name, method] = regen.run_config(name, method, work / f"{name}_{method}.h5", work)
+        return done[name, method]
 
     return get
 
 
-@pytest.mark.parametrize("name", regen.DATASETS)
-def test_rerun_matches_stored_dataset(fresh, name):
-    check_against_stored(fresh(name), name)
+PAIRS = [(name, method) for name in regen.DATASETS for method in METHODS]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name,method", PAIRS, ids=[f"{n}-{m}" for n, m in PAIRS])
+def test_rerun_matches_stored_dataset(fresh, name, method):
+    check_against_stored(fresh(name, method), name, method)
 
 
 def test_same_machine_rerun_is_bit_identical(fresh, tmp_path):
     """The most sensitive dataset (tennis-racket flip) twice, with 1 thread and with all: identical bits."""
-    first = fresh("free_asymmetric")
-    again = regen.run_config("free_asymmetric", tmp_path / "again.h5", tmp_path, ["runner.threads=1"])
+    first = fresh("free_asymmetric", "lie_poisson4")
+    again = regen.run_config("free_asymmetric", "lie_poisson4", tmp_path / "again.h5", tmp_path, ["runner.threads=1"])
     report = compare_files(again, first)  # zero tolerance
     assert report.ok, report.text()
 
@@ -84,14 +94,14 @@ def test_stored_dataset_from_another_config_or_version_is_named_up_front(fresh, 
     """A stored file whose recorded config (g) and gyrolab version differ: the check fails on the
     config, and the first lines of its message say what differs."""
     copy = tmp_path / "old.h5"
-    shutil.copyfile(regen.stored_path("heavy_top_release"), copy)
+    shutil.copyfile(regen.stored_path("heavy_top_release", "rk4"), copy)
     with h5py.File(copy, "r+") as fh:
         config = yaml.safe_load(fh.attrs["config"])
         config["scene"]["g"] = 9.81
         fh.attrs["config"] = yaml.safe_dump(config, sort_keys=False)
         fh.attrs["gyrolab_version"] = "0.0.9"
     with pytest.raises(pytest.fail.Exception) as failure:
-        check_against_stored(fresh("heavy_top_release"), "heavy_top_release", stored=copy)
+        check_against_stored(fresh("heavy_top_release", "rk4"), "heavy_top_release", "rk4", stored=copy)
     lines = str(failure.value).splitlines()
     assert lines[0] == ("old.h5 was made with a different config than "
                         "conf/experiment/regression_heavy_top_release.yaml now holds")
@@ -99,29 +109,36 @@ def test_stored_dataset_from_another_config_or_version_is_named_up_front(fresh, 
     assert lines[5] == "PROVENANCE: config differs: scene.g: A 10.0, B 9.81"
 
 
-def test_every_regression_config_has_a_stored_dataset():
+def test_every_regression_config_and_method_has_a_stored_dataset():
+    """Coverage: every regression config has a stored file per registered method, and nothing else is
+    stored; the failure names the command that adds what is missing."""
     experiments = importlib.resources.files("gyrolab.conf") / "experiment"
     configs = sorted(p.name[len("regression_"):-len(".yaml")] for p in experiments.iterdir()
                      if p.name.startswith("regression_") and p.name.endswith(".yaml"))
     assert configs == sorted(regen.DATASETS)
-    stored = sorted(p.name for p in regen.DATA_DIR.glob("*.h5"))
-    assert stored == sorted(f"regression_{n}.h5" for n in regen.DATASETS)
+    missing = [f"{n}/{m}" for n in regen.DATASETS for m in METHODS if not regen.stored_path(n, m).exists()]
+    assert not missing, f"no stored regression data for {', '.join(missing)}; add it with: {regen.ADD_COMMAND}"
+    expected = {regen.stored_path(n, m) for n in regen.DATASETS for m in METHODS}
+    stray = sorted(str(p.relative_to(regen.DATA_DIR)) for p in regen.DATA_DIR.rglob("*.h5") if p not in expected)
+    assert not stray, f"stored files of no registered (config, method): {', '.join(stray)}"
 
 
 def test_stored_datasets_open_are_small_and_cover_every_scene_and_method():
     total, scenes, inits = 0, set(), set()
     for name in regen.DATASETS:
-        path = regen.stored_path(name)
-        total += path.stat().st_size
-        with xr.open_dataset(path, engine="h5netcdf") as ds:
-            config = yaml.safe_load(ds.attrs["config"])
-            assert ds.attrs["scene"] == config["scene"]["name"]
-            assert sorted(ds["method"].values.tolist()) == sorted(METHODS), name
-            assert (ds["status"].values == 0).all(), f"{name}: a run diverged"
-            assert ds.attrs["gyrolab_version"] and ds.attrs["numba_version"] and ds.attrs["git_commit"]
-            scenes.add(ds.attrs["scene"])
-            if ds.attrs["scene"] == "heavy_top":
-                inits.add(ds.attrs["scene_init"])
+        for method in METHODS:
+            path = regen.stored_path(name, method)
+            total += path.stat().st_size
+            with xr.open_dataset(path, engine="h5netcdf") as ds:
+                config = yaml.safe_load(ds.attrs["config"])
+                assert ds.attrs["scene"] == config["scene"]["name"]
+                assert ds["method"].values.tolist() == [method], path
+                assert (ds["status"].values == 0).all(), f"{path}: a run diverged"
+                assert ds.attrs["gyrolab_version"] and ds.attrs["numba_version"] and ds.attrs["git_commit"]
+                assert ds.attrs["layout_version"] >= 1 and ds.attrs["kernel_source_hash"]
+                scenes.add(ds.attrs["scene"])
+                if ds.attrs["scene"] == "heavy_top":
+                    inits.add(ds.attrs["scene_init"])
     assert total < MAX_TOTAL_BYTES, f"stored datasets take {total / 2**20:.2f} MB"
     assert scenes == set(SCENES)
     assert {"release", "steady_slow"} <= inits
@@ -131,6 +148,8 @@ def test_stored_datasets_open_are_small_and_cover_every_scene_and_method():
 
 def overwrite_method(path, method, run_batch):
     """Recompute every run of ``method`` in the results file ``path`` (in place) with ``run_batch``."""
+    from gyrolab.kernels.driver import N_FIELDS
+
     with xr.open_dataset(path, engine="h5netcdf") as ds:
         config = yaml.safe_load(ds.attrs["config"])
         methods = ds["method"].values.tolist()
@@ -144,7 +163,7 @@ def overwrite_method(path, method, run_batch):
                 for ld, dt in enumerate(dts):
                     sc = build_scene(name, float(f), float(theta0), **options)
                     stride, n = sample_schedule(float(dt), config["output"]["every"], config["sweep"]["t_end"])
-                    out = np.empty((1, n, 9))
+                    out = np.empty((1, n, N_FIELDS))
                     status, n_steps = np.zeros(1, np.int8), np.zeros(1, np.int64)
                     run_batch(np.array([sc.omega0]), np.array([sc.q0]), np.array([sc.body]), np.array([float(dt)]),
                               np.array([stride]), config["runner"]["divergence_threshold"], out, status, n_steps)
@@ -158,19 +177,20 @@ def test_coefficient_change_fails_with_a_readable_message(tmp_path):
     """Yoshida's w1 = 1/(2 − 2^(1/3)) with 2^(1/3) written as 1.26 (a 6e-5 relative change):
     the regression check of a copy of the stored file must fail and name lie_poisson4."""
     copy = tmp_path / "perturbed.h5"
-    shutil.copyfile(regen.stored_path("heavy_top_release"), copy)
+    stored = regen.stored_path("heavy_top_release", "lie_poisson4")
+    shutil.copyfile(stored, copy)
     overwrite_method(copy, "lie_poisson4", regen.lie_poisson4_with(1.0 / (2.0 - 1.26)))
     with pytest.raises(pytest.fail.Exception) as failure:
-        check_against_stored(copy, "heavy_top_release")
+        check_against_stored(copy, "heavy_top_release", "lie_poisson4")
     message = str(failure.value)
     print(message)  # what a developer sees (pytest -s)
-    assert "regression heavy_top_release: fresh run differs from the stored dataset" in message
+    assert "regression heavy_top_release/lie_poisson4: fresh run differs from the stored dataset" in message
     assert "run differing most: method=lie_poisson4" in message
-    assert "out of tolerance in 2 of 10 runs" in message  # lie_poisson4 at both dt, nothing else
-    assert "python tests/data/regenerate.py --write heavy_top_release" in message
-    report = compare_files(copy, regen.stored_path("heavy_top_release"), scaled=regen.SCALED_TOL)
+    assert "out of tolerance in 2 of 2 runs" in message  # both dt
+    assert "python tests/data/regenerate.py --write heavy_top_release:lie_poisson4" in message
+    report = compare_files(copy, stored, scaled=regen.SCALED_TOL)
     worst = max((v for v in report.variables if not v.ok), key=lambda v: v.max_abs / max(v.atol, 1e-300))
     assert worst.max_abs > 10 * worst.atol  # fails by a wide margin, not by a hair
     # the same copy with the true coefficient passes again: the check is about the coefficient
     overwrite_method(copy, "lie_poisson4", regen.lie_poisson4_with(1.0 / (2.0 - 2.0 ** (1.0 / 3.0))))
-    check_against_stored(copy, "heavy_top_release")
+    check_against_stored(copy, "heavy_top_release", "lie_poisson4")

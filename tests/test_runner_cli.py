@@ -2,79 +2,31 @@
 
 Each subprocess costs ~1-2 s (Hydra, numba and xarray imports; JIT from cache).
 """
-import os
 import shlex
 import signal
 import subprocess
-import sys
-import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 import xarray as xr
 
 from gyrolab import simulate
-from gyrolab.runner.provenance import VOLATILE_ATTRS
+from gyrolab.layout import GRID_DIMS, SAMPLE_VARIABLES
 
-BIN = Path(sys.executable).parent
-TINY = ["sweep.method=[seed_next,lie_poisson]", "sweep.f=[10,50]", "sweep.theta0=[30,45]", "sweep.dt=[1e-3,1e-4]",
-        "sweep.t_end=0.1", "output.every=1e-3", "output.figures=false"]
-SLOW = ["runner.chunk_seconds=1e-6"]  # chunks of `threads` runs: many chunks to interrupt
-
-
-def command(name, module):
-    exe = BIN / name
-    return [str(exe)] if exe.exists() else [sys.executable, "-m", module]
-
-
-def environment(**extra):
-    env = {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "GYROLAB_TEST_CHUNK_DELAY")}
-    env.update({k: str(v) for k, v in extra.items()})
-    return env
-
-
-def gyrolab(*args, cwd, env=None, timeout=300):
-    return subprocess.run(command("gyrolab", "gyrolab.runner.app") + list(args), cwd=cwd, capture_output=True,
-                          text=True, env=env or environment(), timeout=timeout)
-
-
-def start(*args, cwd, **env):
-    return subprocess.Popen(command("gyrolab", "gyrolab.runner.app") + list(args), cwd=cwd, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=environment(**env))
-
-
-def wait_for(predicate, proc, timeout=120):
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        assert proc.poll() is None, f"finished before the test could interrupt it: {proc.communicate()}"
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.02)
-
-
-def chunk_count(run_dir):
-    return len(list((Path(run_dir) / "results.h5.partial").glob("chunk-*.npz")))
-
-
-def data(path):
-    """The file's data without what legitimately differs between runs (timings, provenance)."""
-    with xr.open_dataset(path, engine="h5netcdf") as ds:
-        ds = ds.load()
-    return ds.drop_vars("wall_time").drop_attrs(deep=False).assign_attrs(
-        {k: v for k, v in ds.attrs.items() if k not in VOLATILE_ATTRS})
-
-
-def assert_ok(result):
-    assert result.returncode == 0, result.stderr
-    assert "Traceback" not in result.stderr
-
-
-def tiny_reference(root):
-    """Run TINY (+ SLOW chunking) uninterrupted on the local backend, all threads, in ``root``;
-    returns the results file."""
-    result = gyrolab(*TINY, *SLOW, f"hydra.run.dir={root / 'run'}", cwd=root)
-    assert_ok(result)
-    return root / "run" / "results.h5"
+from helpers import (  # noqa: F401 (re-used by the tests below)
+    BIN,
+    SLOW,
+    TINY,
+    assert_ok,
+    chunk_count,
+    command,
+    data,
+    environment,
+    gyrolab,
+    start,
+    tiny_reference,
+    wait_for,
+)
 
 
 @pytest.fixture(scope="module")
@@ -85,13 +37,15 @@ def reference(tmp_path_factory):
 
 def test_tiny_sweep_file_opens_with_xarray_and_matches_simulate(reference):
     with xr.open_dataset(reference, engine="h5netcdf") as ds:
-        assert dict(ds.sizes) == {"method": 2, "f": 2, "theta0": 2, "dt": 2, "time": 101, "xyz": 3}
+        assert {k: ds.sizes[k] for k in GRID_DIMS + ("time", "xyz")} == {
+            "method": 2, "f": 2, "theta0": 2, "dt": 2, "time": 101, "xyz": 3}
         assert list(ds["method"].values) == ["seed_next", "lie_poisson"]
         assert list(ds["f"].values) == [10.0, 50.0] and list(ds["dt"].values) == [1e-3, 1e-4]
         assert ds["f"].attrs["units"] == "Hz" and ds["theta0"].attrs["units"] == "deg"
         assert "legend" in ds["status"].attrs and np.all(ds["status"].values == 0)
         for key in ("config", "gyrolab_version", "git_commit", "numba_version", "numpy_version", "threads",
-                    "created", "scene", "scene_M", "scene_init"):
+                    "created", "scene", "scene_M", "scene_init", "layout_version", "kernel_source_hash",
+                    "conserved", "scipy_version", "h5py_version", "xarray_version"):
             assert key in ds.attrs, key
         assert "sweep:" in ds.attrs["config"] and ds.attrs["scene"] == "heavy_top"
         assert np.all(ds["wall_time"].values > 0)
@@ -102,7 +56,7 @@ def test_tiny_sweep_file_opens_with_xarray_and_matches_simulate(reference):
                     for dt in ds["dt"].values:
                         one = simulate(method=str(method), f=f, theta0=theta0, dt=dt, t_end=0.1, every=1e-3)
                         run = ds.sel({"method": method, "f": f, "theta0": theta0, "dt": dt})
-                        for name in ("axis", "theta", "phi", "energy", "Lz", "L3", "omega", "status", "n_steps"):
+                        for name in (*SAMPLE_VARIABLES, "status", "n_steps", "body", "omega0", "q0"):
                             np.testing.assert_array_equal(run[name].values, one[name].values, err_msg=name)
 
 

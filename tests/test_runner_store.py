@@ -4,8 +4,9 @@ import pytest
 import xarray as xr
 from hydra import compose, initialize_config_module
 
+from gyrolab.kernels.body import FIELDS as BODY_FIELDS
+from gyrolab.layout import COORD_ATTRS, VARIABLE_ATTRS
 from gyrolab.runner.config import ConfigError, register_configs
-from gyrolab.runner.dataset import COORD_ATTRS, VARIABLE_ATTRS
 from gyrolab.runner.execute import run_chunk
 from gyrolab.runner.grid import build_grid
 from gyrolab.runner.store import Journal, OutputLock, write_results
@@ -53,7 +54,8 @@ def test_results_file_layout_and_attrs(tmp_path, grid):
     path = tmp_path / "r.h5"
     write_results(path, grid, chunks, {"scene": "heavy_top", "config": "a: 1\n"})
     with xr.open_dataset(path, engine="h5netcdf") as ds:
-        assert dict(ds.sizes) == {"method": 2, "f": 2, "theta0": 1, "dt": 2, "time": 51, "xyz": 3}
+        assert dict(ds.sizes) == {"method": 2, "f": 2, "theta0": 1, "dt": 2, "time": 51, "xyz": 3, "quat": 4,
+                                  "body_param": len(BODY_FIELDS)}
         assert ds["axis"].dims == ("method", "f", "theta0", "dt", "time", "xyz")
         assert ds["status"].dtype == np.int8 and ds["n_steps"].dtype == np.int64
         assert list(ds["method"].values) == ["seed_next", "seed_prev"]
@@ -68,6 +70,11 @@ def test_results_file_layout_and_attrs(tmp_path, grid):
         run = ds.isel(method=1, f=0, theta0=0, dt=1)
         np.testing.assert_array_equal(run["omega"].values, chunks[1]["samples"][1][:, 3:6])
         assert int(run["n_steps"]) == 500
+        # each run's inputs are stored: analysis never rebuilds them from today's scene code
+        np.testing.assert_array_equal(ds["body"].values, grid.bodies)
+        np.testing.assert_array_equal(ds["omega0"].values, grid.omega0)
+        np.testing.assert_array_equal(ds["q0"].values, grid.q0)
+        assert list(ds["body_param"].values) == list(BODY_FIELDS)
 
 
 def test_incomplete_journal_is_not_assembled(tmp_path, grid):

@@ -1,16 +1,20 @@
-"""Re-run the regression configs and, only with --write, replace the stored datasets.
+"""Stored regression data: one file per (regression config, method), added or replaced on purpose only.
 
-    python tests/data/regenerate.py                  # re-run all, show how they differ from the stored files
-    python tests/data/regenerate.py --write          # ... and replace the stored files
-    python tests/data/regenerate.py --write free_symmetric heavy_top_steady   # only these
+    python tests/data/regenerate.py                 # re-run everything, show how it differs from the stored files
+    python tests/data/regenerate.py --add           # write the files that are missing (a new method or config)
+    python tests/data/regenerate.py --write heavy_top_release:rk4 free_symmetric   # replace these on purpose
 
-Each dataset ``tests/data/regression_<name>.h5`` is the output of the real
-command ``gyrolab experiment=regression_<name>`` (config in
-``conf/experiment/regression_<name>.yaml``).  Without --write nothing is
-written: the script prints the comparison of each fresh run with the stored
-file, so a regeneration is always a decision someone made after reading it.
-The regression tests (tests/test_regression.py) import ``run_config``,
-``DATASETS`` and ``SCALED_TOL`` from here.
+Each file ``tests/data/regression/<name>/<method>.h5`` is the output of the
+real command ``gyrolab experiment=regression_<name> sweep.method=[<method>]``
+(config in ``conf/experiment/regression_<name>.yaml``).  Adding a method or a
+regression config is ``--add``: it writes only the files that do not exist,
+so every other method's stored bytes stay as they are.  ``--write`` replaces
+the named files (``NAME`` for all methods of a config, ``NAME:METHOD`` for
+one) after printing the comparison of each fresh run with the stored file,
+so a regeneration is always a decision someone made after reading it.
+Without options nothing is written.  The regression tests
+(tests/test_regression.py) import ``run_config``, ``DATASETS``, ``stored_path``
+and ``SCALED_TOL`` from here.
 """
 import argparse
 import os
@@ -21,7 +25,9 @@ import tempfile
 from pathlib import Path
 
 DATA_DIR = Path(__file__).resolve().parent
+STORE = DATA_DIR / "regression"
 DATASETS = ("heavy_top_release", "heavy_top_steady", "free_symmetric", "free_asymmetric")
+ADD_COMMAND = "python tests/data/regenerate.py --add"
 
 # Regression tolerance (see tests/data/README.md): a value passes when
 # |new − stored| <= SCALED_TOL × (largest |value| of that variable in the stored file);
@@ -29,9 +35,15 @@ DATASETS = ("heavy_top_release", "heavy_top_steady", "free_symmetric", "free_asy
 SCALED_TOL = 1e-10
 
 
-def stored_path(name):
-    """The stored dataset of regression config ``name``."""
-    return DATA_DIR / f"regression_{name}.h5"
+def stored_path(name, method):
+    """The stored dataset of regression config ``name`` for ``method``."""
+    return STORE / name / f"{method}.h5"
+
+
+def registered_methods():
+    from gyrolab.kernels.registry import METHODS
+
+    return tuple(METHODS)
 
 
 def gyrolab_command():
@@ -43,16 +55,16 @@ def gyrolab_command():
     return found
 
 
-def run_config(name, out, workdir, overrides=()):
-    """Run ``gyrolab experiment=regression_<name> [overrides]`` writing ``out``; Hydra's run dir
-    inside ``workdir``.  Raises RuntimeError with gyrolab's stderr if the command fails."""
-    cmd = [gyrolab_command(), f"experiment=regression_{name}", f"output.path={Path(out).resolve()}",
-           "output.overwrite=true", f"hydra.run.dir={Path(workdir).resolve() / ('run_' + name)}", *overrides]
+def run_config(name, method, out, workdir, overrides=()):
+    """Run ``gyrolab experiment=regression_<name> sweep.method=[<method>] [overrides]`` writing ``out``;
+    Hydra's run dir inside ``workdir``.  Raises RuntimeError with gyrolab's stderr if the command fails."""
+    cmd = [gyrolab_command(), f"experiment=regression_{name}", f"sweep.method=[{method}]",
+           f"output.path={Path(out).resolve()}", "output.overwrite=true",
+           f"hydra.run.dir={Path(workdir).resolve() / f'run_{name}_{method}'}", *overrides]
     done = subprocess.run(cmd, capture_output=True, text=True, cwd=workdir)
     if done.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} exited {done.returncode}: {done.stderr.strip()[-2000:]}")
     return Path(out)
-
 
 
 def lie_poisson4_with(w1):
@@ -62,7 +74,7 @@ def lie_poisson4_with(w1):
     from numba import njit
 
     from gyrolab.kernels.driver import make_advance
-    from gyrolab.kernels.lie_poisson import step as strang_step
+    from gyrolab.kernels.methods.lie_poisson import step as strang_step
 
     w0 = 1.0 - 2.0 * w1
 
@@ -82,21 +94,49 @@ def lie_poisson4_with(w1):
     return run_batch
 
 
+def _targets(words, methods):
+    """(name, method) pairs of NAME / NAME:METHOD words (all pairs when none)."""
+    if not words:
+        return [(n, m) for n in DATASETS for m in methods]
+    pairs = []
+    for word in words:
+        name, _, method = word.partition(":")
+        if name not in DATASETS:
+            raise SystemExit(f"regenerate.py: error: {name}: not a regression dataset; choose from {', '.join(DATASETS)}")
+        if method and method not in methods:
+            raise SystemExit(f"regenerate.py: error: {method}: not a registered method; choose from {', '.join(methods)}")
+        pairs += [(name, m) for m in ([method] if method else methods)]
+    return pairs
+
+
+def _store(new, path):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    part = path.with_name(f".{path.name}.tmp")
+    shutil.copyfile(new, part)
+    os.replace(part, path)
+    print(f"WROTE {path.relative_to(DATA_DIR.parent.parent)} ({path.stat().st_size / 1024:.0f} kB)")
+
+
 def main(argv=None):
     from gyrolab.analysis.compare import CompareError, compare_files
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("names", nargs="*", help=f"datasets to regenerate (default all: {', '.join(DATASETS)})")
-    parser.add_argument("--write", action="store_true", help="replace the stored files (default: only compare)")
+    parser.add_argument("targets", nargs="*", metavar="NAME[:METHOD]",
+                        help=f"datasets (default all: {', '.join(DATASETS)}), optionally one method of one")
+    what = parser.add_mutually_exclusive_group()
+    what.add_argument("--add", action="store_true", help="write only the files that are missing")
+    what.add_argument("--write", action="store_true", help="replace the named stored files (default: only compare)")
     args = parser.parse_args(argv)
-    unknown = [n for n in args.names if n not in DATASETS]
-    if unknown:
-        parser.error(f"{unknown[0]}: not a regression dataset; choose from {', '.join(DATASETS)}")
+    pairs = _targets(args.targets, registered_methods())
+    if args.add:
+        pairs = [(n, m) for n, m in pairs if not stored_path(n, m).exists()]
+        if not pairs:
+            print("every (regression config, method) has its stored file; nothing to add")
     with tempfile.TemporaryDirectory(prefix="gyrolab-regen-") as tmp:
-        for name in args.names or DATASETS:
-            new = run_config(name, Path(tmp) / f"regression_{name}.h5", tmp)
-            old = stored_path(name)
-            print(f"=== {name}: {old.relative_to(DATA_DIR.parent.parent)}")
+        for name, method in pairs:
+            new = run_config(name, method, Path(tmp) / f"{name}_{method}.h5", tmp)
+            old = stored_path(name, method)
+            print(f"=== {name} / {method}: {old.relative_to(DATA_DIR.parent.parent)}")
             if old.exists():
                 try:
                     report = compare_files(new, old, scaled=SCALED_TOL)
@@ -106,13 +146,11 @@ def main(argv=None):
                     print(f"fresh run cannot be compared with the stored file: {err}")
             else:
                 print("no stored file yet")
-            if args.write:
-                part = old.with_name(f".{old.name}.tmp")
-                shutil.copyfile(new, part)
-                os.replace(part, old)
-                print(f"WROTE {old} ({old.stat().st_size / 1024:.0f} kB)")
-    total = sum(stored_path(n).stat().st_size for n in DATASETS if stored_path(n).exists())
-    print(f"stored datasets: {total / 1024:.0f} kB in all" + ("" if args.write else " (nothing written: add --write)"))
+            if args.write or args.add:
+                _store(new, old)
+    total = sum(p.stat().st_size for p in STORE.rglob("*.h5"))
+    print(f"stored datasets: {total / 1024:.0f} kB in all"
+          + ("" if args.write or args.add else " (nothing written: add --add or --write)"))
 
 
 if __name__ == "__main__":

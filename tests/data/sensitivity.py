@@ -21,9 +21,10 @@ import xarray as xr
 import yaml
 
 from gyrolab.kernels.batch import integrate, sample_schedule
-from gyrolab.kernels.lie_poisson4 import W1
+from gyrolab.kernels.driver import N_FIELDS
+from gyrolab.kernels.methods.lie_poisson4 import W1
 from gyrolab.kernels.scenes import build_scene
-from gyrolab.runner.dataset import sample_variables
+from gyrolab.layout import sample_variables
 
 from regenerate import DATASETS, SCALED_TOL, lie_poisson4_with, stored_path
 
@@ -56,7 +57,7 @@ def scaled_change(ds, perturb=None, kernel=None, only=None):
         if kernel is None:
             samples = integrate(m, np.array([sc.body]), w0, q0, h, stride, n, threshold)[0]
         else:
-            samples = np.empty((1, n, 9))
+            samples = np.empty((1, n, N_FIELDS))
             kernel(w0, q0, np.array([sc.body]), np.array([h]), np.array([stride]), threshold, samples,
                    np.zeros(1, np.int8), np.zeros(1, np.int64))
         stored = ds.sel({"method": m, "f": f, "theta0": theta0, "dt": dt})
@@ -80,9 +81,12 @@ COEFFICIENTS = {
 def main():
     kernels = {label: lie_poisson4_with(w1) for label, w1 in COEFFICIENTS.items()}
     print(f"largest |change| / largest |stored value| per variable; regression tolerance {SCALED_TOL:g}")
+    from gyrolab.kernels.registry import METHODS
+
     for name in DATASETS:
-        with xr.open_dataset(stored_path(name), engine="h5netcdf") as ds:
-            ds = ds.load()
+        ds = xr.concat([xr.open_dataset(stored_path(name, m), engine="h5netcdf").load() for m in METHODS],
+                       dim="method", data_vars="minimal", coords="minimal", compat="override",
+                       combine_attrs="override")
         print(f"{name}")
         rows = {"rerun as is": scaled_change(ds)}
         rows.update({label: scaled_change(ds, perturb=p) for label, p in PERTURBATIONS.items()})

@@ -1,0 +1,134 @@
+"""Helpers every test module may import (``from helpers import ...``); fixtures live in conftest.py.
+
+- the CLI in subprocesses: ``gyrolab(...)``, ``start(...)``, the tiny grid
+  ``TINY`` and chunking ``SLOW``, ``data(path)`` (a file without its volatile
+  attrs), ``tiny_reference(root)``;
+- ``build_dataset(path, grid, scene, ...)``: a small results file made
+  through the batch kernels and gyrolab/layout.py, without the runner.
+"""
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from gyrolab.kernels.batch import integrate, sample_schedule
+from gyrolab.kernels.scenes import build_scene, get_scene
+from gyrolab.layout import GRID_DIMS, scene_attrs, to_dataset
+from gyrolab.runner.provenance import VOLATILE_ATTRS
+
+BIN = Path(sys.executable).parent
+TINY = ["sweep.method=[seed_next,lie_poisson]", "sweep.f=[10,50]", "sweep.theta0=[30,45]", "sweep.dt=[1e-3,1e-4]",
+        "sweep.t_end=0.1", "output.every=1e-3", "output.figures=false"]
+SLOW = ["runner.chunk_seconds=1e-6"]  # chunks of `threads` runs: many chunks to interrupt
+
+
+def command(name, module):
+    exe = BIN / name
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", module]
+
+
+def environment(**extra):
+    env = {k: v for k, v in os.environ.items() if k not in ("HYDRA_FULL_ERROR", "GYROLAB_TEST_CHUNK_DELAY")}
+    env.update({k: str(v) for k, v in extra.items()})
+    return env
+
+
+def gyrolab(*args, cwd, env=None, timeout=300):
+    return subprocess.run(command("gyrolab", "gyrolab.runner.app") + list(args), cwd=cwd, capture_output=True,
+                          text=True, env=env or environment(), timeout=timeout)
+
+
+def start(*args, cwd, **env):
+    return subprocess.Popen(command("gyrolab", "gyrolab.runner.app") + list(args), cwd=cwd, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=environment(**env))
+
+
+def wait_for(predicate, proc, timeout=120):
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert proc.poll() is None, f"finished before the test could interrupt it: {proc.communicate()}"
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)
+
+
+def chunk_count(run_dir):
+    return len(list((Path(run_dir) / "results.h5.partial").glob("chunk-*.npz")))
+
+
+def data(path):
+    """The file's data without what legitimately differs between runs (timings, provenance)."""
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        ds = ds.load()
+    return ds.drop_vars("wall_time").drop_attrs(deep=False).assign_attrs(
+        {k: v for k, v in ds.attrs.items() if k not in VOLATILE_ATTRS})
+
+
+def assert_ok(result):
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def tiny_reference(root):
+    """Run TINY (+ SLOW chunking) uninterrupted on the local backend, all threads, in ``root``;
+    returns the results file."""
+    result = gyrolab(*TINY, *SLOW, f"hydra.run.dir={root / 'run'}", cwd=root)
+    assert_ok(result)
+    return root / "run" / "results.h5"
+
+
+def method_params(known_failures=None):
+    """Every registered method as a pytest param; those in ``known_failures`` ({name: reason}) marked
+    strict xfail, so the recorded failure must keep failing (a method that starts passing is news)."""
+    import pytest
+
+    from gyrolab.kernels.registry import METHODS
+
+    known_failures = {**CONTROL_FAILURES, **(known_failures or {})}
+    return [pytest.param(m, marks=pytest.mark.xfail(strict=True, reason=known_failures[m]))
+            if m in known_failures else m for m in METHODS]
+
+
+# The explicit Euler control is in the registry to give the verdicts a known "growing" answer; every
+# accuracy bound fails for it by design (energy e-folds at c^2 dt, c = (1 - I3/I1) w3).
+CONTROL_FAILURES = {"explicit_euler": "control method: explicit Euler's energy grows exponentially (rate c^2 dt)"}
+
+
+GRID = {"method": ["seed_next", "seed_prev", "rk4"], "f": [10.0, 50.0], "theta0": [45.0], "dt": [1e-3, 5e-4]}
+
+
+def build_dataset(path, grid=None, scene="heavy_top", t_end=1.0, every=1e-3, threshold=10.0, **options):
+    """Write a results file of ``grid`` (dict of lists over GRID_DIMS) to ``path`` and return its Dataset."""
+    out = make_dataset(grid, scene, t_end, every, threshold, **options)
+    out.to_netcdf(path, engine="h5netcdf")
+    return out
+
+
+def make_dataset(grid=None, scene="heavy_top", t_end=1.0, every=1e-3, threshold=10.0, **options):
+    """The results Dataset of ``grid`` (dict of lists over GRID_DIMS, defaults GRID) in memory: every
+    run through the batch kernels, the Dataset through layout.to_dataset (what the runner stores)."""
+    grid = {**GRID, **(grid or {})}
+    shape = [len(grid[k]) for k in GRID_DIMS]
+    scenes = [[build_scene(scene, f, th, **options) for th in grid["theta0"]] for f in grid["f"]]
+    n_samples = sample_schedule(grid["dt"][0], every, t_end)[1]
+    raw, status, n_steps = None, np.zeros(shape, np.int8), np.zeros(shape, np.int64)
+    for index in np.ndindex(*shape):
+        m, jf, kt, ld = index
+        sc, dt = scenes[jf][kt], grid["dt"][ld]
+        stride = sample_schedule(dt, every, t_end)[0]
+        samples, st, ns = integrate(grid["method"][m], np.array([sc.body]), np.array([sc.omega0]),
+                                    np.array([sc.q0]), dt, stride, n_samples, threshold)
+        if raw is None:
+            raw = np.empty(shape + list(samples.shape[1:]))
+        raw[index], status[index], n_steps[index] = samples[0], st[0], ns[0]
+    declared = get_scene(scene)
+    attrs = scene_attrs(scene, {**declared.OPTIONS, **options}, declared.CONSERVED, declared.CLOSED_FORM)
+    attrs.update(t_end=t_end, every=every, divergence_threshold=threshold, config="built by tests/helpers.py")
+    inputs = {"body": [[s.body for s in row] for row in scenes], "omega0": [[s.omega0 for s in row] for row in scenes],
+              "q0": [[s.q0 for s in row] for row in scenes]}
+    coords = {k: np.array(grid[k]) for k in GRID_DIMS} | {"time": np.arange(n_samples) * every}
+    return to_dataset(raw, {"status": status, "n_steps": n_steps, "wall_time": np.zeros(shape)}, coords, inputs,
+                      attrs)
