@@ -9,7 +9,25 @@ from numba.core.dispatcher import Dispatcher
 
 from .entry import add_entry_points
 from .invariants import check_names
-from .methods import explicit_euler, lie_poisson, lie_poisson4, lie_trotter, rk4, seed_next, seed_prev
+from .methods import (
+    bullet_explicit,
+    bullet_implicit_body,
+    explicit_euler,
+    jolt_rescale,
+    jolt_rescale_bare,
+    lie_poisson,
+    lie_poisson4,
+    lie_trotter,
+    mujoco_euler,
+    mujoco_implicit,
+    mujoco_implicitfast,
+    mujoco_rk4,
+    no_gyro,
+    rapier_rescale,
+    rk4,
+    seed_next,
+    seed_prev,
+)
 
 
 def register(name, module):
@@ -32,6 +50,8 @@ def register(name, module):
             problems.append(str(err))
     if not isinstance(getattr(module, "step", None), Dispatcher):
         problems.append("step(w, q, dt, body) -> (w, q) must be a numba @njit function")
+    if not isinstance(getattr(module, "REPRODUCES", ""), str):
+        problems.append("REPRODUCES, when given, must name the engine scheme reproduced (a str)")
     if not isinstance(getattr(module, "BLOCKS", True), bool):
         problems.append("BLOCKS, when given, must be a bool")
     if problems:
@@ -47,6 +67,17 @@ METHODS = {name: register(name, module) for name, module in {
     "lie_poisson4": lie_poisson4,
     "explicit_euler": explicit_euler,
     "lie_trotter": lie_trotter,
+    # the rotation updates physics engines ship (each file names the engine source it follows)
+    "mujoco_euler": mujoco_euler,
+    "mujoco_implicitfast": mujoco_implicitfast,
+    "mujoco_implicit": mujoco_implicit,
+    "mujoco_rk4": mujoco_rk4,
+    "bullet_explicit": bullet_explicit,
+    "bullet_implicit_body": bullet_implicit_body,
+    "jolt_rescale": jolt_rescale,
+    "jolt_rescale_bare": jolt_rescale_bare,
+    "rapier_rescale": rapier_rescale,
+    "no_gyro": no_gyro,
 }.items()}
 
 
