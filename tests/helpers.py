@@ -92,6 +92,15 @@ def method_params(known_failures=None):
             if m in known_failures else m for m in METHODS]
 
 
+def own_methods(known_failures=None):
+    """``method_params`` of gyrolab's own schemes: every registered method but the reproductions of
+    engine updates (``REPRODUCES``), which test_engines.py judges by conformance with the engine."""
+    from gyrolab.kernels.registry import METHODS
+
+    return [p for p in method_params(known_failures)
+            if not getattr(METHODS[p if isinstance(p, str) else p.values[0]], "REPRODUCES", "")]
+
+
 # The explicit Euler control is in the registry to give the verdicts a known "growing" answer; every
 # accuracy bound fails for it by design (energy e-folds at c^2 dt, c = (1 - I3/I1) w3).
 CONTROL_FAILURES = {"explicit_euler": "control method: explicit Euler's energy grows exponentially (rate c^2 dt)"}

@@ -45,9 +45,13 @@ def test_stability_map_cells_and_diverged_marks(tmp_path):
     crosses = [ln for ln in ax_prev.get_lines() if ln.get_marker() == "x"]
     assert len(crosses) == n_bad and f"({n_bad} diverged)" in ax_prev.get_title()
     assert "log10" in fig.axes[-1].get_ylabel()  # the colour bar says what the colour is
-    # the runner's figure step draws the map for a file named stability.h5
-    names = [p.name for p in standard_figures(path, tmp_path / "figs")]
-    assert names[0] == "stability_map.png"
+    # the figure step draws what the study's config names (output.figures), whatever the file is called
+    other = tmp_path / "renamed.h5"
+    ds.assign_attrs(config="output:\n  figures: [stability, energy]\n").to_netcdf(other, engine="h5netcdf")
+    names = [p.name for p in standard_figures(other, tmp_path / "figs")]
+    assert names == ["stability_map.png", "energy_drift.png"]
+    assert [p.name for p in standard_figures(path, tmp_path / "default")] == [
+        "nutation_theta.png", "tip_locus.png", "energy_drift.png", "invariants.png"]
 
 
 @pytest.fixture(scope="module")

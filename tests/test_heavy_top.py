@@ -23,7 +23,7 @@ from gyrolab.kernels.rigid_body import gravity_torque
 from gyrolab.kernels.rotation import ck_matrix, lab_up_in_body, quat_from_rotvec, quat_mul
 from gyrolab.kernels.scenes import build_scene
 
-from helpers import method_params
+from helpers import own_methods
 
 # seed_prev pumps energy into the top (see test_seed_prev_gains_energy_as_predicted):
 # over 2 s at dt = 1e-4 its θ extrema are off by 6–20 %, far beyond a first-order
@@ -59,7 +59,7 @@ def test_gravity_torque_is_minus_gradient_of_potential(seed):
     np.testing.assert_allclose(np.asarray(reference_rhs(0.0, y, *body)[:3]) * body[:3], tau, rtol=0, atol=1e-14)
 
 
-@pytest.mark.parametrize("name", METHODS)
+@pytest.mark.parametrize("name", own_methods())
 def test_top_released_at_rest_falls(name, run_scene):
     """f = 0, θ0 = 45°: a pendulum. θ grows as ½ (M g l sin θ0 / I1) t² (to 1 %; the t⁴ term is 6e-4)."""
     sc = build_scene("heavy_top", 0.0, 45.0)
@@ -187,7 +187,7 @@ def test_dop853_matches_closed_form(regime):
 
 
 @pytest.mark.parametrize("regime", REGIMES)
-@pytest.mark.parametrize("name", method_params({"seed_prev": SEED_PREV_PUMPS}))
+@pytest.mark.parametrize("name", own_methods({"seed_prev": SEED_PREV_PUMPS}))
 def test_method_matches_closed_form(name, regime, run_scene):
     """θ_min, θ_max, nutation period, mean precession within (ω3 dt)^ORDER relative at dt = 1e-4 s.
 
@@ -204,7 +204,7 @@ def test_method_matches_closed_form(name, regime, run_scene):
 
 
 @pytest.mark.parametrize("f, init", [(23.0, "steady_fast"), (50.0, "steady_slow"), (50.0, "steady_fast")])
-@pytest.mark.parametrize("name", method_params({"seed_prev": SEED_PREV_PUMPS}))
+@pytest.mark.parametrize("name", own_methods({"seed_prev": SEED_PREV_PUMPS}))
 def test_steady_precession_keeps_theta(name, f, init, run_scene):
     """θ stays at θ0 = 45° for 2 s at dt = 1e-4: within 1e-6 rad for ORDER ≥ 2, (ω3 dt) rad for first order.
 
@@ -225,7 +225,7 @@ def test_steady_precession_with_complex_roots_is_refused(init):
         build_scene("heavy_top", 20.0, 45.0, init=init)
 
 
-@pytest.mark.parametrize("name", METHODS)
+@pytest.mark.parametrize("name", own_methods())
 def test_sleeping_top_stays_upright(name, run_scene):
     """Upright and spinning (θ0 = 0): the torque vanishes and no method may break the axial symmetry."""
     sc = build_scene("heavy_top", 50.0, 0.0, init="sleeping")
@@ -235,7 +235,7 @@ def test_sleeping_top_stays_upright(name, run_scene):
     np.testing.assert_allclose(s[:, 5], sc.omega0[2], rtol=1e-14)
 
 
-@pytest.mark.parametrize("name", METHODS)
+@pytest.mark.parametrize("name", own_methods())
 def test_slow_sleeping_top_falls(name, run_scene):
     """Below the sleeping threshold (f = 20 Hz < 26.25 Hz) a top nudged to 0.5° falls to the closed-form
     θ_max = 80.7° (relative (ω3 dt)^ORDER); above it (50 Hz) it stays below 0.59°, see REGIMES.

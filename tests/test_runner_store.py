@@ -1,4 +1,4 @@
-"""Lock, journal and results file: one writer, durable chunks, SPEC §4 layout."""
+"""Lock, journal and results file: one writer, durable chunks, the results layout (gyrolab/layout.py)."""
 import numpy as np
 import pytest
 import xarray as xr

@@ -1,4 +1,4 @@
-"""Scenes: bodies, initial states (SPEC §1, §3) and clear errors for bad options."""
+"""Scenes: bodies, initial states (docs/design.md) and clear errors for bad options."""
 import math
 
 import numpy as np
@@ -36,7 +36,7 @@ def test_release_spins_only(f):
 
 
 def goldstein_body_rates(phidot, thetadot, psidot, theta, psi=0.0):
-    """SPEC §1 (Goldstein 4.125), written out independently of the scene code."""
+    """docs/design.md, conventions (Goldstein 4.125), written out independently of the scene code."""
     return (
         phidot * math.sin(theta) * math.sin(psi) + thetadot * math.cos(psi),
         phidot * math.sin(theta) * math.cos(psi) - thetadot * math.sin(psi),
