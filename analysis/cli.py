@@ -28,7 +28,7 @@ def _common(p, many=False):
     if many:
         p.add_argument("file", metavar="FILE_OR_DIR", nargs="+", help="results files or a multirun directory")
     else:
-        p.add_argument("file", metavar="FILE", help="results file (HDF5, SPEC §4)")
+        p.add_argument("file", metavar="FILE", help="results file (HDF5, gyrolab/layout.py)")
         p.add_argument("selection", nargs="*", metavar="KEY=VALUE",
                        help="grid values to draw: method=..., f=... (Hz), theta0=... (deg), dt=... (s)")
     p.add_argument("-o", "--output", help="output path (suffix replaced per --format); default next to FILE")

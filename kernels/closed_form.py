@@ -135,7 +135,7 @@ def _bisect(coeffs, lo, hi):
 
 
 def heavy_top_nutation(scene):
-    """Nutation of a heavy symmetric top from its initial state (SPEC §2).
+    """Nutation of a heavy symmetric top from its initial state (docs/design.md, "The scheme and its rivals").
 
     theta_min, theta_max (rad): the turning points of θ; period (s): time from
     one θ minimum to the next; precession_rate (rad/s): the azimuth gained per

@@ -2,7 +2,7 @@
 
 Body (SI): mass M, disc radius r, arm l from pivot to the disc's centre, gravity
 g.  Inertia about the pivot: I1 = I2 = M (r²/4 + l²), I3 = M r²/2; the kernel
-gets M g l for the torque.  Initial states (SPEC §3), all with body spin
+gets M g l for the torque.  Initial states (docs/design.md, "Scenes"), all with body spin
 ω3 = 2πf and θ̇0 = 0 at φ0 = ψ0 = 0:
 
 - release: ω = (0, 0, 2πf): the tip starts at rest and traces cusps;
