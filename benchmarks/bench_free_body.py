@@ -1,0 +1,155 @@
+"""Cost of the exact free rigid-body flow (kernels/euler_poinsot.py) and of the exact Strang splitting.
+
+Run:  python benchmarks/bench_free_body.py [--runs 256] [--steps 2000] [--repeat 5] [--no-lanes]
+
+Prints, from one process (ratios are taken under the same machine load):
+1. ns per step of one exact free-flow step (free_flow_exact as a step) against one rk4 step, both in the
+   same batched njit prange harness (runs × steps, each run its own (ω, q), aggregate wall time / steps),
+   1 and 2 threads, on generic asymmetric bodies (random moments and rates);
+2. the exact Strang splitting (strang_exact) against lie_poisson (axis sub-splitting) on the asymmetric
+   box of the free_asymmetric scene, I = (1e-4, 3e-4, 2e-4), ω = (1e-3 ω3, 0, ω3), f = 10 Hz ± 5 %,
+   dt = 1e-4, in the same harness;
+3. (unless --no-lanes) the compile time of ``lanes.lane_step(step)`` (the forceinline recompilation of the
+   vectorised block path) for strang_exact, called in a loop over a small array, and its ns/step there.
+Times are medians of --repeat repeats after a warm-up call.
+"""
+import argparse
+import math
+import os
+import time
+
+import numba
+import numpy as np
+from numba import njit, prange
+
+from gyrolab.kernels.euler_poinsot import free_flow_exact
+from gyrolab.kernels.methods import lie_poisson, strang_exact
+
+try:
+    from gyrolab.kernels.methods import rk4
+except ImportError:  # before the methods/ refactor
+    from gyrolab.kernels import rk4
+
+
+@njit(cache=True, error_model="numpy")
+def exact_free_step(w, q, dt, body):
+    return free_flow_exact(w, q, dt, body)
+
+
+def make_harness(step):
+    @njit(parallel=True, error_model="numpy")
+    def harness(W, Q, B, dt, n_steps):
+        for i in prange(W.shape[0]):
+            w = (W[i, 0], W[i, 1], W[i, 2])
+            q = (Q[i, 0], Q[i, 1], Q[i, 2], Q[i, 3])
+            body = (B[i, 0], B[i, 1], B[i, 2], B[i, 3])
+            for _ in range(n_steps):
+                w, q = step(w, q, dt, body)
+            W[i, 0], W[i, 1], W[i, 2] = w
+            Q[i, 0], Q[i, 1], Q[i, 2], Q[i, 3] = q
+    return harness
+
+
+def ns_per_step(harness, inputs, dt, steps, threads, repeat):
+    W0, Q0, B = inputs
+    numba.set_num_threads(threads)
+    harness(W0.copy(), Q0.copy(), B, dt, 1)
+    times = []
+    for _ in range(repeat):
+        W, Q = W0.copy(), Q0.copy()
+        start = time.perf_counter()
+        harness(W, Q, B, dt, steps)
+        times.append(time.perf_counter() - start)
+    return float(np.median(times)) / (steps * W0.shape[0]) * 1e9
+
+
+def generic_inputs(n, seed=0):
+    rng = np.random.default_rng(seed)
+    B = np.zeros((n, 4))
+    B[:, :3] = rng.uniform(1.0, 3.0, (n, 3))
+    W = rng.normal(size=(n, 3)) * 10.0
+    Q = rng.normal(size=(n, 4))
+    return W, Q / np.linalg.norm(Q, axis=1, keepdims=True), B
+
+
+def box_inputs(n):
+    spins = 10.0 * (1.0 + 0.1 * (np.arange(n) / max(n - 1, 1) - 0.5))
+    om3 = 2 * math.pi * spins
+    W = np.stack([1e-3 * om3, np.zeros(n), om3], axis=1)
+    Q = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    B = np.tile([1e-4, 3e-4, 2e-4, 0.0], (n, 1))
+    return W, Q, B
+
+
+def lane_compile(step, n_lanes=8, steps=2000):
+    """Seconds to compile lane_step(step) inside a loop over a small array, and its ns/step there."""
+    from gyrolab.kernels.lanes import lane_step
+    start = time.perf_counter()
+    fast = lane_step(step)
+
+    @njit(error_model="numpy")
+    def loop(W, Q, B, dt, n_steps):
+        for _ in range(n_steps):
+            for j in range(W.shape[0]):
+                w, q = fast((W[j, 0], W[j, 1], W[j, 2]), (Q[j, 0], Q[j, 1], Q[j, 2], Q[j, 3]), dt,
+                            (B[j, 0], B[j, 1], B[j, 2], B[j, 3]))
+                W[j, 0], W[j, 1], W[j, 2] = w
+                Q[j, 0], Q[j, 1], Q[j, 2], Q[j, 3] = q
+
+    W, Q, B = box_inputs(n_lanes)
+    loop(W, Q, B, 1e-4, 1)
+    compile_s = time.perf_counter() - start
+    W, Q, B = box_inputs(n_lanes)
+    start = time.perf_counter()
+    loop(W, Q, B, 1e-4, steps)
+    ns = (time.perf_counter() - start) / (steps * n_lanes) * 1e9
+    finite = bool(np.all(np.isfinite(W)) and np.all(np.isfinite(Q)))
+    return compile_s, ns, finite
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--runs", type=int, default=256)
+    parser.add_argument("--steps", type=int, default=2000)
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--no-lanes", action="store_true")
+    args = parser.parse_args()
+    threads = [1, 2] if numba.config.NUMBA_NUM_THREADS >= 2 else [1]
+    print(f"# bench_free_body: {args.runs} runs x {args.steps} steps, medians of {args.repeat}; "
+          f"{os.cpu_count()} CPUs; load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+    print("\n## 1. one step, generic asymmetric bodies (dt = 1e-3)\n")
+    print("| step | " + " | ".join(f"{t} thread(s) ns/step" for t in threads) + " |")
+    print("|---|" + "---:|" * len(threads))
+    inputs = generic_inputs(args.runs)
+    table = {}
+    for name, step in (("rk4", rk4.step), ("exact free flow", exact_free_step)):
+        harness = make_harness(step)
+        table[name] = [ns_per_step(harness, inputs, 1e-3, args.steps, t, args.repeat) for t in threads]
+        print(f"| {name} | " + " | ".join(f"{v:.1f}" for v in table[name]) + " |", flush=True)
+    print("| ratio exact / rk4 | " + " | ".join(f"{a / b:.1f}x" for a, b in zip(table["exact free flow"],
+                                                                              table["rk4"])) + " |")
+
+    print("\n## 2. asymmetric box, f = 10 Hz, dt = 1e-4\n")
+    print("| method | " + " | ".join(f"{t} thread(s) ns/step" for t in threads) + " |")
+    print("|---|" + "---:|" * len(threads))
+    inputs = box_inputs(args.runs)
+    table = {}
+    for name, step in (("lie_poisson", lie_poisson.step), ("strang_exact", strang_exact.step),
+                       ("rk4", rk4.step)):
+        harness = make_harness(step)
+        table[name] = [ns_per_step(harness, inputs, 1e-4, args.steps, t, args.repeat) for t in threads]
+        print(f"| {name} | " + " | ".join(f"{v:.1f}" for v in table[name]) + " |", flush=True)
+    print("| ratio strang_exact / lie_poisson | " + " | ".join(
+        f"{a / b:.1f}x" for a, b in zip(table["strang_exact"], table["lie_poisson"])) + " |")
+
+    if not args.no_lanes:
+        print("\n## 3. lanes.lane_step (forceinline recompilation for the block path)\n")
+        for name, step in (("lie_poisson", lie_poisson.step), ("strang_exact", strang_exact.step)):
+            seconds, ns, finite = lane_compile(step)
+            print(f"- {name}: compile {seconds:.1f} s, {ns:.1f} ns/step (8 lanes, scalar loop), "
+                  f"finite: {finite}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
