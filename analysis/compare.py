@@ -355,7 +355,7 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
     da, db, dropped = align(da, db, shared_runs)
     # The runs' inputs (body, initial state) are not results: a difference is a provenance note, and
     # files written before they were stored compare with files that have them.
-    configs = configs + input_notes(da, db)
+    inputs = input_notes(da, db)
     va = [v for v in da.data_vars if v not in ignored and v not in INPUT_VARIABLES]
     vb = [v for v in db.data_vars if v not in ignored and v not in INPUT_VARIABLES]
     for v in va:
@@ -375,7 +375,8 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
     shape = tuple(da.sizes[d] for d in RUN_DIMS)
     grid = (f"scene {da.attrs.get('scene', '?')}; " + " x ".join(f"{n} {d}" for d, n in zip(RUN_DIMS, shape))
             + f" = {int(np.prod(shape))} runs; {da.sizes['time']} samples, t = 0 to {coords['time'][-1]:g} s")
-    report = Report(a=names[0], b=names[1], headers=[_header(da), _header(db)], versions=versions, configs=configs,
+    report = Report(a=names[0], b=names[1], headers=[_header(da), _header(db)], versions=versions + inputs,
+                    configs=configs,
                     grid=grid,
                     ignored={k: v for k, v in ignored.items() if k in da.data_vars or k in db.data_vars},
                     dropped=dropped, n_runs=int(np.prod(shape)))
@@ -406,12 +407,14 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
 
 
 def input_notes(da, db):
-    """Notes on the stored run inputs (body, omega0, q0) that differ between two aligned files."""
+    """Notes on the stored run inputs (body, omega0, q0) that differ between two aligned files: a
+    provenance note, not a failure (the results decide), so files from before a change of the body
+    record still compare."""
     notes = []
     for name in INPUT_VARIABLES:
         if name in da.data_vars and name in db.data_vars:
-            a, b = da[name].values, db[name].transpose(*da[name].dims).values
-            if a.shape != b.shape or not np.array_equal(a, b):
+            a, b = da[name], db[name]
+            if a.dims != b.dims or a.shape != b.shape or not np.array_equal(a.values, b.values):
                 notes.append(f"run inputs differ: {name}")
     return notes
 

@@ -1,7 +1,8 @@
 """gyrolab: batch experiments with rigid-body rotation schemes.
 
 ``simulate(...)`` runs one trajectory, ``methods()`` lists the integrators,
-``scenes()`` the scenes; the ``gyrolab`` command runs whole sweeps (see
+``scenes()`` the scenes, ``free_body(I, omega0, q0, t)`` is the exact
+torque-free motion (Euler–Poinsot, any positive moments); the ``gyrolab`` command runs whole sweeps (see
 README).
 
 The source tree keeps the package's sub-packages at its top level
@@ -21,6 +22,7 @@ if not (_HERE / "kernels").is_dir() and (_CHECKOUT / "pyproject.toml").is_file()
         _CHECKOUT / "kernels" / "registry.py").is_file():
     __path__.append(str(_CHECKOUT))  # noqa: F821 (the package's own __path__)
 
+from .kernels.euler_poinsot import free_body  # noqa: E402
 from .kernels.registry import methods  # noqa: E402
 from .kernels.scenes import scenes  # noqa: E402
 from .runner.simulate import simulate  # noqa: E402
@@ -30,4 +32,4 @@ try:
 except PackageNotFoundError:  # running from a source tree
     __version__ = "0+unknown"
 
-__all__ = ["simulate", "methods", "scenes", "__version__"]
+__all__ = ["simulate", "methods", "scenes", "free_body", "__version__"]

@@ -27,6 +27,9 @@ from .methods import (
     rk4,
     seed_next,
     seed_prev,
+    split6_exact,
+    strang_exact,
+    strang_exact4,
 )
 
 
@@ -50,6 +53,8 @@ def register(name, module):
             problems.append(str(err))
     if not isinstance(getattr(module, "step", None), Dispatcher):
         problems.append("step(w, q, dt, body) -> (w, q) must be a numba @njit function")
+    if not isinstance(getattr(module, "FREE_EXACT", False), bool):
+        problems.append("FREE_EXACT, when given, must be a bool")
     if not isinstance(getattr(module, "REPRODUCES", ""), str):
         problems.append("REPRODUCES, when given, must name the engine scheme reproduced (a str)")
     if not isinstance(getattr(module, "BLOCKS", True), bool):
@@ -67,6 +72,10 @@ METHODS = {name: register(name, module) for name, module in {
     "lie_poisson4": lie_poisson4,
     "explicit_euler": explicit_euler,
     "lie_trotter": lie_trotter,
+    # splittings around the exact Euler-Poinsot free flow (kernels/euler_poinsot.py)
+    "strang_exact": strang_exact,
+    "strang_exact4": strang_exact4,
+    "split6_exact": split6_exact,
     # the rotation updates physics engines ship (each file names the engine source it follows)
     "mujoco_euler": mujoco_euler,
     "mujoco_implicitfast": mujoco_implicitfast,

@@ -1,0 +1,93 @@
+"""What ran, recorded truthfully: a numba cache that cannot go stale, the commit as built, the import
+from a checkout root."""
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import gyrolab
+from gyrolab.runner import provenance
+
+CHECKOUT = Path(__file__).resolve().parents[1]
+PROBE = """
+import gyrolab, gyrolab.kernels as k
+ds = gyrolab.simulate(scene="heavy_top", method="lie_poisson", f=10.0, theta0=45.0, dt=1e-3, t_end=0.05, every=1e-2)
+print(k.__file__, k.SOURCE_HASH, repr(float(ds.energy[-1])))
+"""
+
+
+def probe(tree, cache):
+    """(kernels file, source hash, final energy) of a lie_poisson run from the source tree ``tree``."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(tree)}
+    done = subprocess.run([sys.executable, "-c", PROBE], cwd=tree, env=env, capture_output=True, text=True,
+                          timeout=600)
+    assert done.returncode == 0, done.stderr
+    return done.stdout.split()
+
+
+@pytest.mark.slow
+def test_editing_a_kernel_helper_never_runs_stale_machine_code(tmp_path):
+    """A copy of the source tree runs lie_poisson (cache filled), then its kick in free_flow.py, a helper
+    that numba inlines into lie_poisson's cached kernels, is doubled: the next run, with the same cache
+    directory and nothing cleared, gives the doubled kick's result, the same bits as a run on an empty
+    cache.  (Plain numba caching checks only the kernel's own file and ran the old kick.)"""
+    tree = tmp_path / "tree"
+    for name in ("gyrolab", "kernels", "runner", "analysis", "conf"):
+        shutil.copytree(CHECKOUT / name, tree / name, ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(CHECKOUT / "pyproject.toml", tree)
+    cache = tmp_path / "cache"
+    path, before_hash, before = probe(tree, cache)
+    assert Path(path).resolve() == (tree / "kernels" / "__init__.py").resolve()  # the copy ran, not the install
+    assert probe(tree, cache)[2] == before  # warm cache, same code: same bits
+    free_flow = tree / "kernels" / "free_flow.py"
+    text = free_flow.read_text()
+    assert "return w[0] + h * t1 / body[0]" in text
+    free_flow.write_text(text.replace("return w[0] + h * t1 / body[0], w[1] + h * t2 / body[1]",
+                                      "return w[0] + 2.0 * h * t1 / body[0], w[1] + 2.0 * h * t2 / body[1]"))
+    _, after_hash, after = probe(tree, cache)
+    assert after_hash != before_hash and after != before
+    assert probe(tree, tmp_path / "empty-cache")[2] == after
+
+
+def test_recorded_commit_is_the_built_one_never_a_git_call_on_the_installed_files(monkeypatch):
+    """With build info (a regular install) the commit comes from it and git is never asked; without it,
+    only a package running from its own work tree asks git, about that tree."""
+    try:
+        from gyrolab import _build_info
+    except ImportError:
+        _build_info = None
+
+    def no_git(*args, **kwargs):
+        raise AssertionError(f"git called at run time: {args}")
+
+    if _build_info is not None:
+        monkeypatch.setattr(provenance.subprocess, "run", no_git)
+        assert provenance.code_state() == (_build_info.GIT_COMMIT, _build_info.GIT_DIRTY, "build")
+    else:
+        commit, dirty, source = provenance.code_state()
+        assert source == "work tree" and provenance.PACKAGE_DIR == CHECKOUT
+        head = subprocess.run(["git", "-C", str(CHECKOUT), "rev-parse", "HEAD"], capture_output=True, text=True)
+        assert commit == head.stdout.strip() and dirty in (0, 1)
+
+
+def test_results_record_layout_code_and_library_versions():
+    ds = gyrolab.simulate(method="rk4", f=10.0, dt=1e-3, t_end=0.01, every=1e-3)
+    assert ds.attrs["layout_version"] >= 1
+    attrs = provenance.provenance("a: 1\n", 2)
+    from gyrolab.kernels import SOURCE_HASH
+
+    assert attrs["kernel_source_hash"] == SOURCE_HASH and len(SOURCE_HASH) == 16
+    for name in ("numpy", "numba", "scipy", "h5py", "h5netcdf", "xarray"):
+        assert attrs[f"{name}_version"] not in ("", "absent"), name
+    assert attrs["git_source"] in ("build", "work tree")
+
+
+def test_import_gyrolab_from_the_checkout_root():
+    """`python -c "import gyrolab; print(gyrolab.methods())"` where the README's install leaves you."""
+    done = subprocess.run([sys.executable, "-c", "import gyrolab; print(sorted(gyrolab.methods()))"], cwd=CHECKOUT,
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "'lie_poisson'" in done.stdout and "'seed_next'" in done.stdout
