@@ -5,32 +5,12 @@ kernels/methods/README.md (``step`` and its declarations); ``register``
 checks that contract and gives the module its batch entry points
 (entry.py), so nothing else needs to change for a new method.
 """
+import importlib
+
 from numba.core.dispatcher import Dispatcher
 
 from .entry import add_entry_points
 from .invariants import check_names
-from .methods import (
-    bullet_explicit,
-    bullet_implicit_body,
-    explicit_euler,
-    jolt_rescale,
-    jolt_rescale_bare,
-    lie_poisson,
-    lie_poisson4,
-    lie_trotter,
-    mujoco_euler,
-    mujoco_implicit,
-    mujoco_implicitfast,
-    mujoco_rk4,
-    no_gyro,
-    rapier_rescale,
-    rk4,
-    seed_next,
-    seed_prev,
-    split6_exact,
-    strang_exact,
-    strang_exact4,
-)
 
 
 def register(name, module):
@@ -64,30 +44,32 @@ def register(name, module):
     return add_entry_points(module)
 
 
-METHODS = {name: register(name, module) for name, module in {
-    "seed_next": seed_next,
-    "seed_prev": seed_prev,
-    "rk4": rk4,
-    "lie_poisson": lie_poisson,
-    "lie_poisson4": lie_poisson4,
-    "explicit_euler": explicit_euler,
-    "lie_trotter": lie_trotter,
+# One line per method: the module kernels/methods/<name>.py.
+NAMES = (
+    "seed_next",
+    "seed_prev",
+    "rk4",
+    "lie_poisson",
+    "lie_poisson4",
+    "explicit_euler",
+    "lie_trotter",
     # splittings around the exact Euler-Poinsot free flow (kernels/euler_poinsot.py)
-    "strang_exact": strang_exact,
-    "strang_exact4": strang_exact4,
-    "split6_exact": split6_exact,
+    "strang_exact",
+    "strang_exact4",
+    "split6_exact",
     # the rotation updates physics engines ship (each file names the engine source it follows)
-    "mujoco_euler": mujoco_euler,
-    "mujoco_implicitfast": mujoco_implicitfast,
-    "mujoco_implicit": mujoco_implicit,
-    "mujoco_rk4": mujoco_rk4,
-    "bullet_explicit": bullet_explicit,
-    "bullet_implicit_body": bullet_implicit_body,
-    "jolt_rescale": jolt_rescale,
-    "jolt_rescale_bare": jolt_rescale_bare,
-    "rapier_rescale": rapier_rescale,
-    "no_gyro": no_gyro,
-}.items()}
+    "mujoco_euler",
+    "mujoco_implicitfast",
+    "mujoco_implicit",
+    "mujoco_rk4",
+    "bullet_explicit",
+    "bullet_implicit_body",
+    "jolt_rescale",
+    "jolt_rescale_bare",
+    "rapier_rescale",
+    "no_gyro",
+)
+METHODS = {name: register(name, importlib.import_module(f".methods.{name}", __package__)) for name in NAMES}
 
 
 def get_method(name):

@@ -23,7 +23,7 @@ import xarray as xr
 import yaml
 
 import gyrolab
-from gyrolab.analysis.compare import compare_files
+from gyrolab.analysis.compare import compare_datasets, compare_files
 from gyrolab.kernels.batch import sample_schedule
 from gyrolab.kernels.registry import METHODS
 from gyrolab.kernels.scenes import SCENES, build_scene
@@ -37,15 +37,32 @@ _spec.loader.exec_module(regen)
 MAX_TOTAL_BYTES = 12 * 2**20
 
 
+def one_method(path, method):
+    """Method ``method``'s runs of a results file that holds several, with the config attr it would
+    have had as a run of that method alone (sweep.method = [method]): a run's results do not depend
+    on the other runs of its sweep (tests/test_block.py, tests/test_runner_cli.py)."""
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        ds = ds.load()
+    part = ds.sel({"method": [method]})
+    config = yaml.safe_load(ds.attrs["config"])
+    config["sweep"]["method"] = [method]
+    return part.assign_attrs(config=yaml.safe_dump(config, sort_keys=False))
+
+
 def check_against_stored(fresh, name, method, stored=None):
-    """Fail with the comparison table (and how to regenerate) unless ``fresh`` matches the stored
-    dataset of regression config ``name`` for ``method`` (or the file ``stored``) and was made by the
-    same config."""
+    """Fail with the comparison table (and how to regenerate) unless ``fresh`` (a path, or a Dataset
+    from ``one_method``) matches the stored dataset of regression config ``name`` for ``method`` (or
+    the file ``stored``) and was made by the same config."""
     stored = Path(stored or regen.stored_path(name, method))
     if not stored.exists():
         pytest.fail(f"no stored regression data for method {method} on {name}; add it with:\n"
                     f"    {regen.ADD_COMMAND}", pytrace=False)
-    report = compare_files(fresh, stored, scaled=regen.SCALED_TOL)
+    if isinstance(fresh, xr.Dataset):
+        with xr.open_dataset(stored, engine="h5netcdf") as ref:
+            report = compare_datasets(fresh, ref.load(), scaled=regen.SCALED_TOL)
+        report.a, report.b = "fresh run", str(stored)
+    else:
+        report = compare_files(fresh, stored, scaled=regen.SCALED_TOL)
     hint = (f"If the change is intended, regenerate on purpose and commit the new file:\n"
             f"    python tests/data/regenerate.py --write {name}:{method}")
     text = f"A = fresh run, B = {stored.name}\n{report.text()}\n{hint}"
@@ -74,13 +91,28 @@ def fresh(tmp_path_factory):
     return get
 
 
+@pytest.fixture(scope="module")
+def fresh_all(tmp_path_factory):
+    """``fresh_all(name)``: path of one fresh run of regression config ``name`` with every registered
+    method (one gyrolab process per config instead of one per method)."""
+    work = tmp_path_factory.mktemp("regression_all")
+    done = {}
+
+    def get(name):
+        if name not in done:
+            done[name] = regen.run_config(name, list(METHODS), work / f"{name}.h5", work)
+        return done[name]
+
+    return get
+
+
 PAIRS = [(name, method) for name in regen.DATASETS for method in METHODS]
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name,method", PAIRS, ids=[f"{n}-{m}" for n, m in PAIRS])
-def test_rerun_matches_stored_dataset(fresh, name, method):
-    check_against_stored(fresh(name, method), name, method)
+def test_rerun_matches_stored_dataset(fresh_all, name, method):
+    check_against_stored(one_method(fresh_all(name), method), name, method)
 
 
 def test_same_machine_rerun_is_bit_identical(fresh, tmp_path):
@@ -116,7 +148,9 @@ def test_every_regression_config_and_method_has_a_stored_dataset():
     experiments = importlib.resources.files("gyrolab.conf") / "experiment"
     configs = sorted(p.name[len("regression_"):-len(".yaml")] for p in experiments.iterdir()
                      if p.name.startswith("regression_") and p.name.endswith(".yaml"))
-    assert configs == sorted(regen.DATASETS)
+    assert configs == sorted(regen.PINNED)
+    assert {regen.pinned_scene(n) for n in regen.PINNED} | {d[len("scene_"):] for d in regen.DATASETS
+                                                            if d.startswith("scene_")} == set(SCENES)
     missing = [f"{n}/{m}" for n in regen.DATASETS for m in METHODS if not regen.stored_path(n, m).exists()]
     assert not missing, f"no stored regression data for {', '.join(missing)}; add it with: {regen.ADD_COMMAND}"
     expected = {regen.stored_path(n, m) for n in regen.DATASETS for m in METHODS}

@@ -6,7 +6,9 @@
 
 Each file ``tests/data/regression/<name>/<method>.h5`` is the output of the
 real command ``gyrolab experiment=regression_<name> sweep.method=[<method>]``
-(config in ``conf/experiment/regression_<name>.yaml``).  Adding a method or a
+(config in ``conf/experiment/regression_<name>.yaml``).  A registered scene
+that no pinned config uses gets a dataset ``scene_<scene>`` of its own: a
+short run with SCENE_OVERRIDES, so a new scene is covered by ``--add`` too.  Adding a method or a
 regression config is ``--add``: it writes only the files that do not exist,
 so every other method's stored bytes stay as they are.  ``--write`` replaces
 the named files (``NAME`` for all methods of a config, ``NAME:METHOD`` for
@@ -26,13 +28,39 @@ from pathlib import Path
 
 DATA_DIR = Path(__file__).resolve().parent
 STORE = DATA_DIR / "regression"
-DATASETS = ("heavy_top_release", "heavy_top_steady", "free_symmetric", "free_asymmetric")
+PINNED = ("heavy_top_release", "heavy_top_steady", "free_symmetric", "free_asymmetric")
+# The grid of the dataset of a scene no pinned config uses: short, so the chaos stays out.
+SCENE_OVERRIDES = ("sweep.f=[10]", "sweep.theta0=[30]", "sweep.dt=[1e-3]", "sweep.t_end=1", "output.every=1e-2",
+                   "output.figures=false")
 ADD_COMMAND = "python tests/data/regenerate.py --add"
 
 # Regression tolerance (see tests/data/README.md): a value passes when
 # |new − stored| <= SCALED_TOL × (largest |value| of that variable in the stored file);
 # status and n_steps must match exactly, wall_time is not compared.
 SCALED_TOL = 1e-10
+
+
+def pinned_scene(name):
+    """The scene a pinned regression config overrides (its ``override /scene: X`` default)."""
+    import importlib.resources
+
+    text = (importlib.resources.files("gyrolab.conf") / "experiment" / f"regression_{name}.yaml").read_text()
+    for line in text.splitlines():
+        if line.strip().startswith("- override /scene:"):
+            return line.split(":", 1)[1].strip()
+    raise RuntimeError(f"conf/experiment/regression_{name}.yaml names no scene")
+
+
+def datasets():
+    """Every regression dataset: the pinned configs, then scene_<scene> for each registered scene
+    that none of them uses."""
+    from gyrolab.kernels.scenes import SCENES
+
+    covered = {pinned_scene(n) for n in PINNED}
+    return PINNED + tuple(f"scene_{s}" for s in SCENES if s not in covered)
+
+
+DATASETS = datasets()
 
 
 def stored_path(name, method):
@@ -55,12 +83,22 @@ def gyrolab_command():
     return found
 
 
+def config_overrides(name):
+    """The overrides that select dataset ``name``'s config."""
+    if name.startswith("scene_"):
+        return [f"scene={name[len('scene_'):]}", *SCENE_OVERRIDES]
+    return [f"experiment=regression_{name}"]
+
+
 def run_config(name, method, out, workdir, overrides=()):
-    """Run ``gyrolab experiment=regression_<name> sweep.method=[<method>] [overrides]`` writing ``out``;
-    Hydra's run dir inside ``workdir``.  Raises RuntimeError with gyrolab's stderr if the command fails."""
-    cmd = [gyrolab_command(), f"experiment=regression_{name}", f"sweep.method=[{method}]",
+    """Run ``gyrolab <dataset name's config> sweep.method=[<method>] [overrides]`` writing ``out`` (``method``
+    may be a list: several methods in one run); Hydra's run dir inside ``workdir``.  Raises RuntimeError
+    with gyrolab's stderr if the command fails."""
+    methods = method if isinstance(method, (list, tuple)) else [method]
+    tag = method if isinstance(method, str) else "all"
+    cmd = [gyrolab_command(), *config_overrides(name), f"sweep.method=[{','.join(methods)}]",
            f"output.path={Path(out).resolve()}", "output.overwrite=true",
-           f"hydra.run.dir={Path(workdir).resolve() / f'run_{name}_{method}'}", *overrides]
+           f"hydra.run.dir={Path(workdir).resolve() / f'run_{name}_{tag}'}", *overrides]
     done = subprocess.run(cmd, capture_output=True, text=True, cwd=workdir)
     if done.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} exited {done.returncode}: {done.stderr.strip()[-2000:]}")
