@@ -1,7 +1,7 @@
 """Scenes: a body, the forces on it and how its initial state is built.
 
 A scene is one module here plus ``conf/scene/<name>.yaml`` and one line in
-``SCENES``.  The module provides:
+``NAMES``.  The module provides:
 
 - a docstring whose first line is "name: summary";
 - ``OPTIONS``: defaults of its options (exactly the keys of the yaml);
@@ -16,15 +16,18 @@ A scene is one module here plus ``conf/scene/<name>.yaml`` and one line in
 What a scene declares through its body is all the kernels compute: M g l = 0
 skips the torque, I1 = I2 takes the closed-form free flow.
 """
+import importlib
+
 from ..invariants import check_names
-from . import free_asymmetric, free_symmetric, heavy_top
 from .common import Scene, check_finite, tilt_quaternion
 
-SCENES = {
-    "heavy_top": heavy_top,
-    "free_symmetric": free_symmetric,
-    "free_asymmetric": free_asymmetric,
-}
+# One line per scene: the module kernels/scenes/<name>.py (and conf/scene/<name>.yaml).
+NAMES = (
+    "heavy_top",
+    "free_symmetric",
+    "free_asymmetric",
+)
+SCENES = {name: importlib.import_module(f".{name}", __package__) for name in NAMES}
 
 
 for _name, _module in SCENES.items():
