@@ -1,0 +1,594 @@
+"""``gyrolab-verdict FILE...``: measured verdicts from stored results files.
+
+    gyrolab-verdict ladder.h5 long.h5                      # table on stdout
+    gyrolab-verdict multirun/<date>/<time> --json v.json --markdown v.md --stability 10 --figures docs
+
+Per (scene, method) it reports, from whatever the files hold:
+
+- the **order** of convergence p (err ≈ C dt^p, ``classify.fit_order``) of every
+  (method, f, θ0) with at least 3 step sizes: err = the final sample's state
+  error, max(‖axis − axis_ref‖∞, ‖ω − ω_ref‖∞ / |ω0|) (dimensionless), against
+  the finest reference available, in this order: the scene's closed form when
+  it gives the state (``free_symmetric``; ``euler_poinsot``, the exact free
+  body of gyrolab.free_body); else the finest ok run of a
+  yardstick method in the same file (``YARDSTICKS``: lie_poisson4 or
+  split6_exact, whichever finest run differs least from its own next finest
+  run; its reference point is left out of its own fit); else DOP853
+  (kernels/reference.py, rtol = atol = 1e-13) computed once per (scene, f, θ0).
+  The record says which (``reference``);
+- the **drift class** (``classify.classify_drift``) of every invariant the
+  scene declares (layout.conserved; layout.invariant gives each series) for
+  every run with at least ``MIN_DRIFT_SAMPLES`` samples: e(t) = (X(t) − X0)/|X0|,
+  for L the norm of L(t) − L0 over |L0|; rate in 1/s (linear), 1/√s (random
+  walk), 1/s e-folding or power (growing);
+- **preserved**: max |e| at rounding level, ≤ max(500, 5 √N) eps for a run of
+  N steps (a Brouwer walk of a few ulps per step's worth; 1.1e-12 at N = 1e6),
+  and whether the method declares it (``PRESERVES``); ``rounding_drift``: not
+  that, but a linear or √t drift totalling ≤ 0.1 eps per step (a rounding bias);
+- the **stability threshold** (|ω| dt)_crit, only with ``--stability T``:
+  bisection in dt (``classify.method_stability_threshold``) of "the run stays
+  bounded over T seconds" from the file's stored initial state.
+
+Summary records (``kind: "summary"``, one per scene, method and invariant)
+take the order from the ladder and the drift from the method's run with the
+most steps; per-run records (``kind: "run"``) and order records (``kind:
+"order"``) carry f (Hz), θ0 (deg) and dt (s).  Bad input (missing,
+unreadable or foreign file, no runs): one line on stderr, exit 2, nothing
+written.
+"""
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .classify import EPS, classify_drift, fit_order
+
+EXIT_BAD_INPUT = 2
+YARDSTICKS = ("lie_poisson4", "split6_exact")
+MIN_DRIFT_SAMPLES = 16
+MIN_LADDER = 3
+DOP853_TOL = 1e-13
+STATE_CLOSED_FORMS = ("free_symmetric", "euler_poinsot")  # closed forms that give the full state at any time
+RECORD_KEYS = ("kind", "scene", "method", "quantity", "order", "order_ci", "drift_class", "drift_rate",
+               "drift_rate_unit", "omega_dt_crit", "preserved", "declared_preserved", "f", "theta0", "dt")
+
+
+class VerdictError(ValueError):
+    """Bad input: a one-line message."""
+
+
+# ---------------------------------------------------------------- reading
+
+
+def find_files(paths):
+    """Results files named by ``paths``: files as given, directories searched for ``*.h5``."""
+    found = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            found += sorted(q for q in p.rglob("*.h5") if ".partial" not in str(q) and not q.name.startswith("."))
+        elif p.exists():
+            found.append(p)
+        else:
+            raise VerdictError(f"FILE={p}: no such results file")
+    if not found:
+        raise VerdictError(f"FILE={' '.join(map(str, paths))}: no results files (*.h5) found")
+    return found
+
+
+def load(paths):
+    """[(path, Dataset)] of gyrolab results files (layout_version ≥ 1); VerdictError otherwise."""
+    from .io import SelectionError, open_results
+
+    out = []
+    for path in find_files(paths):
+        try:
+            ds = open_results(path)
+        except SelectionError as err:
+            raise VerdictError(str(err)) from None
+        if int(ds.attrs.get("layout_version", 0)) < 1 or "status" not in ds:
+            raise VerdictError(f"FILE={path}: not a gyrolab results file (no layout_version >= 1)")
+        if ds.sizes.get("method", 0) == 0 or int((ds["status"] >= 0).sum()) == 0:
+            raise VerdictError(f"FILE={path}: holds no runs")
+        out.append((path, ds))
+    return out
+
+
+def _text(v):
+    return v.decode() if isinstance(v, bytes) else str(v)
+
+
+def scene_key(ds):
+    """(scene name, 'k=v ...' of its options): files with the same key describe the same physics."""
+    from .io import scene_name, scene_options
+
+    opts = " ".join(f"{k}={_text(v)}" for k, v in sorted(scene_options(ds).items()))
+    return scene_name(ds), opts
+
+
+def declared_preserves(method):
+    """The invariants a registered method declares it preserves, or None if it is not registered."""
+    from ..kernels.registry import METHODS
+
+    mod = METHODS.get(str(method))
+    return None if mod is None else tuple(mod.PRESERVES)
+
+
+def declared_order(method):
+    from ..kernels.registry import METHODS
+
+    mod = METHODS.get(str(method))
+    return None if mod is None else int(mod.ORDER)
+
+
+# ---------------------------------------------------------------- order
+
+
+def state_error(axis, omega, ref_axis, ref_omega, omega0):
+    """max(‖axis − ref‖∞, ‖ω − ref‖∞ / |ω0|): the dimensionless state error of one sample."""
+    axis, omega = np.asarray(axis, float), np.asarray(omega, float)
+    return float(max(np.max(np.abs(axis - ref_axis)), np.max(np.abs(omega - ref_omega)) / omega0))
+
+
+class References:
+    """Reference final states (axis, ω) per (scene, f, θ0, t), each computed once."""
+
+    def __init__(self, how="auto"):
+        self.how = how
+        self.cache = {}
+
+    def get(self, ds, f, theta0):
+        """(axis (3,), ω (3,) rad/s, label, yardstick (method, dt) or None) at the file's last sample time."""
+        from ..layout import closed_form
+        from .io import build_run_scene
+
+        t = float(ds.time.values[-1])
+        scene = build_run_scene(ds, f, theta0)
+        form = closed_form(ds)
+        if self.how in ("auto", "closed_form") and form == "free_symmetric":
+            from ..kernels.closed_form import free_symmetric_solution
+
+            axis, omega = free_symmetric_solution(scene, [t])
+            return axis[0], omega[0], f"closed form ({form})", None
+        if self.how in ("auto", "closed_form") and form == "euler_poinsot":
+            from ..kernels.euler_poinsot import free_body
+
+            omega, q = free_body(scene.body[:3], scene.omega0, scene.q0, np.array([t]))
+            a, b, c, d = q[0]
+            axis = np.array([2 * (b * d + a * c), 2 * (c * d - a * b), a * a + d * d - b * b - c * c])
+            return axis, omega[0], "exact flow (euler_poinsot: gyrolab.free_body)", None
+        if self.how == "closed_form":
+            raise VerdictError(f"--reference closed_form: scene {scene.name} has no closed-form state")
+        if self.how in ("auto", "yardstick"):
+            best = None
+            for name in YARDSTICKS:
+                if name not in ds.method.values:
+                    continue
+                runs = ds.sel({"method": name, "f": f, "theta0": theta0}).isel(time=-1)
+                ok = sorted(float(dt) for dt in runs.dt.values if int(runs.status.sel(dt=dt)) == 0)
+                if len(ok) < 2:
+                    continue
+                fine, next_ = runs.sel(dt=ok[0]), runs.sel(dt=ok[1])
+                omega0 = float(np.linalg.norm(ds["omega0"].sel(f=f, theta0=theta0).values))
+                # Self-consistency: the finest run against the next finest, an upper estimate of its error.
+                spread = state_error(fine.axis.values, fine.omega.values, next_.axis.values, next_.omega.values,
+                                     omega0)
+                if best is None or spread < best[0]:
+                    best = (spread, name, ok[0], fine)
+            if best is not None:
+                spread, name, dt, run = best
+                return (run.axis.values, run.omega.values,
+                        f"finest {name} run (dt = {dt:.3g} s; differs from its next finest by {spread:.1e})",
+                        (name, dt))
+        if self.how == "yardstick":
+            raise VerdictError(f"--reference yardstick: no ok run of {' or '.join(YARDSTICKS)} in the file")
+        key = (scene.body, scene.omega0, scene.q0, t)
+        if key not in self.cache:
+            from ..kernels.reference import dop853
+
+            s = dop853(scene, t, t, rtol=DOP853_TOL, atol=DOP853_TOL)[-1]
+            self.cache[key] = (s[0:3], s[3:6])
+        axis, omega = self.cache[key]
+        return axis, omega, f"DOP853 (rtol = atol = {DOP853_TOL:g})", None
+
+
+def order_records(ds, refs):
+    """Order records of every (method, f, θ0) of ``ds`` with ≥ MIN_LADDER step sizes."""
+    from .io import scene_name
+
+    if ds.sizes["dt"] < MIN_LADDER or ds.sizes["time"] < 2:
+        return []
+    out = []
+    for f in ds.f.values:
+        for th in ds.theta0.values:
+            ref_axis, ref_omega, label, own = refs.get(ds, f, th)
+            omega0 = float(np.linalg.norm(ds["omega0"].sel(f=f, theta0=th).values))
+            for m in ds.method.values:
+                runs = ds.sel({"method": m, "f": f, "theta0": th}).isel(time=-1)
+                dts, errs = [], []
+                for dt in runs.dt.values:
+                    if own == (str(m), float(dt)):
+                        continue  # the reference itself
+                    run = runs.sel(dt=dt)
+                    bad = int(run.status) != 0
+                    dts.append(float(dt))
+                    errs.append(math.inf if bad else state_error(run.axis.values, run.omega.values, ref_axis,
+                                                                 ref_omega, omega0))
+                fit = fit_order(dts, errs)
+                out.append(dict(
+                    kind="order", scene=scene_name(ds), method=str(m), quantity="state", f=float(f),
+                    theta0=float(th), dt=None, t_end=float(ds.time.values[-1]), reference=label,
+                    order=fit.order, order_ci=[fit.ci_low, fit.ci_high], order_dt_range=[fit.dt_min, fit.dt_max],
+                    order_points=fit.n_points, order_reason=fit.reason, declared_order=declared_order(m),
+                    ladder_dt=dts, ladder_err=errs, ladder_used=fit.used, ladder_excluded=fit.excluded))
+    return out
+
+
+# ---------------------------------------------------------------- drift
+
+
+def signed_error(values):
+    """e(t) of an invariant series: (x − x0)/|x0| for a scalar (x0 → max |x| when |x0| is ~0 next to it),
+    |X − X0|/|X0| for a vector (time, xyz)."""
+    x = np.asarray(values, dtype=float)
+    if x.ndim == 2:
+        scale = np.linalg.norm(x[0]) or np.nanmax(np.linalg.norm(x, axis=-1))
+        return np.linalg.norm(x - x[:1], axis=-1) / scale
+    scale = abs(x[0])
+    big = np.nanmax(np.abs(x)) if np.isfinite(x).any() else 0.0
+    if not scale > 1e-9 * big:
+        scale = big or 1.0
+    return (x - x[0]) / scale
+
+
+def preserved_ulps(n_steps):
+    """The rounding level of a run of n_steps steps, in ulps: max(500, 5 √N)."""
+    return max(500.0, 5.0 * math.sqrt(max(n_steps, 0)))
+
+
+def drift_records(ds):
+    """Run records (one per run and declared invariant) of every run with ≥ MIN_DRIFT_SAMPLES samples."""
+    from ..layout import conserved, invariant
+    from .io import scene_name
+
+    if ds.sizes["time"] < MIN_DRIFT_SAMPLES:
+        return []
+    t = np.asarray(ds.time.values, dtype=float)
+    out = []
+    names = [q for q in conserved(ds) if q in ds or (q == "L_norm" and "L" in ds)]
+    for m in ds.method.values:
+        declared = declared_preserves(m)
+        for f in ds.f.values:
+            for th in ds.theta0.values:
+                for dt in ds.dt.values:
+                    run = ds.sel({"method": m, "f": f, "theta0": th, "dt": dt})
+                    n_steps = int(run.n_steps)
+                    for q in names:
+                        e = signed_error(invariant(run, q).values)
+                        d = classify_drift(t, e, preserved_ulps=preserved_ulps(n_steps))
+                        # A drift whose total stays below 0.1 ulp per step is a rounding bias, not truncation.
+                        rounding_drift = (not d.preserved_to_rounding and d.drift_class in ("linear", "random_walk")
+                                          and d.amplitude <= 0.1 * EPS * n_steps)
+                        out.append(dict(
+                            kind="run", scene=scene_name(ds), method=str(m), quantity=q, f=float(f),
+                            theta0=float(th), dt=float(dt), t_end=float(t[-1]), n_steps=n_steps,
+                            status=int(run.status), drift_class=d.drift_class, drift_rate=d.rate,
+                            drift_rate_unit=d.rate_unit, drift_rate_stderr=d.rate_stderr,
+                            amplitude=d.amplitude, late_mean=d.late_mean, t_diverged=d.t_diverged,
+                            preserved=d.preserved_to_rounding,
+                            rounding_drift=bool(rounding_drift),
+                            declared_preserved=None if declared is None else q in declared,
+                            order=None, order_ci=None, omega_dt_crit=None))
+    return out
+
+
+# ---------------------------------------------------------------- stability threshold
+
+
+def threshold_records(datasets, t_end, rtol=1e-3):
+    """One record per (scene, method) of the files: (|ω| dt)_crit over t_end s at the first (f, θ0)."""
+    from .classify import method_stability_threshold
+    from .io import build_run_scene, scene_name
+
+    done, out = set(), []
+    for _, ds in datasets:
+        for m in ds.method.values:
+            key = (scene_key(ds), str(m))
+            if key in done or declared_order(m) is None:
+                continue
+            done.add(key)
+            f, th = float(ds.f.values[0]), float(ds.theta0.values[0])
+            thr = method_stability_threshold(str(m), build_run_scene(ds, f, th), t_end, rtol=rtol)
+            out.append(dict(kind="threshold", scene=scene_name(ds), method=str(m), quantity="stability", f=f,
+                            theta0=th, dt=None, stability_t_end=float(t_end), omega_dt_crit=thr.omega_dt_crit,
+                            omega_dt_bracket=[thr.omega_dt_lo, thr.omega_dt_hi], omega=thr.omega,
+                            threshold_reason=thr.reason, order=None, order_ci=None, drift_class=None,
+                            drift_rate=None, preserved=None))
+    return out
+
+
+# ---------------------------------------------------------------- the verdict
+
+
+def _blank(**kw):
+    rec = {k: None for k in RECORD_KEYS}
+    rec.update(kw)
+    return rec
+
+
+def summaries(datasets, orders, runs, thresholds):
+    """Summary records: per (scene, method, declared invariant) the order, drift, preserved and threshold."""
+    from ..layout import conserved
+    from .io import scene_name
+
+    scenes = {}
+    for _, ds in datasets:
+        scenes.setdefault(scene_name(ds), [])
+        for q in conserved(ds):
+            if q not in scenes[scene_name(ds)]:
+                scenes[scene_name(ds)].append(q)
+        for m in ds.method.values:
+            scenes.setdefault(("methods", scene_name(ds)), [])
+            if str(m) not in scenes[("methods", scene_name(ds))]:
+                scenes[("methods", scene_name(ds))].append(str(m))
+    out = []
+    for scene in [k for k in scenes if isinstance(k, str)]:
+        for m in scenes[("methods", scene)]:
+            order = next((o for o in orders if o["scene"] == scene and o["method"] == m and not o["order_reason"]),
+                         next((o for o in orders if o["scene"] == scene and o["method"] == m), None))
+            thr = next((r for r in thresholds if r["scene"] == scene and r["method"] == m), None)
+            for q in scenes[scene]:
+                mine = [r for r in runs if r["scene"] == scene and r["method"] == m and r["quantity"] == q]
+                run = max(mine, key=lambda r: (r["n_steps"], r["t_end"], -r["dt"])) if mine else None
+                rec = _blank(kind="summary", scene=scene, method=m, quantity=q, declared_order=declared_order(m))
+                if order:
+                    rec.update({k: order[k] for k in ("order", "order_ci", "order_dt_range", "order_points",
+                                                       "order_reason", "reference", "ladder_excluded",
+                                                       "ladder_err")})
+                    rec.update(order_f=order["f"], order_theta0=order["theta0"], order_t_end=order["t_end"])
+                if run:
+                    rec.update({k: run[k] for k in ("drift_class", "drift_rate", "drift_rate_unit", "drift_rate_stderr",
+                                                    "amplitude", "late_mean", "t_diverged", "preserved",
+                                                    "rounding_drift", "declared_preserved",
+                                                    "f", "theta0", "dt", "t_end", "n_steps", "status")})
+                if thr:
+                    rec.update(omega_dt_crit=thr["omega_dt_crit"], omega_dt_bracket=thr["omega_dt_bracket"],
+                               stability_t_end=thr["stability_t_end"], threshold_reason=thr["threshold_reason"],
+                               stability_f=thr["f"], stability_theta0=thr["theta0"])
+                out.append(rec)
+    return out
+
+
+def verdict(paths, stability=None, reference="auto"):
+    """All records (summary, order, run, threshold) from the results files ``paths``; ``stability``: T (s)
+    of the threshold bisection, None to skip it."""
+    datasets = load(paths)
+    refs = References(reference)
+    orders, runs = [], []
+    for _, ds in datasets:
+        orders += order_records(ds, refs)
+        runs += drift_records(ds)
+    thresholds = threshold_records(datasets, stability) if stability else []
+    out = summaries(datasets, orders, runs, thresholds) + orders + runs + thresholds
+    for rec in out:  # every record carries every key of RECORD_KEYS (None where it does not apply)
+        for key in RECORD_KEYS:
+            rec.setdefault(key, None)
+    return out
+
+
+def jsonable(value):
+    """Plain JSON values: NaN/inf → None, numpy scalars → Python."""
+    if isinstance(value, dict):
+        return {k: jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+# ---------------------------------------------------------------- text
+
+
+def _g(x, digits=3):
+    return "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else f"{x:.{digits}g}"
+
+
+def fmt_order(rec):
+    if rec.get("order") is None or not math.isfinite(rec["order"]):
+        excl = rec.get("ladder_excluded") or []
+        reason = rec.get("order_reason") or ""
+        if "floor" in reason and not any(k in reason for k in ("diverged", "flat", "pre_asymptotic")):
+            return "exact (err at rounding floor)"
+        if "diverged" in reason:
+            return "— (err ≥ 1 at most dt)"
+        errs = np.array([e for e in rec.get("ladder_err") or [] if e is not None and math.isfinite(e) and e > 0])
+        if errs.size >= MIN_LADDER and errs.max() < 10 * errs.min():
+            return f"— (flat: err ≈ {np.median(errs):.0e} at every dt)"
+        return "— (err does not fall with dt)" if reason or excl else "—"
+    lo, hi = rec["order_ci"]
+    ci = f" [{lo:.2f}, {hi:.2f}]" if lo is not None and math.isfinite(lo) else ""
+    return f"{rec['order']:.2f}{ci}"
+
+
+UNIT_TEXT = {"1/s": "/s", "1/sqrt(s)": "/√s", "1/s e-folding": "/s (e-fold)", "power": "(t^p)"}
+
+
+def fmt_drift(rec):
+    c = rec.get("drift_class")
+    if c is None:
+        return "—"
+    if c == "bounded":
+        amp, late = rec.get("amplitude"), rec.get("late_mean")
+        settles = f", settles at {late:.2g}" if late is not None and amp and amp > 1e-6 and abs(late) > 0.5 * amp \
+            else ""
+        return f"bounded (≤ {_g(amp, 2)}{settles})"
+    if c == "diverged":
+        return f"diverged (t = {_g(rec.get('t_diverged'))} s)"
+    rate = rec.get("drift_rate")
+    unit = rec.get("drift_rate_unit") or ""
+    if unit == "power":
+        return f"growing ∝ t^{_g(rate)}"
+    return f"{c} {_g(rate)} {UNIT_TEXT.get(unit, unit)}"
+
+
+def fmt_threshold(rec):
+    crit = rec.get("omega_dt_crit")
+    if crit is not None and math.isfinite(crit):
+        return f"{crit:.3g}"
+    lo, hi = rec.get("omega_dt_bracket") or (None, None)
+    if hi is not None and math.isfinite(hi) and (lo is None or not math.isfinite(lo)):
+        return f"< {hi:.3g}"
+    if lo is not None and math.isfinite(lo) and (hi is None or not math.isfinite(hi)):
+        return f"> {lo:.3g}"
+    return "—"
+
+
+def fmt_preserved(recs):
+    """'L, Lz' preserved to rounding; '!' marks a mismatch with the method's PRESERVES."""
+    parts = []
+    for r in recs:
+        if r.get("preserved") is None:
+            continue
+        if r["preserved"]:
+            parts.append(r["quantity"] + ("" if r.get("declared_preserved") in (True, None) else " (undeclared)"))
+        elif r.get("rounding_drift"):
+            parts.append(f"{r['quantity']} (rounding drift)")
+        elif r.get("declared_preserved"):
+            parts.append(f"!{r['quantity']} declared, not kept")
+    return ", ".join(parts) or "none"
+
+
+def markdown(records, title="Verdicts measured by gyrolab"):
+    """The verdict as a Markdown document: per scene, one table row per method, with the conditions."""
+    from ..kernels.scenes import scenes as scene_table
+
+    summ = [r for r in records if r["kind"] == "summary"]
+    lines = [f"# {title}", "",
+             "Generated by `gyrolab-verdict` (analysis/verdict.py) from stored results; do not edit by hand.  "
+             "Regenerate docs/: `gyrolab experiment=verdict hydra.callbacks.verdict.docs_dir=$PWD/docs`.",
+             "Order: fitted p of err ≈ C dtᵖ over the asymptotic range of the dt ladder [95 % CI], err = the final "
+             "state's error max(‖axis − ref‖∞, ‖ω − ref‖∞/|ω0|).  Drift: class of e(t) = (X(t) − X0)/|X0| of each "
+             "declared invariant (|L(t) − L0|/|L0| for L) with its fitted rate; bounded shows max |e|.  "
+             "Preserved: max |e| ≤ max(500, 5√N) eps over N steps; 'rounding drift': a linear or √t drift whose "
+             "total stays below 0.1 eps per step; '!' = declared in PRESERVES but not kept.  "
+             "(‖ω‖dt)_crit: largest step, by bisection, whose run stays bounded (|E − E0| ≤ T0 + |Mgl|) over the "
+             "stated time; '< x' = not bounded even at the smallest step tried, '> x' = bounded at the largest.", ""]
+    for scene in dict.fromkeys(r["scene"] for r in summ):
+        rows = [r for r in summ if r["scene"] == scene]
+        quantities = list(dict.fromkeys(r["quantity"] for r in rows))
+        info = scene_table().get(scene, {})
+        lines += [f"## {scene}", "", f"{info.get('doc', '')}", ""]
+        conds = _conditions(records, scene)
+        lines += [f"- {c}" for c in conds] + [""]
+        head = ["method", "declared order", "measured order"] + [f"{q} drift" for q in quantities] + [
+            "preserved to rounding", "(‖ω‖dt)_crit"]
+        lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        for m in dict.fromkeys(r["method"] for r in rows):
+            mine = [r for r in rows if r["method"] == m]
+            first = mine[0]
+            cells = [f"`{m}`", str(first.get("declared_order") or "—"), fmt_order(first)]
+            cells += [fmt_drift(next(r for r in mine if r["quantity"] == q)) for q in quantities]
+            cells += [fmt_preserved(mine), fmt_threshold(first)]
+            lines.append("| " + " | ".join(cells) + " |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _conditions(records, scene):
+    """Sentences stating f, θ0, dt and t_end behind the numbers of ``scene``."""
+    out = []
+    orders = [r for r in records if r["kind"] == "order" and r["scene"] == scene]
+    for key in dict.fromkeys((o["f"], o["theta0"], o["t_end"], o["reference"]) for o in orders):
+        o = next(x for x in orders if (x["f"], x["theta0"], x["t_end"], x["reference"]) == key)
+        dts = o["ladder_dt"] + ([] if "finest" not in o["reference"] else [])
+        out.append(f"order: f = {o['f']:g} Hz, θ0 = {o['theta0']:g}°, final state at t = {o['t_end']:g} s, "
+                   f"dt = {max(dts):.3g} … {min(dts):.3g} s ({len(dts)} steps, halving); reference: {o['reference']}")
+    runs = [r for r in records if r["kind"] == "summary" and r["scene"] == scene and r.get("drift_class")]
+    for key in dict.fromkeys((r["f"], r["theta0"], r["dt"], r["t_end"], r["n_steps"]) for r in runs
+                             if r.get("status") == 0):
+        f, th, dt, t_end, n = key
+        out.append(f"drift: f = {f:g} Hz, θ0 = {th:g}°, dt = {dt:g} s, t_end = {t_end:g} s ({n:.3g} steps)")
+    thr = [r for r in records if r["kind"] == "threshold" and r["scene"] == scene]
+    for key in dict.fromkeys((r["f"], r["theta0"], r["stability_t_end"], r["omega"]) for r in thr):
+        f, th, t_end, omega = key
+        out.append(f"(‖ω‖dt)_crit: f = {f:g} Hz, θ0 = {th:g}°, ‖ω0‖ = {omega:.4g} rad/s, bounded over "
+                   f"{t_end:g} s, bisection to 0.1 % in dt")
+    return out
+
+
+def table(records):
+    """Plain-text table of the summary records, one line per (scene, method, invariant)."""
+    lines = []
+    for r in (r for r in records if r["kind"] == "summary"):
+        ref = f"  ref: {r['reference']}" if r.get("reference") and r["quantity"] == "energy" else ""
+        cond = f"f={r['f']:g} θ0={r['theta0']:g} dt={r['dt']:g} t_end={r['t_end']:g}" if r.get("f") is not None \
+            else ""
+        lines.append(f"{r['scene']:16s} {r['method']:21s} {r['quantity']:7s} order {fmt_order(r):22s} "
+                     f"{fmt_drift(r):34s} preserved={r.get('preserved')} crit={fmt_threshold(r)} {cond}{ref}")
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------- CLI
+
+
+def build_parser():
+    p = argparse.ArgumentParser(prog="gyrolab-verdict", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("file", nargs="+", metavar="FILE", help="results files (or directories of them)")
+    p.add_argument("--json", metavar="PATH", help="write the records as a JSON list")
+    p.add_argument("--markdown", metavar="PATH", help="write the verdict tables as Markdown")
+    p.add_argument("--stability", metavar="T", type=float,
+                   help="also bisect the stability threshold over T seconds per (scene, method)")
+    p.add_argument("--reference", choices=("auto", "closed_form", "yardstick", "dop853"), default="auto",
+                   help="reference of the order fits (default auto: closed form, yardstick run, DOP853)")
+    p.add_argument("--figures", metavar="DIR", help="draw verdict_<scene>.png into DIR")
+    return p
+
+
+def fail(message):
+    sys.stderr.write(f"gyrolab-verdict: error: {' '.join(str(message).split())}\n")
+    sys.exit(EXIT_BAD_INPUT)
+
+
+def write_outputs(records, json_path=None, markdown_path=None, figures_dir=None, datasets=None):
+    """Write the JSON list, the Markdown and the figures asked for; returns the paths written."""
+    written = []
+    if json_path:
+        Path(json_path).write_text(json.dumps(jsonable(records), indent=1) + "\n")
+        written.append(Path(json_path))
+    if markdown_path:
+        Path(markdown_path).write_text(markdown(records) + "\n")
+        written.append(Path(markdown_path))
+    if figures_dir:
+        from .verdict_study import draw_figures
+
+        written += draw_figures(records, datasets or [], figures_dir)
+    return written
+
+
+def main(argv=None):
+    args = build_parser().parse_args(argv)
+    if args.stability is not None and not (math.isfinite(args.stability) and args.stability > 0):
+        fail(f"--stability={args.stability}: must be a time > 0 s")
+    for flag in ("json", "markdown"):
+        path = getattr(args, flag)
+        if path and not Path(path).resolve().parent.is_dir():
+            fail(f"--{flag}={path}: no such directory {Path(path).resolve().parent}")
+    try:
+        records = verdict(args.file, stability=args.stability, reference=args.reference)
+        datasets = load(args.file) if args.figures else None
+    except VerdictError as err:
+        fail(err)
+    print(table(records))
+    for path in write_outputs(records, args.json, args.markdown, args.figures, datasets):
+        print(f"gyrolab-verdict: wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

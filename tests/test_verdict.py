@@ -1,0 +1,167 @@
+"""gyrolab-verdict (analysis/verdict.py) on small results files with known answers.
+
+Files are built through the kernels and the layout (helpers.make_dataset): a dt ladder of the heavy
+top (50 Hz, θ0 = 45°, released; final state at 1 s, dt = 1e-2/2^k) for the orders, long runs for
+the drift classes; the CLI's JSON schema and its one-line refusals of bad input.
+"""
+import json
+import math
+import subprocess
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from gyrolab.analysis import verdict as V
+
+from helpers import command, make_dataset
+
+TRUE_ORDER = {"seed_next": 1, "rk4": 4, "lie_poisson": 2, "lie_poisson4": 4}
+LADDER = [1e-2 / 2 ** k for k in range(13)]
+
+
+def write(ds, path):
+    ds.to_netcdf(path, engine="h5netcdf")
+    return path
+
+
+@pytest.fixture(scope="module")
+def ladder_file(tmp_path_factory):
+    grid = {"method": list(TRUE_ORDER), "f": [50.0], "theta0": [45.0], "dt": LADDER}
+    return write(make_dataset(grid, t_end=1.0, every=1.0), tmp_path_factory.mktemp("v") / "ladder.h5")
+
+
+@pytest.fixture(scope="module")
+def drift_files(tmp_path_factory):
+    root = tmp_path_factory.mktemp("d")
+    a = make_dataset({"method": ["lie_poisson", "rk4"], "f": [50.0], "theta0": [45.0], "dt": [1e-3]},
+                     t_end=100.0, every=1e-2)
+    b = make_dataset({"method": ["explicit_euler"], "f": [50.0], "theta0": [45.0], "dt": [1e-5]},
+                     t_end=5.0, every=1e-3)
+    return write(a, root / "long.h5"), write(b, root / "euler.h5")
+
+
+def run_cli(*args, tmp_path):
+    return subprocess.run(command("gyrolab-verdict", "gyrolab.analysis.verdict") + [str(a) for a in args],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=300)
+
+
+def records(paths, tmp_path, *extra):
+    out = tmp_path / "v.json"
+    V.main([str(p) for p in paths] + ["--json", str(out)] + list(extra))
+    return json.loads(out.read_text())
+
+
+def test_orders_of_the_ladder(ladder_file, tmp_path):
+    recs = records([ladder_file], tmp_path)
+    orders = {r["method"]: r for r in recs if r["kind"] == "order"}
+    for name, p in TRUE_ORDER.items():
+        r = orders[name]
+        assert abs(r["order"] - p) <= 0.15, r
+        assert r["order_ci"][0] <= r["order"] <= r["order_ci"][1]
+        assert r["reference"].startswith("finest lie_poisson4 run")
+    summ = [r for r in recs if r["kind"] == "summary" and r["method"] == "rk4"]
+    assert {r["quantity"] for r in summ} == {"energy", "Lz", "L3"}  # heavy_top's CONSERVED
+    assert all(abs(r["order"] - 4) <= 0.15 for r in summ)
+
+
+def test_dop853_reference_gives_the_same_orders(ladder_file, tmp_path):
+    recs = records([ladder_file], tmp_path, "--reference", "dop853")
+    for r in (r for r in recs if r["kind"] == "order"):
+        assert r["reference"].startswith("DOP853")
+        assert abs(r["order"] - TRUE_ORDER[r["method"]]) <= 0.15, r
+
+
+def test_drift_classes(drift_files, tmp_path):
+    recs = records(drift_files, tmp_path)
+    runs = {(r["method"], r["quantity"]): r for r in recs if r["kind"] == "run"}
+    assert runs["lie_poisson", "energy"]["drift_class"] == "bounded"
+    assert runs["rk4", "energy"]["drift_class"] == "linear" and runs["rk4", "energy"]["drift_rate"] < 0
+    assert runs["rk4", "energy"]["drift_rate_unit"] == "1/s"
+    assert runs["explicit_euler", "energy"]["drift_class"] == "growing"
+    # L3 = I3 w3 is kept exactly by every symmetric-top scheme; the declaration agrees
+    assert runs["lie_poisson", "L3"]["preserved"] and runs["lie_poisson", "L3"]["declared_preserved"]
+    assert not runs["rk4", "energy"]["preserved"]
+
+
+def test_json_schema(ladder_file, drift_files, tmp_path):
+    recs = records([ladder_file, *drift_files], tmp_path)
+    assert {r["kind"] for r in recs} == {"summary", "order", "run"}
+    for r in recs:
+        assert set(V.RECORD_KEYS) <= set(r), r
+    for r in recs:
+        if r["kind"] == "run":
+            assert all(isinstance(r[k], float) for k in ("f", "theta0", "dt"))
+            assert r["drift_class"] in ("bounded", "linear", "random_walk", "growing", "diverged")
+        if r["kind"] == "order":
+            assert len(r["order_ci"]) == 2
+    summ = [r for r in recs if r["kind"] == "summary" and r["method"] == "rk4" and r["quantity"] == "energy"]
+    assert len(summ) == 1 and summ[0]["order"] is not None and summ[0]["drift_class"] == "linear"
+    assert summ[0]["t_end"] == 100.0 and summ[0]["dt"] == 1e-3  # the drift comes from the long run
+
+
+def test_markdown_states_the_conditions(ladder_file, drift_files, tmp_path):
+    md = tmp_path / "v.md"
+    V.main([str(ladder_file), *map(str, drift_files), "--markdown", str(md)])
+    text = md.read_text()
+    assert "## heavy_top" in text and "| `rk4` | 4 |" in text
+    assert "f = 50 Hz, θ0 = 45°, final state at t = 1 s" in text
+    assert "dt = 0.001 s, t_end = 100 s" in text
+
+
+def test_cli_prints_a_table(ladder_file, tmp_path):
+    result = run_cli(ladder_file, tmp_path=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert "seed_next" in result.stdout and "order 1.0" in result.stdout
+
+
+def _bad_inputs(tmp_path, ladder_file):
+    (tmp_path / "notes.h5").write_text("not hdf5\n")
+    foreign = tmp_path / "foreign.h5"
+    xr.Dataset({"x": ("n", np.arange(3.0))}).to_netcdf(foreign, engine="h5netcdf")
+    empty = tmp_path / "empty.h5"
+    with xr.open_dataset(ladder_file, engine="h5netcdf") as ds:
+        ds.load().isel(method=[]).to_netcdf(empty, engine="h5netcdf")
+    return {"missing": [tmp_path / "nope.h5"], "unreadable": [tmp_path / "notes.h5"], "foreign": [foreign],
+            "no runs": [empty], "empty dir": [tmp_path / "sub"]}
+
+
+def test_bad_input_exits_2_with_one_line(ladder_file, tmp_path):
+    (tmp_path / "sub").mkdir()
+    for name, files in _bad_inputs(tmp_path, ladder_file).items():
+        out = tmp_path / f"{name}.json"
+        result = run_cli(*files, "--json", out, tmp_path=tmp_path)
+        assert result.returncode == 2, (name, result)
+        assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr, (name, result)
+        assert result.stderr.startswith("gyrolab-verdict: error:"), result.stderr
+        assert not out.exists(), name
+
+
+def test_bad_flags_exit_2(ladder_file, tmp_path):
+    for args in (["--stability", "-1"], ["--json", str(tmp_path / "no" / "dir" / "v.json")]):
+        result = run_cli(ladder_file, *args, tmp_path=tmp_path)
+        assert result.returncode == 2 and len(result.stderr.strip().splitlines()) == 1, result
+
+
+def test_stability_threshold_record(tmp_path):
+    """rk4 on the free disc: |c| dt_crit = 2√2 on the imaginary axis (c = ω3 here)."""
+    path = write(make_dataset({"method": ["rk4"], "f": [10.0], "theta0": [30.0], "dt": [1e-3]},
+                              scene="free_symmetric", t_end=1.0, every=0.1), tmp_path / "disc.h5")
+    recs = records([path], tmp_path, "--stability", "10")
+    thr = next(r for r in recs if r["kind"] == "threshold")
+    omega = thr["omega"]
+    c = 2 * math.pi * 10.0
+    assert thr["omega_dt_crit"] * c / omega == pytest.approx(2 * math.sqrt(2), rel=5e-3)
+    summ = next(r for r in recs if r["kind"] == "summary")
+    assert summ["omega_dt_crit"] == thr["omega_dt_crit"] and summ["stability_t_end"] == 10.0
+
+
+@pytest.mark.slow
+def test_seed_next_drift_at_50_hz_is_linear_at_the_issue_rate(tmp_path):
+    """Issue 11: heavy top, θ0 = 45°, released, 50 Hz, dt = 1e-3 s, 400 s: linear, −3.2e-6 /s ± 10 %."""
+    path = write(make_dataset({"method": ["seed_next"], "f": [50.0], "theta0": [45.0], "dt": [1e-3]},
+                              t_end=400.0, every=0.1), tmp_path / "seed.h5")
+    recs = records([path], tmp_path)
+    e = next(r for r in recs if r["kind"] == "summary" and r["quantity"] == "energy")
+    assert e["drift_class"] == "linear" and e["drift_rate_unit"] == "1/s"
+    assert e["drift_rate"] == pytest.approx(-3.2e-6, rel=0.1), e
