@@ -9,14 +9,32 @@ method that inlines it.  With the key, any edit of any kernel file selects a
 fresh cache directory: nothing stale can run, and nothing needs clearing by
 hand.  ``NUMBA_CACHE_DIR``, when set, is the parent of those directories
 (default: ``$XDG_CACHE_HOME/gyrolab/numba`` or ``~/.cache/gyrolab/numba``).
+
+It also starts numba's counter of function ids at a random value in each
+process.  numba names every compiled function ``<module>.<qualname>$<id>``
+with ODR linkage, the id counted from 1 in each process; cached code keeps
+those names.  Two methods compiled in different processes can therefore
+bring different code under one name (driver.make_advance's ``advance_run``
+closure is the same qualname for every method), and a process that loads
+both caches links one method's kernel to the other's code: a sweep of two
+methods silently ran the first one's step for both.  With random starting
+ids, names from different processes differ (tests/test_provenance.py
+reproduces the collision with the counter reset).
 """
 import hashlib
+import itertools
 import os
+import secrets
 import sys
 import tempfile
 from pathlib import Path
 
 import numba
+from numba.core import bytecode
+
+# 2^40 possible starts, ~1e4 functions per process: a collision between two processes' caches has a
+# probability of order 1e-8.
+bytecode.FunctionIdentity._unique_ids = itertools.count(secrets.randbits(40) + 1)
 
 
 def _source_hash():

@@ -91,3 +91,74 @@ def test_import_gyrolab_from_the_checkout_root():
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert "'lie_poisson'" in done.stdout and "'seed_next'" in done.stdout
+
+
+TWIN = '''"""{name}: a test method (kick and free flow, in one order or the other)."""
+from numba import njit
+
+from ..free_flow import free_flow, kick
+
+ORDER = 1
+SYMPLECTIC = True
+PRESERVES = ()
+
+
+@njit(cache=True, error_model="numpy")
+def step(w, q, dt, body):
+    {body}
+'''
+TWINS = {"twin_a": "w = kick(w, q, dt, body)\n    return free_flow(w, q, dt, body)",
+         "twin_b": "w, q = free_flow(w, q, dt, body)\n    return kick(w, q, dt, body), q"}
+RUN_TWINS = """
+import sys, numpy as np
+from gyrolab.kernels.batch import integrate
+from gyrolab.kernels.scenes import build_scene
+sc = build_scene("heavy_top", 10.0, 45.0)
+for name in sys.argv[1:]:
+    out = integrate(name, np.array([sc.body]), np.array([sc.omega0]), np.array([sc.q0]), 1e-3, 10, 11, path="runs")
+    print(name, repr(float(out[0][0, -1, 6])))
+"""
+
+
+def run_twins(tree, cache, *names):
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(tree)}
+    done = subprocess.run([sys.executable, "-c", RUN_TWINS, *names], cwd=tree, env=env, capture_output=True,
+                          text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    return dict(line.split() for line in done.stdout.splitlines())
+
+
+@pytest.mark.slow
+def test_kernels_cached_by_different_processes_never_share_code(tmp_path):
+    """Two methods with the same call structure, each compiled alone from an empty cache in its own
+    process (so both processes number their functions alike), the two caches merged into one, then
+    loaded together in a third process: each must give its own result.  With numba's per-process function counter as it is (reset in a copy
+    of the tree) the third process runs twin_a's code for twin_b: the collision is real, and the
+    random start in kernels/__init__.py is what prevents it."""
+    tree = tmp_path / "tree"
+    for name in ("gyrolab", "kernels", "runner", "analysis", "conf"):
+        shutil.copytree(CHECKOUT / name, tree / name, ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(CHECKOUT / "pyproject.toml", tree)
+    for name, body in TWINS.items():
+        (tree / "kernels" / "methods" / f"{name}.py").write_text(TWIN.format(name=name, body=body))
+    registry = tree / "kernels" / "registry.py"
+    names = '    "no_gyro",\n    "twin_a",\n    "twin_b",\n'
+    registry.write_text(registry.read_text().replace('    "no_gyro",\n', names))
+    init = tree / "kernels" / "__init__.py"
+    fixed = init.read_text()
+    guard = "bytecode.FunctionIdentity._unique_ids = itertools.count(secrets.randbits(40) + 1)"
+    assert guard in fixed
+    for variant, text in (("numba's counter", fixed.replace(guard, "pass")), ("random start", fixed)):
+        init.write_text(text)
+        tag = variant.split()[0].strip("'")
+        caches = [tmp_path / f"cache-{tag}-{name}" for name in TWINS]
+        alone = {**run_twins(tree, caches[0], "twin_a"), **run_twins(tree, caches[1], "twin_b")}
+        assert alone["twin_a"] != alone["twin_b"]
+        merged = tmp_path / f"cache-{tag}"
+        shutil.copytree(caches[0], merged)
+        shutil.copytree(caches[1], merged, dirs_exist_ok=True)  # shared helpers: the same code either way
+        together = run_twins(tree, merged, "twin_a", "twin_b")
+        if variant == "random start":
+            assert together == alone
+        else:
+            assert together["twin_b"] == alone["twin_a"], (variant, together, alone)  # the bug, reproduced
