@@ -14,8 +14,11 @@ A selection is KEY=VALUE[,VALUE...] with KEY in method, f (Hz), theta0 (deg),
 dt (s).  Output: -o PATH (default ``<kind>.png`` next to FILE); --format png
 svg pdf for several.  Only ``work-precision`` runs anything (its DOP853 peer,
 scipy, at several tolerances); every other kind reads the stored samples.
-Bad input: one line on stderr naming the key and value, exit status 2,
-no file written.
+When a figure cannot draw every value of the grid it says which it drew, in
+the figure and on a ``gyrolab-plot: note:`` line, with the command that draws
+the others.  -o into a directory that does not exist is refused unless
+--parents.  Bad input: one line on stderr naming the key and value, exit
+status 2, no file written.
 """
 import argparse
 import sys
@@ -32,6 +35,7 @@ def _common(p, many=False):
         p.add_argument("selection", nargs="*", metavar="KEY=VALUE",
                        help="grid values to draw: method=..., f=... (Hz), theta0=... (deg), dt=... (s)")
     p.add_argument("-o", "--output", help="output path (suffix replaced per --format); default next to FILE")
+    p.add_argument("--parents", action="store_true", help="create -o's missing parent directories")
     p.add_argument("--format", nargs="+", default=["png"], choices=["png", "svg", "pdf"],
                    help="file formats to write (default: png)")
 
@@ -53,6 +57,7 @@ def build_parser():
     p = sub.add_parser("standard", help="the figures the file's study asks for (output.figures) into a directory")
     p.add_argument("file", metavar="FILE")
     p.add_argument("-o", "--output", help="output directory (default: figures/ next to FILE)")
+    p.add_argument("--parents", action="store_true", help="create -o's missing parent directories")
     return parser
 
 
@@ -61,18 +66,32 @@ def _fail(message):
     sys.exit(EXIT_BAD_INPUT)
 
 
-def run(args):
-    """Make the figure ``args.kind``; return the written path(s)."""
+def _check_output(args):
+    """ValueError (exit 2) when -o names a path whose parent directory does not exist (unless --parents)."""
+    if not args.output:
+        return
+    parent = Path(args.output).parent
+    if not parent.is_dir():
+        if getattr(args, "parents", False):
+            parent.mkdir(parents=True, exist_ok=True)
+        else:
+            raise ValueError(f"-o {args.output}: directory {parent} does not exist (create it, or pass --parents)")
+
+
+def run(args, notes=None):
+    """Make the figure ``args.kind``; return the written path(s).  ``notes`` (a list) receives the
+    figure's selection notes, with FILE replaced by the file's path."""
     from .figures import FIGURES
     from .io import open_results, parse_selection
 
     kind = args.kind
+    _check_output(args)
     if kind == "standard":
         from .figures import standard_figures
 
         out = args.output or Path(args.file).parent / "figures"
         open_results(args.file)  # a clear error before anything is written
-        return standard_figures(args.file, out)
+        return standard_figures(args.file, out, log=lambda line: print(line.replace("gyrolab:", "gyrolab-plot:", 1)))
     if kind == "seed":
         from .seed_figures import seed_figures
 
@@ -85,7 +104,11 @@ def run(args):
     out = Path(args.output) if args.output else default
     options = {flag.lstrip("-").replace("-", "_"): getattr(args, flag.lstrip("-").replace("-", "_"))
                for flag in figure.options}
-    return [figure.write(ds, out, sel, formats=args.format, **options)]
+    drawn = []
+    path = figure.write(ds, out, sel, formats=args.format, notes=drawn, **options)
+    if notes is not None:
+        notes.extend(n.replace("FILE", str(args.file)) for n in drawn)
+    return [path]
 
 
 def main(argv=None):
@@ -93,13 +116,17 @@ def main(argv=None):
     from .io import SelectionError
 
     args = build_parser().parse_args(argv)
+    notes = []
     try:
-        result = run(args)
+        result = run(args, notes)
     except (SelectionError, ValueError) as err:
         _fail(err)
     paths = result if isinstance(result, (list, tuple)) else [result]
-    for p in paths:
-        print(f"gyrolab-plot: wrote {p}")
+    if args.kind != "standard":  # standard_figures reports each figure itself
+        for p in paths:
+            print(f"gyrolab-plot: wrote {p}")
+    for note in notes:
+        print(f"gyrolab-plot: note: {note}")
     return 0
 
 

@@ -1,6 +1,9 @@
 """Invariant drift: |X(t) − X0| / |X0| on a log scale for X = E, L_z, L_3.
 
-One panel per spin f (and θ0); colour = method, line style = dt.  Exact zeros
+Only invariants the file's scene declares (layout.conserved) are drawn.  One
+panel per spin f (and θ0), wrapped into rows (analysis/figure.py); colour =
+method, line style = dt; methods whose curves lie on top of each other are
+named in the panel ("same curve: a = b").  Exact zeros
 (an invariant a method keeps to the last bit, e.g. L_3 = I3 ω3 of a
 symmetric top) are drawn at 1e-17, below double precision, and said so.
 Runs that diverged (status ≠ 0) end where their samples turn NaN and are
@@ -9,6 +12,7 @@ marked "diverged" in the legend.
 import matplotlib.pyplot as plt
 import numpy as np
 
+from .figure import add_note, choose, coincidence_text, coincident, legend_below, panel_size, subplots, suptitle
 from .io import (
     DT_STYLES,
     FLOOR,
@@ -19,6 +23,7 @@ from .io import (
     invariant_error,
     relative_error,
     scene_label,
+    scene_name,
     select,
 )
 
@@ -40,86 +45,140 @@ def drift_table(ds, quantity="energy", sel=None):
     return out
 
 
+def _check_quantity(ds, quantity):
+    """ValueError unless the file's scene conserves ``quantity`` (layout.conserved)."""
+    have = drawable_invariants(ds)
+    if quantity not in have:
+        raise ValueError(f"quantity={quantity}: the scene {scene_name(ds)} does not conserve it; "
+                         f"choose from {', '.join(have)}")
+
+
+def _series(sub, quantity, f, th, envelope):
+    """{(method, dt): error series} of one panel; the running maximum when ``envelope``."""
+    out = {}
+    for m in sub.method.values:
+        for dt in sub.dt.values:
+            err = invariant_error(sub.sel({"method": m, "f": f, "theta0": th, "dt": dt}), quantity)
+            out[(str(m), float(dt))] = np.fmax.accumulate(err) if envelope else err
+    return out
+
+
+def _coincidences(series):
+    """Groups of methods whose curves lie on top of each other (within 0.02 decades) at every dt drawn."""
+    dts = sorted({dt for _, dt in series})
+    per_dt = []
+    for dt in dts:
+        logs = {m: np.log10(np.maximum(e, FLOOR)) for (m, d), e in series.items() if d == dt}
+        per_dt.append({frozenset(g) for g in coincident(logs, 0.02)})
+    common = set.intersection(*per_dt) if per_dt else set()
+    order = [m for m, _ in series]
+    return [sorted(g, key=order.index) for g in common]
+
+
 def _panel(ax, sub, quantity, f, th, envelope=True):
     time = sub.time.values
     t_plot = np.where(time > 0, time, np.nan)  # log-x friendly; t=0 error is 0 by definition
+    series = _series(sub, quantity, f, th, envelope)
     any_zero = False
-    for m in sub.method.values:
-        for k, dt in enumerate(sub.dt.values):
-            run = sub.sel({"method": m, "f": f, "theta0": th, "dt": dt})
-            err = invariant_error(run, quantity)
-            if envelope:  # running maximum: the drift, without the oscillation within each nutation
-                err = np.fmax.accumulate(err)
-            any_zero |= bool(np.all(err[np.isfinite(err)] == 0))
-            label = f"{m}" + (f", {fmt_dt(dt)}" if sub.dt.size > 1 else "")
-            if int(run.status) != 0:
-                label += " (diverged)"
-                last = np.flatnonzero(np.isfinite(err))
-                if last.size:
-                    ax.plot(t_plot[last[-1]], max(err[last[-1]], FLOOR), "x", color=color(m), ms=7)
-            ax.plot(t_plot, np.maximum(err, FLOOR), DT_STYLES[k % 4], color=color(m), lw=1.0, label=label)
+    for (m, dt), err in series.items():
+        k = list(sub.dt.values).index(dt)
+        run = sub.sel({"method": m, "f": f, "theta0": th, "dt": dt})
+        any_zero |= bool(np.all(err[np.isfinite(err)] == 0))
+        label = f"{m}" + (f", {fmt_dt(dt)}" if sub.dt.size > 1 else "")
+        if int(run.status) != 0:
+            label += " (diverged)"
+            last = np.flatnonzero(np.isfinite(err))
+            if last.size:
+                ax.plot(t_plot[last[-1]], max(err[last[-1]], FLOOR), "x", color=color(m), ms=7)
+        ax.plot(t_plot, np.maximum(err, FLOOR), DT_STYLES[k % 4], color=color(m), lw=1.0, label=label)
     ax.set_yscale("log")
     ax.set_xlabel("time t (s)")
     sym = QUANTITY_LABELS.get(quantity, quantity)
-    text = f"|{sym}(t) − {sym}(0)| / |{sym}(0)|"
-    ax.set_ylabel(f"max over s ≤ t of {text.replace('(t)', '(s)')}" if envelope else text)
+    ax.set_ylabel(f"|Δ{sym}| / |{sym}(0)|")
     ax.set_title(f"f = {f:g} Hz, θ0 = {th:g}°", fontsize=9)
     ax.grid(alpha=0.3, which="major")
-    ax.set_ylim(bottom=FLOOR / 3)
+    groups = _coincidences(series)
+    if groups:
+        ax.text(0.02, 0.97, coincidence_text(groups, "same curve"), transform=ax.transAxes, ha="left", va="top",
+                fontsize=7, color="0.15", bbox=dict(fc="white", ec="0.7", alpha=0.85))
     if any_zero:
-        ax.text(0.99, 0.02, "at 1e-17: exactly conserved", transform=ax.transAxes, ha="right", fontsize=7,
+        ax.text(0.98, 0.03, "at 1e-17: exactly conserved", transform=ax.transAxes, ha="right", fontsize=7,
                 color="0.3")
+    return series
+
+
+def _limits(axes):
+    """Common log y-limits from the floor to above the largest finite value drawn (set after every panel)."""
+    top = max([np.nanmax(np.where(np.isfinite(y := ln.get_ydata()), y, np.nan), initial=FLOOR)
+               for ax in axes for ln in ax.get_lines() if len(ln.get_ydata())] or [1.0])
+    for ax in axes:
+        ax.set_ylim(FLOOR / 3, max(top * 5, 1e-15))
 
 
 def drift_figure(ds, quantity="energy", sel=None, envelope=True):
-    """Relative drift of ``quantity`` ('energy', 'Lz' or 'L3') vs time (s), one panel per f and θ0.
+    """Relative drift of ``quantity`` (an invariant the scene conserves) vs time (s), one panel per f and
+    θ0, wrapped into rows; a grid too large is drawn in part and the figure says which part.
 
     ``envelope``: draw the running maximum of the error (the drift) rather
     than the raw error, which oscillates with every nutation.
     """
     if quantity not in QUANTITY_LABELS:
         raise ValueError(f"quantity={quantity}: choose from {', '.join(QUANTITY_LABELS)}")
-    sub = select(ds, sel)
+    _check_quantity(ds, quantity)
+    sub, note = choose(select(ds, sel), "energy" + (f" --quantity {quantity}" if quantity != "energy" else ""))
     panels = [(f, th) for f in sub.f.values for th in sub.theta0.values]
-    n = len(panels)
-    fig, axes = plt.subplots(1, n, figsize=(4.6 * n + 0.6, 4.2), squeeze=False, sharey=True)
-    for ax, (f, th) in zip(axes[0], panels):
+    fig, axes = subplots(len(panels), width=4.6, height=3.6, sharey=True)
+    for ax, (f, th) in zip(axes, panels):
         _panel(ax, sub, quantity, f, th, envelope)
-    for ax in axes[0, 1:]:
-        ax.set_ylabel("")
+    _limits(axes)
     sym = QUANTITY_LABELS[quantity]
-    fig.suptitle(f"Relative drift of {sym}: {scene_label(sub)}, {float(sub.time[-1]):g} s"
-                 + (" (running maximum)" if envelope else ""), fontsize=11)
+    suptitle(fig, f"Relative drift of {sym}: {scene_label(sub)}, {float(sub.time[-1]):g} s; "
+                 + (f"max over s ≤ t of |{sym}(s) − {sym}(0)| / |{sym}(0)|" if envelope
+                    else f"|{sym}(t) − {sym}(0)| / |{sym}(0)|"), fontsize=10.5)
     fig.tight_layout()
-    handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=min(len(labels), 5),
-               fontsize=8, frameon=False)
+    add_note(fig, note)
+    handles, labels = axes[0].get_legend_handles_labels()
+    legend_below(fig, handles, labels, ncol=min(len(labels), 5))
     return fig
 
 
 def invariants_figure(ds, sel=None, envelope=True):
-    """One row per invariant the scene declares (layout.conserved), by columns f (θ0): every
-    invariant's relative drift on log axes.  Quantities the scene does not conserve are not drawn."""
-    sub = select(ds, sel)
-    panels = [(f, th) for f in sub.f.values for th in sub.theta0.values]
-    quantities = drawable_invariants(sub)
+    """One row per invariant the scene declares (layout.conserved), one column per f (θ0), at most 4
+    columns: every invariant's relative drift on log axes.  Quantities the scene does not conserve are
+    not drawn; one that every drawn run keeps exactly (error 0) gets no row, the figure says so."""
+    quantities = drawable_invariants(ds)
     if not quantities:
         raise ValueError("the file's scene declares no invariant that its variables hold")
-    fig, axes = plt.subplots(len(quantities), len(panels), figsize=(4.4 * len(panels) + 0.6, 3.0 * len(quantities) + 0.5),
-                             squeeze=False, sharex=True)
-    for r, q in enumerate(quantities):
+    sub, note = choose(select(ds, sel), "invariants", max_panels=4)
+    panels = [(f, th) for f in sub.f.values for th in sub.theta0.values]
+    exact, rows = [], []
+    for q in quantities:
+        errs = [invariant_error(sub.sel({"method": m, "f": f, "theta0": th, "dt": dt}), q)
+                for m in sub.method.values for f, th in panels for dt in sub.dt.values]
+        (exact if all(np.all(e[np.isfinite(e)] == 0) for e in errs) else rows).append(q)
+    rows = rows or quantities[:1]
+    width, height = panel_size(len(rows), len(panels), 4.4, 2.9)
+    fig, axes = plt.subplots(len(rows), len(panels), figsize=(width, height), squeeze=False, sharex=True)
+    for r, q in enumerate(rows):
         for c, (f, th) in enumerate(panels):
             _panel(axes[r, c], sub, q, f, th, envelope)
-            if r < len(quantities) - 1:
+            if r < len(rows) - 1:
                 axes[r, c].set_xlabel("")
             if r > 0:
                 axes[r, c].set_title("")
-    names = ", ".join(QUANTITY_LABELS.get(q, q) for q in quantities)
-    fig.suptitle(f"Invariants {names}: relative drift, {scene_label(sub)}", fontsize=11)
+            if c > 0:
+                axes[r, c].set_ylabel("")
+        _limits(list(axes[r]))
+    names = ", ".join(QUANTITY_LABELS.get(q, q) for q in rows)
+    suptitle(fig, f"Invariants {names}: relative drift (running maximum), {scene_label(sub)}, "
+                 f"{float(sub.time[-1]):g} s", fontsize=10.5)
     fig.tight_layout()
+    if exact:
+        add_note(fig, ", ".join(QUANTITY_LABELS.get(q, q) for q in exact)
+                 + ": kept exactly (error 0) by every run drawn; no row")
+    add_note(fig, note)
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=min(len(labels), 5),
-               fontsize=8, frameon=False)
+    legend_below(fig, handles, labels, ncol=min(len(labels), 5))
     return fig
 
 

@@ -1,8 +1,20 @@
-"""The record of one figure kind (the registry is analysis/figures.py)."""
+"""The record of one figure kind (the registry is analysis/figures.py), and the layout rules every
+figure shares: faceting (panels wrap into rows, bounded size), selections that say what they drew,
+and notes where curves coincide.
+"""
+import math
 from dataclasses import dataclass, field
 from typing import Callable
 
+import numpy as np
+
 from .io import save_figure
+
+MAX_COLS = 3  # panels per row before wrapping
+MAX_PANELS = 9  # panels drawn before values are selected (and the figure says which)
+MAX_METHODS = 8  # lines of different methods in one panel before methods are selected
+MAX_DT = 3  # line styles (dt values) in one panel
+MAX_WIDTH, MAX_HEIGHT = 15.5, 15.0  # inches (× 110 dpi in PNG)
 
 
 @dataclass(frozen=True)
@@ -13,8 +25,7 @@ class Figure:
     ``--help``; draw(ds, sel, **options) -> matplotlib Figure, from a results
     Dataset and a selection dict; options: {flag: argparse kwargs} of its own
     CLI options (their ``dest`` names are the keyword arguments of draw);
-    file_name: the PNG written by the figure step; thinned: draw the thinned
-    grid (``thin``) in the figure step; render: optional
+    file_name: the PNG written by the figure step; render: optional
     render(ds, out, sel, **options) -> path for figures that are not a single
     matplotlib Figure (the animation writes a GIF).
     """
@@ -24,11 +35,189 @@ class Figure:
     draw: Callable = None
     options: dict = field(default_factory=dict)
     file_name: str = None
-    thinned: bool = True
     render: Callable = None
 
-    def write(self, ds, out, sel=None, formats=("png",), **options):
-        """Draw into ``out`` (suffix replaced per format); the written path."""
+    def write(self, ds, out, sel=None, formats=("png",), notes=None, **options):
+        """Draw into ``out`` (suffix replaced per format); the written path.  ``notes`` (a list), when
+        given, receives the figure's selection notes (what it drew, how to draw the rest)."""
         if self.render is not None:
             return self.render(ds, out, sel=sel, **options)
-        return save_figure(self.draw(ds, sel, **options), out, formats=formats)
+        fig = self.draw(ds, sel, **options)
+        if notes is not None:
+            notes.extend(getattr(fig, "gyrolab_notes", []))
+        return save_figure(fig, out, formats=formats)
+
+
+def facet(n, max_cols=MAX_COLS):
+    """(rows, cols) of ``n`` panels wrapped into rows of at most ``max_cols``."""
+    cols = max(1, min(n, max_cols))
+    return math.ceil(n / cols), cols
+
+
+def panel_size(rows, cols, width, height, extra_w=0.6, extra_h=1.4):
+    """Figure size (in) for rows × cols panels of width × height in, shrunk to the bounds."""
+    w = cols * width + extra_w
+    h = rows * height + extra_h
+    s = min(1.0, MAX_WIDTH / w, MAX_HEIGHT / h)
+    return w * s, h * s
+
+
+def subplots(n, width=4.6, height=3.6, max_cols=MAX_COLS, **kwargs):
+    """(fig, axes list of length n) with panels wrapped into rows; unused cells hidden."""
+    import matplotlib.pyplot as plt
+
+    rows, cols = facet(n, max_cols)
+    fig, axes = plt.subplots(rows, cols, figsize=panel_size(rows, cols, width, height), squeeze=False, **kwargs)
+    flat = list(axes.ravel())
+    for ax in flat[n:]:
+        ax.set_visible(False)
+    return fig, flat[:n]
+
+
+def _fmt(key, v):
+    return str(v) if key == "method" else f"{float(v):g}"
+
+
+UNITS = {"f": " Hz", "theta0": "°", "dt": " s", "method": ""}
+NAMES = {"f": "f", "theta0": "θ0", "dt": "dt", "method": "method"}
+
+
+def limit(ds, key, n, prefer=None):
+    """(kept, dropped) values of grid axis ``key``: all when ≤ n, else n evenly spread ones (ends
+    kept) or, with ``prefer`` (a list), those first."""
+    values = list(ds[key].values)
+    if len(values) <= n:
+        return values, []
+    if prefer:
+        kept = [v for v in values if str(v) in set(map(str, prefer))][:n]
+        kept += [v for v in values if v not in kept][: n - len(kept)]
+    else:
+        idx = np.unique(np.round(np.linspace(0, len(values) - 1, n)).astype(int))
+        kept = [values[i] for i in idx]
+    return kept, [v for v in values if v not in kept]
+
+
+def select_note(kind, kept, dropped):
+    """One line: which values were drawn and the command that draws the others; None if nothing dropped.
+
+    kind: the figure kind, optionally followed by selections the command keeps ("tip method=rk4");
+    kept, dropped: {key: [values]}."""
+    dropped = {k: v for k, v in dropped.items() if len(v)}
+    if not dropped:
+        return None
+    drew = "; ".join(f"{NAMES[k]} = {', '.join(_fmt(k, v) for v in kept[k])}{UNITS[k]}" for k in dropped)
+    rest = " ".join(f"{k}={','.join(_fmt(k, v) for v in vals)}" for k, vals in dropped.items())
+    kind, _, fixed = kind.partition(" ")  # "tip method=rk4": the kind, then selections it keeps
+    return f"drawn: {drew}; the others: gyrolab-plot {kind} FILE {(fixed + ' ') if fixed else ''}{rest}"
+
+
+def add_note(fig, text):
+    """Keep ``text`` in ``fig.gyrolab_notes``: legend_below writes it under the figure, the CLI prints it."""
+    if not text:
+        return
+    notes = getattr(fig, "gyrolab_notes", [])
+    fig.gyrolab_notes = notes + [text]
+
+
+def coincident(series, tol):
+    """Groups (lists of ≥ 2 labels, in order) of ``series`` ({label: 1-d array}) that agree within
+    ``tol`` everywhere both are finite, i.e. that would be drawn on top of each other."""
+    labels = list(series)
+    groups, seen = [], set()
+    for i, a in enumerate(labels):
+        if a in seen:
+            continue
+        group = [a]
+        for b in labels[i + 1:]:
+            if b in seen:
+                continue
+            x, y = np.asarray(series[a], float), np.asarray(series[b], float)
+            if x.shape != y.shape:
+                continue
+            both = np.isfinite(x) & np.isfinite(y)
+            same_support = np.array_equal(np.isfinite(x), np.isfinite(y))
+            if both.any() and same_support and np.max(np.abs(x[both] - y[both])) <= tol:
+                group.append(b)
+        if len(group) > 1:
+            groups.append(group)
+            seen.update(group)
+    return groups
+
+
+def coincidence_text(groups, what="curves coincide"):
+    """'curves coincide: a = b; c = d' or '' for no groups."""
+    return f"{what}: " + "; ".join(" = ".join(g) for g in groups) if groups else ""
+
+
+def choose(ds, kind, max_methods=MAX_METHODS, max_dt=MAX_DT, max_panels=MAX_PANELS, dt_prefer=None):
+    """(sub-Dataset, note) keeping at most max_* methods, dt values and f × θ0 panels of ``ds``;
+    the note (None when all is drawn) says what was drawn and how to draw the rest (select_note)."""
+    kept, dropped = {}, {}
+    kept["method"], dropped["method"] = limit(ds, "method", max_methods, prefer=_preferred_methods(ds))
+    if dt_prefer == "min":
+        dts = sorted(ds.dt.values)
+        kept["dt"], dropped["dt"] = dts[:max_dt], dts[max_dt:]
+    else:
+        kept["dt"], dropped["dt"] = limit(ds, "dt", max_dt)
+    n_th = ds.theta0.size if ds.f.size * ds.theta0.size <= max_panels else min(ds.theta0.size, 3)
+    kept["theta0"], dropped["theta0"] = limit(ds, "theta0", n_th)
+    kept["f"], dropped["f"] = limit(ds, "f", max(1, max_panels // len(kept["theta0"])))
+    sub = ds.sel({k: v for k, v in kept.items() if dropped[k]}) if any(map(len, dropped.values())) else ds
+    return sub, select_note(kind, kept, dropped)
+
+
+def _preferred_methods(ds):
+    """Methods drawn first when a file has too many: gyrolab's own schemes before engine reproductions."""
+    try:
+        from ..kernels.registry import METHODS
+    except ImportError:  # pragma: no cover
+        return None
+    own = [str(m) for m in ds.method.values if not getattr(METHODS.get(str(m)), "REPRODUCES", "")]
+    return own or None
+
+
+def legend_below(fig, handles, labels, ncol=None, fontsize=8):
+    """A legend under the axes, then the figure's notes under the legend."""
+    legend = None
+    if handles:
+        ncol = ncol or min(len(labels), 4)
+        legend = fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=ncol,
+                            fontsize=fontsize, frameon=False)
+    notes = getattr(fig, "gyrolab_notes", [])
+    if not notes:
+        return legend
+    y = 0.0
+    if legend is not None:
+        renderer = fig.canvas.get_renderer()
+        y = fig.transFigure.inverted().transform(legend.get_window_extent(renderer))[0, 1]
+    fig.text(0.01, y - 0.005, "\n".join(wrap_note(n, fig) for n in notes), ha="left", va="top", fontsize=7.5,
+             color="0.25")
+    return legend
+
+
+def wrap_note(text, fig):
+    """``text`` wrapped to the figure's width (7.5 pt text: about 19 characters per inch)."""
+    import textwrap
+
+    return "\n".join(textwrap.wrap(text, max(60, int(fig.get_figwidth() * 19)), break_on_hyphens=False))
+
+
+def fixed_note(ds, kind, drawn):
+    """A select_note for values a figure fixes by design (``drawn``: {key: [values]}, e.g. the finest dt)
+    when the file has others; None otherwise."""
+    kept, dropped = {}, {}
+    for key, values in drawn.items():
+        wanted = set(map(str, values))
+        kept[key] = [v for v in ds[key].values if str(v) in wanted]
+        dropped[key] = [v for v in ds[key].values if str(v) not in wanted]
+    return select_note(kind, kept, dropped)
+
+
+def suptitle(fig, text, fontsize=10.5, **kwargs):
+    """fig.suptitle with each line wrapped to the figure's width (about 130 / fontsize characters per inch),
+    so that a narrow figure's title never runs past its panels."""
+    import textwrap
+
+    width = max(30, int(fig.get_figwidth() * 130 / fontsize))
+    lines = [w for line in text.split("\n") for w in textwrap.wrap(line, width, break_on_hyphens=False) or [""]]
+    return fig.suptitle("\n".join(lines), fontsize=fontsize, **kwargs)

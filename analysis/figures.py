@@ -7,16 +7,16 @@ figures it wants in its config (``output.figures: [stability, energy]``;
 ``true`` means ``DEFAULT``, ``false`` none); the resolved config is stored in
 the results file, so ``gyrolab-plot standard FILE`` draws the same set.
 
-The line figures read well from any grid shape because large grids are
-thinned (at most 4 values of f, 3 of dt, 2 of θ0; ``thin``).  A figure that
-fails is reported on stderr and skipped, so a sweep's results are never lost
-to a plotting problem.
+Any grid shape: each figure facets its panels (analysis/figure.py: rows of at
+most 3, bounded size) and, when a grid has more values than it can draw, draws
+a selection and says which, in the figure and on the command line, with the
+``gyrolab-plot KIND FILE key=...`` that draws the others.  A figure that fails
+is reported on stderr and skipped, so a sweep's results are never lost to a
+plotting problem; each figure drawn is reported on one progress line.
 """
 import sys
 import time
 from pathlib import Path
-
-import numpy as np
 
 from .figure import Figure  # noqa: F401 (the record each figure module defines)
 from .io import open_results
@@ -57,17 +57,6 @@ def figure_names(setting):
     return tuple(names)
 
 
-def thin(ds, max_f=4, max_dt=3, max_theta0=2):
-    """Selection dict keeping at most max_* evenly spread values of f, dt, θ0 (ends included)."""
-    sel = {}
-    for key, n in (("f", max_f), ("dt", max_dt), ("theta0", max_theta0)):
-        values = ds[key].values
-        if values.size > n:
-            idx = np.unique(np.round(np.linspace(0, values.size - 1, n)).astype(int))
-            sel[key] = [float(v) for v in values[idx]]
-    return sel
-
-
 def requested_figures(ds):
     """The figures the file's own config asked for (its ``config`` attr), else DEFAULT."""
     import yaml
@@ -80,24 +69,27 @@ def requested_figures(ds):
         return DEFAULT
 
 
-def standard_figures(results_path, out_dir, names=None):
+def standard_figures(results_path, out_dir, names=None, log=print):
     """Write the figures ``names`` (default: those the file's config asks for) of ``results_path``
-    into ``out_dir``; return the written paths."""
+    into ``out_dir`` (created); return the written paths.  One progress line per figure through ``log``
+    (and each figure's selection note, with the file's path in its command)."""
     ds = open_results(results_path)
     out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
     names = requested_figures(ds) if names is None else figure_names(names)
-    sel = thin(ds)
-    small = ds.sel(sel) if sel else ds
     paths = []
-    for name in names:
+    for k, name in enumerate(names, 1):
         figure = FIGURES[name]
         started = time.perf_counter()
+        notes = []
         try:
-            paths.append(figure.write(small if figure.thinned else ds,
-                                      out_dir / (figure.file_name or f"{name.replace('-', '_')}.png")))
+            path = figure.write(ds, out_dir / (figure.file_name or f"{name.replace('-', '_')}.png"), notes=notes)
         except Exception as err:  # a figure must never cost the user the results
             print(f"gyrolab: figure {name} skipped: {type(err).__name__}: {err}", file=sys.stderr)
-        else:
-            if time.perf_counter() - started > 30:
-                print(f"gyrolab: figure {name} took {time.perf_counter() - started:.0f} s", file=sys.stderr)
+            continue
+        paths.append(path)
+        if log is not None:
+            log(f"gyrolab: figure {k}/{len(names)} {name}: {path} ({time.perf_counter() - started:.1f} s)")
+            for note in notes:
+                log(f"gyrolab:   {name}: {note.replace('FILE', str(results_path))}")
     return paths

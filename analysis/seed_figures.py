@@ -95,12 +95,15 @@ def regimes_figure(jobs):
         t_max = min(float(ds.time[-1]), 1.02 * 2 * math.pi / abs(nut.precession_rate))
         methods = [str(m) for m in ds.method.values]
         if "lie_poisson4" in methods:
-            _tip(ax, ds, f, "lie_poisson4", dt, t_max, color="k", lw=2.6, alpha=0.25, label=f"lie_poisson4, {fmt_dt(dt)}")
-        xy = _tip(ax, ds, f, "seed_next", dt, t_max, color=color("seed_next"), lw=0.9, label=f"seed_next, {fmt_dt(dt)}")
-        ax.plot(xy[0, 0], xy[0, 1], "ko", ms=4)
+            _tip(ax, ds, f, "lie_poisson4", dt, t_max, color="k", lw=2.6, alpha=0.25,
+                 label=f"lie_poisson4, {fmt_dt(dt)}")
+        xy = _tip(ax, ds, f, "seed_next", dt, t_max, color=color("seed_next"), lw=0.9,
+                  label=f"seed_next, {fmt_dt(dt)}")
+        ax.plot(xy[0, 0], xy[0, 1], "ko", ms=4, label="start (t = 0)")
         circle = np.linspace(0, 2 * math.pi, 361)
-        for val in (nut.theta_min, nut.theta_max):
-            ax.plot(math.sin(val) * np.cos(circle), math.sin(val) * np.sin(circle), "k", ls=(0, (4, 3)), lw=0.6)
+        for k, val in enumerate((nut.theta_min, nut.theta_max)):
+            ax.plot(math.sin(val) * np.cos(circle), math.sin(val) * np.sin(circle), "k", ls=(0, (4, 3)), lw=0.6,
+                    label="closed-form sin θ_min, sin θ_max" if k == 0 else None)
         ax.set_aspect("equal")
         lim = 1.05 * np.abs(xy[:, :2]).max()
         ax.set_xlim(-lim, lim)
@@ -114,10 +117,16 @@ def regimes_figure(jobs):
         if name == "steady":
             ax.text(0.5, 0.5, STEADY_NOTE + f":\nf = {f:g} Hz, slow root of Goldstein 5.77", transform=ax.transAxes,
                     ha="center", va="center", fontsize=7.5, bbox=dict(fc="lightyellow", ec="0.6"))
-        ax.legend(loc="upper right", fontsize=7)
     fig.suptitle("The write-up's figures 6-9: axis tip seen from above, heavy top (seed body)\n"
                  "dashed: closed-form sin θ_min, sin θ_max", fontsize=11)
     fig.tight_layout()
+    handles, labels = {}, []
+    for ax in axes.ravel():  # one legend for the four panels, under them: it covers no trace
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(lab, h)
+    labels = list(handles)
+    fig.legend(list(handles.values()), labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=2, fontsize=8,
+               frameon=False)
     return fig
 
 
@@ -155,7 +164,7 @@ def remark1_figure(ds, fs=(1.0, 10.0, 50.0), method="seed_next"):
         ax.set_aspect("equal")
         ax.set_xlim(-1.05, 1.05)
         ax.set_ylim(-1.05, 1.05)
-        ax.set_title(f"tip from above, 0 ≤ t ≤ {t_max:.2g} s (grey: horizon)", fontsize=9)
+        ax.set_title(f"tip from above, 0 ≤ t ≤ {t_max:.2g} s (grey: horizon; dot: start)", fontsize=9)
         ax.set_xlabel("tip x (unit axis, lab)")
         ax.set_ylabel("tip y (unit axis, lab)")
         ax.grid(alpha=0.3)
@@ -196,8 +205,10 @@ def next_vs_prev_figure(jobs):
         ax.set_xlabel("time t (s)")
         ax.set_ylabel("tilt θ (deg)")
         ax.grid(alpha=0.3)
-    axes[0, 0].legend(fontsize=7, loc="lower right")
-    axes[1, 0].legend(fontsize=7, loc="lower right")
+    for row, where in ((0, "energy"), (1, "θ(t)")):  # legends right of the last panel, not over the traces
+        handles, labels = axes[row, 0].get_legend_handles_labels()
+        axes[row, -1].legend(handles, labels, fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0),
+                             title=where, title_fontsize=7, frameon=False)
     fig.suptitle("ω(t+dt) (seed_next) vs ω(t) (seed_prev) in the rotation step: energy drift (top) and "
                  "tilt θ(t) (bottom), heavy top θ0 = 45°", fontsize=10.5)
     fig.tight_layout()

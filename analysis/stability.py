@@ -1,4 +1,10 @@
-"""Stability map: log10 of the max relative energy error over a (dt × f) grid, one panel per method.
+"""Stability map: log10 of the worst error over a (dt × f) grid, one panel per method (rows of 5).
+
+The error is the max relative energy error, or, for a scene whose closed
+form gives the exact motion (free bodies, analysis/yardstick.py), the max
+deviation of the axis from the exact one (rad): energy alone cannot tell
+methods apart that advance ω alike (seed_next, seed_prev and rk4 on the free
+box).  Methods whose maps are identical are named in the panel titles.
 
 Cells are drawn on log-log axes (dt in s, f in Hz), so lines of constant
 ω3·dt = 2π f dt (rad of spin per step) are straight: dotted guides at
@@ -11,8 +17,11 @@ import math
 
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.ticker import NullFormatter
 
-from .io import relative_error, scene_label, select
+from . import yardstick
+from .figure import add_note, choose, facet, panel_size, suptitle, wrap_note
+from .io import pick, relative_error, scene_label, select
 
 VMIN, VMAX = -16.0, 1.0
 
@@ -34,10 +43,30 @@ def max_energy_error(energy):
     return np.log10(np.maximum(worst, 1e-17))
 
 
-def _panel(ax, sub, method, theta0):
+def max_axis_error(axis, exact):
+    """log10 of max_t |axis − axis_exact| (rad) per run; axis (..., time, 3), exact (time, 3) per f."""
+    d = np.linalg.norm(np.asarray(axis) - exact, axis=-1)
+    with np.errstate(all="ignore"):
+        worst = np.nanmax(np.where(np.isfinite(d), d, np.nan), axis=-1)
+    return np.log10(np.maximum(worst, 1e-17))
+
+
+def _logerr(run, theta0, measure, full):
+    """(f, dt) array of log10 errors of one method's runs (run: dims f, dt, time[, xyz]; full: the file's
+    Dataset, for the stored run inputs)."""
+    if measure == "energy":
+        return max_energy_error(run.energy.transpose("f", "dt", "time").values)
+    out = np.empty((run.f.size, run.dt.size))
+    for i, f in enumerate(run.f.values):
+        exact = yardstick.exact_axis(full, f, theta0, run.time.values)
+        out[i] = max_axis_error(run.axis.sel({"f": f}).transpose("dt", "time", "xyz").values, exact)
+    return out
+
+
+def _panel(ax, sub, method, theta0, measure="energy"):
     run = sub.sel({"method": method, "theta0": theta0})  # dims f, dt (time)
     run = run.sortby("f").sortby("dt")
-    logerr = max_energy_error(run.energy.transpose("f", "dt", "time").values)
+    logerr = _logerr(run, theta0, measure, sub)
     status = run.status.transpose("f", "dt").values
     f, dt = run.f.values, run.dt.values
     mesh = ax.pcolormesh(_edges(dt), _edges(f), logerr, cmap="viridis", vmin=VMIN, vmax=VMAX, shading="flat")
@@ -54,6 +83,8 @@ def _panel(ax, sub, method, theta0):
         ax.fill_between([xe[j], xe[j + 1]], ye[i], ye[i + 1], facecolor="none", edgecolor="red", hatch="///", lw=0)
     ax.set_xscale("log")
     ax.set_yscale("log")
+    for axis in (ax.xaxis, ax.yaxis):  # decade labels only: minor labels (2×10^-4, ...) collide
+        axis.set_minor_formatter(NullFormatter())
     xe, ye = _edges(dt), _edges(f)
     grid_dt = np.geomspace(xe[0], xe[-1], 50)
     for w in (0.01, 0.1, 1.0):
@@ -64,41 +95,84 @@ def _panel(ax, sub, method, theta0):
     ax.set_ylabel("spin f (Hz)")
     n_bad = int((status != 0).sum())
     ax.set_title(f"{method}" + (f" ({n_bad} diverged)" if n_bad else ""), fontsize=9)
-    return mesh
+    return mesh, np.where(status != 0, np.nan, logerr)
 
 
-def stability_figure(ds, sel=None, theta0=None):
-    """Heatmap per method of log10 max relative energy error over dt × f (θ0 fixed: the first, or ``theta0``)."""
+def default_measure(ds):
+    """'axis' when the scene's closed form gives the exact motion, else 'energy'."""
+    return "axis" if yardstick.exact_axis(ds, ds.f.values[0], ds.theta0.values[0], ds.time.values[:2]) is not None \
+        else "energy"
+
+
+def stability_figure(ds, sel=None, theta0=None, measure=None):
+    """Heatmap per method of log10 worst error over dt × f (θ0 fixed: the first, or ``theta0``);
+    ``measure`` 'energy' or 'axis' (default: default_measure).  Panels wrap into rows of 5."""
     sub = select(ds, sel)
-    th = sub.theta0.values[0] if theta0 is None else theta0
+    th = sub.theta0.values[0] if theta0 is None else pick(sub, "theta0", theta0)
     extra = [d for d in ("scene", "job") if d in sub.dims]
-    rows = [(None, sub)] if not extra else [(v, sub.sel({extra[0]: v})) for v in sub[extra[0]].values]
+    sub, note = choose(sub, "stability", max_methods=10 if not extra else 5, max_dt=sub.dt.size,
+                       max_panels=sub.f.size * sub.theta0.size)
+    measure = measure or (default_measure(sub) if not extra else "energy")
+    if measure not in ("energy", "axis"):
+        raise ValueError(f"measure={measure}: choose from energy, axis")
+    if measure == "axis" and default_measure(sub) != "axis":
+        raise ValueError(f"measure=axis: the scene {scene_label(sub)} has no exact motion to measure against")
     methods = [str(m) for m in sub.method.values]
-    fig, axes = plt.subplots(len(rows), len(methods), figsize=(3.5 * len(methods) + 1.2, 3.3 * len(rows) + 0.9),
+    if extra:
+        parts = [(v, sub.sel({extra[0]: v})) for v in sub[extra[0]].values]
+        cells = [(r, c, label, part, m) for r, (label, part) in enumerate(parts) for c, m in enumerate(methods)]
+        rows, cols = len(parts), len(methods)
+    else:
+        rows, cols = facet(len(methods), 5)
+        cells = [(k // cols, k % cols, None, sub, m) for k, m in enumerate(methods)]
+    fig, axes = plt.subplots(rows, cols, figsize=panel_size(rows, cols, 3.4, 3.2, extra_w=1.4, extra_h=1.6),
                              squeeze=False)
-    mesh = None
-    for r, (label, part) in enumerate(rows):
-        for c, m in enumerate(methods):
-            mesh = _panel(axes[r, c], part, m, th)
-            if c > 0:
-                axes[r, c].set_ylabel("")
-            if label is not None and c == 0:
-                axes[r, c].set_ylabel(f"{label}\nspin f (Hz)")
-    cbar = fig.colorbar(mesh, ax=axes, shrink=0.9, pad=0.04)
-    cbar.set_label("log10 max_t |E(t) − E0| / |E0|")
+    mesh, maps = None, {}
+    for r, c, label, part, m in cells:
+        mesh, values = _panel(axes[r, c], part, m, th, measure)
+        maps[(label, m)] = values
+        if c > 0:
+            axes[r, c].set_ylabel("")
+            axes[r, c].tick_params(labelleft=False)  # every panel has the same f axis
+        if label is not None and c == 0:
+            axes[r, c].set_ylabel(f"{label}\nspin f (Hz)")
+    for ax in axes.ravel()[len(cells):]:
+        ax.set_visible(False)
+    for r, c, label, _, m in cells:  # identical maps (to 0.01 decades): say so in the title
+        same = [m2 for (l2, m2), v in maps.items() if l2 == label and m2 != m and v.shape == maps[(label, m)].shape
+                and np.allclose(v, maps[(label, m)], atol=0.01, equal_nan=True)]
+        if same:
+            axes[r, c].set_title(axes[r, c].get_title() + f"\n(same map as {', '.join(same)})", fontsize=8)
+    cbar = fig.colorbar(mesh, ax=axes, shrink=0.9, pad=0.03)
+    what_err = "max_t |E(t) − E0| / |E0|" if measure == "energy" else "max_t |axis − axis_exact| (rad)"
+    cbar.set_label(f"log10 {what_err}")
     t_end = float(sub.time[-1])
-    what = scene_label(sub) if not extra else ", ".join(str(v) for v, _ in rows)
-    fig.suptitle(f"Stability map: {what}, θ0 = {float(th):g}°, {t_end:g} s "
-                 "\nnumbers: log10 error; red × hatched: diverged; dotted: ω3·dt = 0.01, 0.1, 1 rad per step", fontsize=10.5,
-                 y=1.06)
+    what = scene_label(sub) if not extra else ", ".join(str(v) for v in sub[extra[0]].values)
+    against = "" if measure == "energy" else \
+        f" against the {yardstick.label(sub)}".replace(" exact (", " exact motion (")
+    suptitle(fig, f"Stability map: {what}, θ0 = {float(th):g}°, {t_end:g} s; {what_err}{against}\n"
+                 "numbers: log10 error; red × hatched: diverged; dotted: ω3·dt = 0.01, 0.1, 1 rad per step",
+                 fontsize=10.5, y=1.0 + 0.12 / rows)
+    others = [f"{v:g}" for v in sub.theta0.values if float(v) != float(th)]
+    if others:
+        add_note(fig, f"drawn: θ0 = {float(th):g}° (one θ0 per map); the others, one per figure: "
+                      + ", ".join(f"gyrolab-plot stability FILE theta0={v}" for v in others))
+    add_note(fig, note)
+    notes = getattr(fig, "gyrolab_notes", [])
+    if notes:
+        fig.text(0.01, -0.02, "\n".join(wrap_note(n, fig) for n in notes), fontsize=7.5, color="0.25", va="top")
     return fig
 
 
 def _make_figure():
     from .figure import Figure
 
-    return Figure("stability", "heatmap of log10 max energy error over dt x f per method",
-                  lambda ds, sel=None: stability_figure(ds, sel), file_name="stability_map.png", thinned=False)
+    return Figure("stability", "heatmap of log10 worst error (energy, or axis vs the exact motion) over dt x f",
+                  lambda ds, sel=None, measure=None: stability_figure(ds, sel, measure=measure),
+                  {"--measure": {"choices": ["energy", "axis"], "default": None,
+                                 "help": "error drawn (default: axis against the exact motion when the scene "
+                                         "has one, else energy)"}},
+                  file_name="stability_map.png")
 
 
 FIGURE = _make_figure()

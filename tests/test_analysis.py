@@ -10,7 +10,8 @@ import pytest  # noqa: E402
 
 from gyrolab.analysis import cli  # noqa: E402
 from gyrolab.analysis.energy import drift_figure, drift_table, invariants_figure  # noqa: E402
-from gyrolab.analysis.figures import standard_figures, thin  # noqa: E402
+from gyrolab.analysis.figure import choose, facet, limit  # noqa: E402
+from gyrolab.analysis.figures import standard_figures  # noqa: E402
 from gyrolab.analysis.io import METHOD_COLORS, SelectionError, open_results, parse_selection, select  # noqa: E402
 from gyrolab.analysis.nutation import closed_form_nutation, theta_figure, tip_locus_figure  # noqa: E402
 from gyrolab.kernels.closed_form import heavy_top_nutation  # noqa: E402
@@ -20,7 +21,8 @@ from gyrolab.kernels.scenes import build_scene  # noqa: E402
 def lines_of(ax, method):
     """Data lines (more than 2 points) drawn in ``method``'s colour."""
     want = matplotlib.colors.to_rgba(METHOD_COLORS[method])
-    return [ln for ln in ax.get_lines() if len(ln.get_xdata()) > 2 and matplotlib.colors.to_rgba(ln.get_color()) == want]
+    return [ln for ln in ax.get_lines()
+            if len(ln.get_xdata()) > 2 and matplotlib.colors.to_rgba(ln.get_color()) == want]
 
 
 @pytest.fixture(autouse=True)
@@ -43,7 +45,7 @@ def test_selection_parsing_and_matching(results_file):
 
 def test_theta_figure_lines_and_closed_form_bounds(results_file):
     ds = open_results(results_file)
-    fig = theta_figure(ds)  # default: largest dt, every method, one row per f
+    fig = theta_figure(ds, {"dt": [1e-3]})  # every method at dt = 1e-3, one row per f
     axes = np.array(fig.axes).reshape(2, -1)
     for row, f in zip(axes, (10.0, 50.0)):
         ax = row[0]
@@ -108,13 +110,12 @@ def test_drift_table_matches_stored_energy(results_file):
     assert final == pytest.approx(abs(e[-1] - e[0]) / abs(e[0]), rel=1e-12)
 
 
-def test_invariants_figure_marks_exact_L3(results_file):
+def test_invariants_figure_drops_exact_rows_and_says_so(results_file):
     fig = invariants_figure(open_results(results_file))
-    axes = np.array(fig.axes).reshape(3, 2)
+    axes = np.array(fig.axes).reshape(2, 2)  # rows E, L_z; L_3 is exact for every run: no row, a note
     assert all(ax.get_yscale() == "log" for ax in axes.ravel())
-    assert "L_z" in axes[1, 0].get_ylabel() and "L_3" in axes[2, 0].get_ylabel()
-    # I1 = I2: every method keeps ω3, hence L3, to the last bit: drawn at the floor and said so
-    assert any("exactly conserved" in t.get_text() for t in axes[2, 0].texts)
+    assert "E" in axes[0, 0].get_ylabel() and "L_z" in axes[1, 0].get_ylabel()
+    assert any("L_3: kept exactly (error 0) by every run drawn" in n for n in fig.gyrolab_notes)
 
 
 def test_standard_figures_default_and_single_run(results_file, single_run_file, tmp_path):
@@ -125,11 +126,14 @@ def test_standard_figures_default_and_single_run(results_file, single_run_file, 
     assert len(one) == 4
 
 
-def test_thin_keeps_ends():
+def test_limit_keeps_ends_and_choose_says_what_it_drew():
     import xarray as xr
 
-    ds = xr.Dataset(coords={"f": np.arange(10.0), "dt": [1e-3], "theta0": [45.0]})
-    assert thin(ds) == {"f": [0.0, 3.0, 6.0, 9.0]}
+    ds = xr.Dataset(coords={"method": ["rk4"], "f": np.arange(1.0, 13.0), "dt": [1e-3], "theta0": [45.0]})
+    assert [float(v) for v in limit(ds, "f", 4)[0]] == [1.0, 5.0, 8.0, 12.0]
+    sub, note = choose(ds, "energy")
+    assert sub.f.size == 9 and "gyrolab-plot energy FILE f=" in note
+    assert facet(7) == (3, 3) and facet(2) == (1, 2)
 
 
 def test_cli_writes_and_refuses(results_file, tmp_path, capsys):

@@ -12,7 +12,7 @@ from .common import Scene, check_positive, check_triangle, tilt_quaternion
 
 OPTIONS = {"I1": 1.0e-4, "I2": 3.0e-4, "I3": 2.0e-4, "eps": 1.0e-3}
 CONSERVED = ("energy", "L", "L_norm", "Lz")
-CLOSED_FORM = None
+CLOSED_FORM = "euler_poinsot"
 
 
 def build(f, theta0, I1, I2, I3, eps):
