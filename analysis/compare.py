@@ -184,6 +184,12 @@ def open_results(path, label):
     missing = [d for d in RUN_DIMS + ("time",) if d not in ds.coords]
     if missing:
         raise CompareError(f"{label}: {path}: not a gyrolab results file (no coordinate {missing[0]})")
+    from ..layout import file_layout_version
+
+    if file_layout_version(ds) is None:
+        raise CompareError(f"{label}: {path}: not a gyrolab results file (no layout_version attr)")
+    if "status" not in ds.data_vars:
+        raise CompareError(f"{label}: {path}: not a complete gyrolab results file (no variable 'status')")
     return ds
 
 
@@ -358,6 +364,13 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
     inputs = input_notes(da, db)
     va = [v for v in da.data_vars if v not in ignored and v not in INPUT_VARIABLES]
     vb = [v for v in db.data_vars if v not in ignored and v not in INPUT_VARIABLES]
+    from ..layout import ABSENT_BEFORE, file_layout_version
+
+    # A file of an older layout lacks some variables: compare the rest, and say so.
+    older = {name: set(ABSENT_BEFORE.get(file_layout_version(d), ())) for name, d in zip(names, (da, db))}
+    for v in sorted((set(va) ^ set(vb)) & (older[names[0]] | older[names[1]])):
+        dropped.append(f"variable {v} (not in the older layout of one file)")
+        va, vb = [x for x in va if x != v], [x for x in vb if x != v]
     for v in va:
         if v not in vb:
             raise CompareError(f"missing variables: {v} is in A but not in B")

@@ -38,18 +38,37 @@ class SelectionError(ValueError):
 
 
 def open_results(path):
-    """The results Dataset of ``path`` loaded into memory (file closed afterwards)."""
+    """The results Dataset of ``path`` loaded into memory (file closed afterwards).
+
+    SelectionError (one line naming the file) for a missing, unreadable, damaged or foreign
+    file: anything h5py/h5netcdf/xarray raise while reading, no layout version (layout 0, files from
+    before the attr, are read), a grid
+    dimension or a layout variable missing or on the wrong dims (gyrolab/layout.py)."""
+    from ..layout import LAYOUT_VERSION, file_layout_version, required_variables
+
     path = Path(path)
     if not path.is_file():
         raise SelectionError(f"FILE={path}: no such results file")
     try:
         with xr.open_dataset(path, engine="h5netcdf") as ds:
             ds = ds.load()
-    except (OSError, ValueError) as err:
-        raise SelectionError(f"FILE={path}: not a gyrolab results file ({err})") from None
+    except Exception as err:  # h5py/h5netcdf/xarray raise many kinds on damaged or foreign files
+        text = " ".join(str(err).split())[:120]
+        raise SelectionError(f"FILE={path}: not a readable results file ({type(err).__name__}: {text})") from None
     missing = [d for d in GRID_DIMS + ("time",) if d not in ds.dims]
     if missing:
         raise SelectionError(f"FILE={path}: not a gyrolab results file (no dimension {missing[0]!r})")
+    version = file_layout_version(ds)
+    if version is None:
+        raise SelectionError(f"FILE={path}: not a gyrolab results file (no layout_version attr)")
+    if version > LAYOUT_VERSION:
+        raise SelectionError(f"FILE={path}: layout_version={version} is newer than this gyrolab reads "
+                             f"({LAYOUT_VERSION}); upgrade gyrolab")
+    for name, dims in required_variables(version).items():
+        if name not in ds.data_vars:
+            raise SelectionError(f"FILE={path}: not a complete gyrolab results file (no variable {name!r})")
+        if ds[name].dims != dims:
+            raise SelectionError(f"FILE={path}: variable {name} has dims {ds[name].dims}, expected {dims}")
     return ds
 
 

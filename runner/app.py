@@ -13,14 +13,23 @@ same overrides plus ``runner.resume=true hydra.run.dir=<that directory>``
 (the command is printed when it is interrupted).
 
 Bad input (any key) exits with status 2 and one line on stderr naming the
-key and the value, before any work and without leaving files behind.  Test
-hook: the environment variable GYROLAB_TEST_CHUNK_DELAY (seconds) sleeps
-after each stored chunk.
+key and the value, before any work and without leaving files behind.
+
+Faults: Ctrl-C, SIGTERM and SIGHUP (what Slurm, ``timeout`` and ``docker
+stop`` send) keep the journal, remove the lock, print the resume command and
+exit 128 + the signal number; further signals while cleaning up are ignored.
+A full disk or another I/O error while running prints one line (what failed,
+where, the free space, the resume command) and exits 1 with the journal
+intact.  A resume verifies the journal's chunks and recomputes bad ones.
+Test hook: the environment variable GYROLAB_TEST_CHUNK_DELAY (seconds)
+sleeps after each stored chunk.
 """
+import errno
 import os
 import re
 import shlex
 import shutil
+import signal
 import sys
 import tempfile
 import time
@@ -39,11 +48,12 @@ from ..layout import RAW_PER_SAMPLE, scene_attrs
 from .config import ConfigError, config_hash, register_configs
 from .execute import BackendError
 from .grid import build_grid, estimate_seconds, plan_chunks
-from .store import Journal, OutputLock, assemble, partial_dir
+from .store import Journal, OutputLock, assemble, partial_dir, remove_stale_temporaries
 
 EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
-EXIT_INTERRUPTED = 130
+EXIT_INTERRUPTED = 130  # 128 + SIGINT; SIGTERM gives 143, SIGHUP 129
+HANDLED_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 COMPILE_SECONDS = 3.0  # rough JIT time of one method's kernel on a cold numba cache
 
 
@@ -54,7 +64,67 @@ def fail(message):
     sys.exit(EXIT_BAD_INPUT)
 
 
+# --------------------------------------------------------------------------- signals
+
+class Interrupted(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised in the main thread like Ctrl-C's KeyboardInterrupt."""
+
+    def __init__(self, signum):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _raise_interrupted(signum, frame):
+    raise Interrupted(signum)
+
+
+def handle_signals():
+    """SIGTERM and SIGHUP interrupt like Ctrl-C (KeyboardInterrupt)."""
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, _raise_interrupted)
+
+
+def ignore_signals():
+    """While cleaning up after the first signal: a second one must not cut the clean-up short."""
+    for sig in HANDLED_SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)
+
+
+def exit_status(interrupt):
+    """128 + the signal number of a KeyboardInterrupt (SIGINT) or Interrupted."""
+    return 128 + getattr(interrupt, "signum", signal.SIGINT)
+
+
+def signal_name(interrupt):
+    return signal.Signals(getattr(interrupt, "signum", signal.SIGINT)).name
+
+
 # --------------------------------------------------------------------------- output checks
+
+def check_run_dir(key, value):
+    """ConfigError unless ``hydra.run.dir``/``hydra.sweep.dir`` is, or can be made, a writable directory."""
+    path = Path(os.path.expanduser(value))
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"{key}={value}: exists and is not a directory")
+    ancestor = path
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise ConfigError(f"{key}={value}: {ancestor} is not a directory")
+    try:
+        with tempfile.TemporaryDirectory(dir=ancestor, prefix=".gyrolab-probe-"):
+            pass
+    except OSError as err:
+        raise ConfigError(f"{key}={value}: cannot write in {ancestor} ({err.strerror})") from None
+
+
+def check_run_dirs(argv):
+    """``check_run_dir`` of the run/sweep directories given on the command line."""
+    for arg in argv:
+        key, eq, value = arg.lstrip("+~").partition("=")
+        if eq and key in ("hydra.run.dir", "hydra.sweep.dir") and "${" not in value:
+            check_run_dir(key, value)
+
 
 def resolve_output(path, run_dir):
     """The results file: ``output.path`` relative to Hydra's output directory."""
@@ -119,6 +189,9 @@ def output_state(out, chash, overwrite, resume):
             )
     elif partial_dir(out).exists() and not overwrite:
         raise ConfigError(f"output.path={out}: {partial_dir(out)} exists and is not a gyrolab journal")
+    elif resume and not overwrite:
+        raise ConfigError(f"runner.resume=true: nothing to resume at {out} (no results file, no journal "
+                          f"{journal.dir}); leave out runner.resume=true to start this sweep")
     return "fresh"
 
 
@@ -146,7 +219,8 @@ def check_fits(grid, out, chunks):
     peak = max(len(c) for c in chunks) * grid.bytes_per_run()
     if memory is not None and peak > memory:
         raise ConfigError(
-            f"output.every={grid.every}: a run stores {grid.n_samples} samples and needs {_size(grid.bytes_per_run())}; "
+            f"output.every={grid.every}: a run stores {grid.n_samples} samples and needs "
+            f"{_size(grid.bytes_per_run())}; "
             f"more than the {_size(memory)} of memory available (raise output.every or lower sweep.t_end)"
         )
     need = disk_needed(grid)
@@ -270,9 +344,9 @@ def sweep(cfg, run_dir, stack):
         dry_run(grid, out, chunks, threads, peak, state, cluster)
         return None
     if state == "done":
-        if Journal(out).exists():  # killed between the rename and the clean-up
-            with OutputLock(out):
-                Journal(out).discard()
+        with OutputLock(out):
+            remove_stale_temporaries(out)
+            Journal(out).discard()  # killed between the rename and the clean-up
         print(f"gyrolab: {out} is already complete (same config); nothing to do")
         return str(out)
 
@@ -282,12 +356,15 @@ def sweep(cfg, run_dir, stack):
     started = time.perf_counter()
     with OutputLock(out):
         state = output_state(out, chash, overwrite, resume)  # again, now that we hold the lock
+        remove_stale_temporaries(out)  # a killed assembly's half-written results file
         try:
             computing = execute(cfg, grid, out, threads, chash, resume=state == "resume", run_dir=run_dir,
                                 cluster=cluster)
-        except KeyboardInterrupt:
-            sys.exit(EXIT_INTERRUPTED)
-        except BackendError:
+        except KeyboardInterrupt as err:
+            ignore_signals()
+            sys.exit(exit_status(err))
+        except (BackendError, OSError):
+            ignore_signals()
             sys.exit(EXIT_FAILED)
     elapsed = time.perf_counter() - started
     with h5py.File(out, "r") as fh:
@@ -312,9 +389,17 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
     journal = Journal(out)
     if resume:
         journal.clean_temporaries()
+        for name, reason in journal.verify(grid.n_runs, grid.n_samples):
+            print(f"gyrolab: journal: {name} moved aside to {journal.rejected_dir}: {reason}; "
+                  "its runs are computed again", file=sys.stderr)
         done, number = journal.done_runs()
     else:
-        journal.create({"config_hash": chash, "n_runs": grid.n_runs, "shape": list(grid.shape)})
+        try:
+            journal.create({"config_hash": chash, "n_runs": grid.n_runs, "shape": list(grid.shape),
+                            "n_samples": grid.n_samples})
+        except OSError as err:
+            print(f"gyrolab: error: {io_error(err, journal.dir)}; nothing was computed", file=sys.stderr)
+            raise
         done, number = np.empty(0, dtype=np.int64), 0
     todo = np.setdiff1d(np.arange(grid.n_runs), done)
     print(f"gyrolab: {describe(grid)}")
@@ -343,14 +428,43 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
         computing = time.perf_counter() - start
         bar.close()
         assemble(out, grid, journal, file_attrs(cfg, grid, threads, chash))
-    except (KeyboardInterrupt, BackendError) as err:
+    except KeyboardInterrupt as err:
+        ignore_signals()
         bar.close()
-        why = "interrupted" if isinstance(err, KeyboardInterrupt) else f"error: {' '.join(str(err).split())}"
+        why = "interrupted" if type(err) is KeyboardInterrupt else f"interrupted by {signal_name(err)}"
         print(f"\ngyrolab: {why}; {counter['runs']} of {grid.n_runs} runs are saved in {journal.dir}.\n"
               f"Finish with: {resume_command(run_dir)}", file=sys.stderr)
         raise
+    except BackendError as err:
+        ignore_signals()
+        bar.close()
+        print(f"\ngyrolab: error: {' '.join(str(err).split())}; {counter['runs']} of {grid.n_runs} runs are "
+              f"saved in {journal.dir}.\nFinish with: {resume_command(run_dir)}", file=sys.stderr)
+        raise
+    except OSError as err:  # a full disk, a lost mount, a read-only file system ...
+        ignore_signals()
+        bar.close()
+        print(f"gyrolab: error: {io_error(err, out)}; {counter['runs']} of {grid.n_runs} runs are saved in "
+              f"{journal.dir}; fix that, then finish with: {resume_command(run_dir)}", file=sys.stderr)
+        raise
     journal.discard()
     return computing
+
+
+def io_error(err, where):
+    """One line on an OSError while writing near ``where``: what failed and, for a full disk,
+    the free space there.  h5py reports ENOSPC inside its message, without errno."""
+    text = " ".join(str(err).split())
+    full = err.errno in (errno.ENOSPC, errno.EDQUOT) or "No space left" in text or "errno = 28" in text
+    target = err.filename or where
+    if full:
+        try:
+            free = _size(shutil.disk_usage(nearest_dir(Path(target).parent)).free)
+        except OSError:
+            free = "?"
+        return f"no space left on the device of {target} ({free} free)"
+    reason = err.strerror or (text[:160] if text else type(err).__name__)
+    return f"I/O error writing {target}: {reason}"
 
 
 def make_figures(out, names):
@@ -409,22 +523,54 @@ def describe_hydra_error(err, argv):
     reason = str(cause) if cause is not None else text
     if cause is None and override and "\n" in text:
         reason = text.split("\n", 1)[1]
-    reason = reason.strip().splitlines()[0] if reason.strip() else type(err).__name__
+    lines = [line.strip() for line in reason.strip().splitlines() if line.strip()]
+    if lines and lines[0].endswith("raised while composing config:") and len(lines) > 1:
+        lines = lines[1:]  # Hydra's heading; the reason is on the next line
+    reason = lines[0] if lines else type(err).__name__
+    if key is None:
+        key = next((line.split(":", 1)[1].strip() for line in text.splitlines()
+                    if line.strip().startswith("full_key:")), None)
+        if key and token is None:
+            token = next((a for a in argv if a.lstrip("+~").startswith(f"{key}=")), None)
+            in_file = re.search(r"In '([^']+)'", text)
+            token = token or (f"{key} (in {in_file.group(1)}.yaml)" if in_file else key)
     if "is not a ListConfig" in reason:
         reason += " (sweep axes are lists, e.g. sweep.f=[10])"
     return f"{token}: {reason}" if token else reason
 
 
+def describe_yaml_error(err):
+    """One line naming the file, line and problem of a YAML syntax error in a config file."""
+    mark = getattr(err, "problem_mark", None) or getattr(err, "context_mark", None)
+    where = f"{mark.name}, line {mark.line + 1}, column {mark.column + 1}" if mark is not None else "a config file"
+    problem = getattr(err, "problem", None) or str(err).splitlines()[0]
+    return f"{where}: YAML syntax error: {problem}"
+
+
 def main():
     """Console entry point ``gyrolab``."""
+    import yaml
+
     register_configs()
     if os.environ.get("HYDRA_FULL_ERROR"):  # the user asked for Hydra's own tracebacks
         return hydra_main()
     os.environ["HYDRA_FULL_ERROR"] = "1"  # let composition errors reach us instead of a printed trace
+    handle_signals()
     try:
+        check_run_dirs(sys.argv[1:])
         hydra_main()
+    except ConfigError as err:
+        fail(err)
     except (HydraException, OmegaConfBaseException) as err:
         fail(describe_hydra_error(err, sys.argv[1:]))
+    except yaml.YAMLError as err:
+        fail(describe_yaml_error(err))
+    except (FileExistsError, FileNotFoundError, NotADirectoryError, PermissionError) as err:  # Hydra's mkdir
+        fail(f"hydra.run.dir: cannot make {err.filename}: {err.strerror}")
+    except KeyboardInterrupt as err:  # before the sweep started (imports, composition, checks)
+        ignore_signals()
+        sys.stderr.write(f"gyrolab: interrupted ({signal_name(err)}) before any run started; nothing was saved\n")
+        sys.exit(exit_status(err))
 
 
 if __name__ == "__main__":

@@ -3,54 +3,147 @@
     gyrolab-combine multirun/2026-01-01/12-00-00-000000            # -> <dir>/combined.h5
     gyrolab-combine a/results.h5 b/results.h5 -o both.h5
 
+Every input is checked before anything is written: a gyrolab results file
+of a known ``layout_version`` with exactly the layout's variables, dims,
+units and integer run variables (gyrolab/layout.py); no unfinished job (a
+journal ``*.partial`` or a lock next to where a results file belongs) unless
+``--skip-unfinished``.  Each refusal is one line naming the file and the
+reason, exit status 2, and the output is not touched.
+
 Files made with the same scene, scene options, t_end, output.every and
-divergence threshold are joined along the grid axes (method, f, theta0, dt;
-their grids must tile without overlap).  Groups that differ in those are
-stacked along a new dimension: ``scene`` when each group is a different
-scene, else ``job``; the attrs that differ become coordinates along it, and
-points missing from a group's grid are NaN with status -1.  Each input file's
-provenance (config, git commit, creation time, path) is kept in variables
-along a ``source`` dimension.  The inputs are loaded into memory.
+divergence threshold are joined along the grid axes (method, f, theta0, dt):
+their grids must tile the union grid without overlap; with
+``--allow-identical-overlap`` runs present in several files are accepted when
+they are bit-identical (wall_time aside).  The run inputs (body, omega0, q0
+over f, theta0) must agree wherever tiles share an (f, theta0).  Groups that
+differ in those attrs are stacked along a new dimension: ``scene`` when each
+group is a different scene, else ``job``; the attrs that differ become
+coordinates along it, and points missing from a group's grid are NaN with
+status -1.  Each input file's provenance (config, git commit, creation time,
+path) is kept in variables along a ``source`` dimension.  The inputs are
+loaded into memory; the output is written through a temporary file, fsync
+and rename (store.atomic_replace).
 """
 import argparse
-import os
 import sys
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
+from ..layout import (
+    COORD_ATTRS,
+    GRID_DIMS,
+    INPUT_DIMS,
+    INPUT_VARIABLES,
+    LAYOUT_VERSION,
+    RUN_VARIABLES,
+    SAMPLE_VARIABLES,
+    VARIABLE_ATTRS,
+    sample_dims,
+)
+from .config import ConfigError
 from .provenance import VOLATILE_ATTRS
+from .store import OutputLock, atomic_replace, remove_stale_temporaries
 
+KNOWN_LAYOUTS = (LAYOUT_VERSION,)
 IDENTITY_PREFIXES = ("scene",)
 IDENTITY_KEYS = ("t_end", "every", "divergence_threshold")
 PROVENANCE = ("config", "git_commit", "created", "gyrolab_version")
 STATUS_ABSENT = -1
+LAYOUT_DIMS = {name: GRID_DIMS + sample_dims(name) for name in SAMPLE_VARIABLES}
+LAYOUT_DIMS.update({name: GRID_DIMS for name in RUN_VARIABLES})
+LAYOUT_DIMS.update({name: INPUT_DIMS + (own,) for name, (own, _) in INPUT_VARIABLES.items()})
 
 
 class CombineError(ValueError):
     """Inputs that cannot be combined; the message is one line."""
 
 
-def find_results(paths, exclude=None):
-    """Results files under the given files/directories (``*.h5``, not temporaries or partial chunks)."""
+def find_results(paths, exclude=None, skip_unfinished=False):
+    """Results files under the given files/directories (``*.h5``, not temporaries or partial chunks).
+
+    CombineError for an unfinished job (a journal or lock without its results file) unless
+    ``skip_unfinished``; then it is reported on stderr and left out."""
     found = []
     for path in map(Path, paths):
         if path.is_dir():
             candidates = sorted(path.rglob("*.h5"))
+            for marker in sorted([*path.rglob("*.h5.partial"), *path.rglob("*.h5.lock")]):
+                target = marker.with_name(marker.name.rsplit(".", 1)[0])
+                what = "an interrupted sweep's journal" if marker.suffix == ".partial" else "a lock (running?)"
+                if target.exists() and marker.suffix == ".partial":
+                    what = "a leftover journal next to its results file"
+                message = f"{marker.parent}: unfinished job: {what} {marker.name}"
+                if not skip_unfinished:
+                    raise CombineError(f"{message}; finish it with runner.resume=true, "
+                                       "or pass --skip-unfinished to leave it out")
+                sys.stderr.write(f"gyrolab-combine: warning: {message}; left out\n")
+                candidates = [c for c in candidates if c != target]
         elif path.is_file():
             candidates = [path]
         else:
             raise CombineError(f"{path}: no such file or directory")
-        for c in candidates:
-            if c.name.startswith(".") or any(p.name.endswith(".partial") for p in c.parents):
-                continue
-            if exclude is not None and c.resolve() == Path(exclude).resolve():
-                continue
-            found.append(c)
+        mine = [c for c in candidates
+                if not (c.name.startswith(".") or any(p.name.endswith(".partial") for p in c.parents))
+                and not (exclude is not None and c.resolve() == Path(exclude).resolve())]
+        if not mine and path.is_dir():
+            raise CombineError(f"{path}: a directory without results files (*.h5)")
+        found.extend(mine)
     if not found:
         raise CombineError(f"{' '.join(map(str, paths))}: no results files (*.h5) found")
     return found
+
+
+def load(path):
+    """The results Dataset of ``path`` in memory, checked against the layout; CombineError naming
+    the file and the first problem."""
+    try:
+        with xr.open_dataset(path, engine="h5netcdf") as ds:
+            ds = ds.load()
+    except Exception as err:  # h5py/h5netcdf/xarray raise many kinds on damaged or foreign files
+        text = " ".join(str(err).split())[:120]
+        raise CombineError(f"{path}: not a readable results file ({type(err).__name__}: {text})") from None
+    problem = layout_problem(ds)
+    if problem:
+        raise CombineError(f"{path}: {problem}")
+    return ds
+
+
+def layout_problem(ds):
+    """Why ``ds`` is not a gyrolab results file of a known layout, or None."""
+    version = _plain(ds.attrs.get("layout_version"))
+    if version is None:
+        return "not a gyrolab results file (no layout_version attr)"
+    if "combined_from" in ds.attrs:
+        return "already a combined file (combine the job files it came from)"
+    if version not in KNOWN_LAYOUTS:
+        return f"layout_version={version}: unknown (this gyrolab reads {', '.join(map(str, KNOWN_LAYOUTS))})"
+    if "scene" not in ds.attrs:
+        return "not a gyrolab results file (no scene attr)"
+    for name, dims in LAYOUT_DIMS.items():
+        if name not in ds.data_vars:
+            return f"no variable {name!r} (not a complete gyrolab results file)"
+        if ds[name].dims != dims:
+            return f"variable {name} has dims {ds[name].dims}, expected {dims}"
+        units = VARIABLE_ATTRS[name].get("units")
+        if ds[name].attrs.get("units") != units:
+            return f"variable {name} has units {ds[name].attrs.get('units')!r}, expected {units!r}"
+    for name in RUN_VARIABLES:
+        if ds[name].dtype.kind not in "iu" and name != "wall_time":
+            return f"variable {name} has dtype {ds[name].dtype}, expected integers"
+    foreign = sorted(set(ds.data_vars) - set(LAYOUT_DIMS))
+    if foreign:
+        return f"variable {foreign[0]!r} is not in the gyrolab layout"
+    for dim in GRID_DIMS + ("time",):
+        if dim not in ds.coords:
+            return f"no coordinate {dim!r}"
+        units = COORD_ATTRS[dim].get("units")
+        if ds[dim].attrs.get("units") != units:
+            return f"coordinate {dim} has units {ds[dim].attrs.get('units')!r}, expected {units!r}"
+        if len(set(ds[dim].values.tolist())) != ds.sizes[dim]:
+            return f"coordinate {dim} has repeated values"
+    return None
 
 
 def identity(ds):
@@ -60,26 +153,19 @@ def identity(ds):
 
 
 def _plain(value):
-    return value.item() if isinstance(value, np.generic) else value
+    value = value.item() if isinstance(value, np.generic) else value
+    return value.decode() if isinstance(value, bytes) else value
 
 
-def combine(paths):
+def combine(paths, allow_identical_overlap=False):
     """One Dataset from the results files ``paths`` (see the module docstring)."""
-    datasets = []
-    for path in paths:
-        with xr.open_dataset(path, engine="h5netcdf") as ds:
-            datasets.append(ds.load())
+    datasets = [load(path) for path in paths]
     sources = _sources(datasets, paths)
     groups = {}
-    for ds in datasets:
-        groups.setdefault(identity(ds), []).append(_strip(ds))
-    merged = []
-    for key, group in groups.items():
-        try:
-            merged.append(xr.combine_by_coords(group, combine_attrs="drop_conflicts") if len(group) > 1 else group[0])
-        except ValueError as err:
-            raise CombineError(f"files of {dict(key).get('scene', '?')} do not tile one grid: "
-                               f"{str(err).splitlines()[0]}") from None
+    for ds, path in zip(datasets, paths):
+        groups.setdefault(identity(ds), []).append((_strip(ds), path))
+    merged = [join_tiles(group, allow_identical_overlap) if len(group) > 1 else group[0][0]
+              for group in groups.values()]
     if len(merged) == 1:
         out = merged[0]
     else:
@@ -87,6 +173,81 @@ def combine(paths):
     out = out.merge(sources)
     out.attrs["combined_from"] = len(paths)
     return out
+
+
+def _union(values_per_tile, dim):
+    """The union grid axis: numbers ascending, methods in order of first appearance."""
+    seen = []
+    for values in values_per_tile:
+        seen.extend(v for v in values.tolist() if v not in seen)
+    return seen if dim == "method" else sorted(seen)
+
+
+def join_tiles(group, allow_identical_overlap=False):
+    """Join the (Dataset, path) tiles of one grid along GRID_DIMS; CombineError when they do not
+    tile the union grid (a hole, or an overlap that is not allowed or not bit-identical)."""
+    first, first_path = group[0]
+    for ds, path in group[1:]:
+        if not np.array_equal(ds["time"].values, first["time"].values):
+            raise CombineError(f"{path}: time coordinate differs from {first_path}'s")
+    axes = {d: _union([ds[d].values for ds, _ in group], d) for d in GRID_DIMS}
+    shape = tuple(len(axes[d]) for d in GRID_DIMS)
+    owner = np.full(shape, -1, dtype=np.int64)
+    data = {name: np.zeros(shape + first[name].shape[len(GRID_DIMS):], dtype=first[name].dtype)
+            for name in (*SAMPLE_VARIABLES, *RUN_VARIABLES)}
+    inputs_shape = tuple(len(axes[d]) for d in INPUT_DIMS)
+    inputs = {name: np.full(inputs_shape + first[name].shape[len(INPUT_DIMS):], np.nan) for name in INPUT_VARIABLES}
+    input_owner = np.full(inputs_shape, -1, dtype=np.int64)
+    for t, (ds, path) in enumerate(group):
+        at = np.ix_(*[[axes[d].index(v) for v in ds[d].values.tolist()] for d in GRID_DIMS])
+        taken = owner[at] >= 0
+        if taken.any():
+            other = group[int(owner[at][taken][0])][1]
+            if not allow_identical_overlap:
+                raise CombineError(f"{path}: its grid overlaps {other}'s ({int(taken.sum())} runs in both); "
+                                   "tiles must not overlap (--allow-identical-overlap accepts bit-identical runs)")
+            for name in data:
+                if name != "wall_time" and not _same_bits(data[name][at][taken], ds[name].values[taken]):
+                    raise CombineError(f"{path}: {name} of the runs it shares with {other} differs; "
+                                       "overlapping runs must be bit-identical")
+        for name in data:
+            block = data[name][at]
+            block[~taken] = ds[name].values[~taken]
+            data[name][at] = block
+        owner[at] = np.where(taken, owner[at], t)
+        iat = np.ix_(*[[axes[d].index(v) for v in ds[d].values.tolist()] for d in INPUT_DIMS])
+        shared = input_owner[iat] >= 0
+        for name in INPUT_VARIABLES:
+            if shared.any() and not _same_bits(inputs[name][iat][shared], ds[name].values[shared]):
+                other = group[int(input_owner[iat][shared][0])][1]
+                raise CombineError(f"{path}: run input {name} differs from {other}'s at the same (f, theta0)")
+            inputs[name][iat] = ds[name].values
+        input_owner[iat] = np.where(shared, input_owner[iat], t)
+    if (owner < 0).any():
+        hole = dict(zip(GRID_DIMS, (axes[d][int(i)] for d, i in zip(GRID_DIMS, np.argwhere(owner < 0)[0]))))
+        point = ", ".join(f"{k}={v}" for k, v in hole.items())
+        raise CombineError(f"files of {first.attrs.get('scene', '?')} do not tile one grid: run ({point}) is "
+                           f"in none of them ({int((owner < 0).sum())} of {owner.size} runs missing)")
+    coords = {d: (d, np.array(axes[d], dtype=object if d == "method" else float), first[d].attrs) for d in GRID_DIMS}
+    coords.update({d: (d, first[d].values, first[d].attrs) for d in first.coords if d not in GRID_DIMS})
+    variables = {name: (first[name].dims, values, first[name].attrs) for name, values in data.items()}
+    variables.update({name: (first[name].dims, values, first[name].attrs) for name, values in inputs.items()})
+    attrs = dict(first.attrs)
+    for ds, _ in group[1:]:
+        attrs = {k: v for k, v in attrs.items() if k in ds.attrs and _equal(ds.attrs[k], v)}
+    return xr.Dataset(variables, coords=coords, attrs=attrs)
+
+
+def _same_bits(a, b):
+    a, b = np.asarray(a), np.asarray(b)
+    return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+def _equal(a, b):
+    try:
+        return bool(np.all(np.asarray(a) == np.asarray(b)))
+    except Exception:  # unlike types
+        return False
 
 
 def _strip(ds):
@@ -129,15 +290,11 @@ def _label(values):
 
 
 def write(ds, path):
-    """Write ``ds`` to ``path`` (h5netcdf) through a temporary file renamed into place."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    try:
-        ds.to_netcdf(tmp, engine="h5netcdf")
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    """Write ``ds`` to ``path`` (h5netcdf) through a temporary file, fsync and rename (holding
+    ``<path>.lock``, removing temporaries a killed combine left)."""
+    with OutputLock(path):
+        remove_stale_temporaries(path)
+        atomic_replace(path, lambda tmp: ds.to_netcdf(tmp, engine="h5netcdf"))
 
 
 def main(argv=None):
@@ -146,6 +303,10 @@ def main(argv=None):
     parser.add_argument("paths", nargs="+", help="results files or directories (searched recursively)")
     parser.add_argument("-o", "--output", help="combined file (default: <dir>/combined.h5 for one directory)")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    parser.add_argument("--allow-identical-overlap", action="store_true",
+                        help="accept runs present in several files when they are bit-identical")
+    parser.add_argument("--skip-unfinished", action="store_true",
+                        help="leave out unfinished jobs (a journal or lock, no results file) with a warning")
     args = parser.parse_args(argv)
     try:
         for path in args.paths:
@@ -160,12 +321,15 @@ def main(argv=None):
             raise CombineError(f"--output={out}: exists; add --overwrite to replace it")
         if not out.parent.is_dir():
             raise CombineError(f"--output={out}: {out.parent} is not a directory")
-        files = find_results(args.paths, exclude=out)
-        ds = combine(files)
+        files = find_results(args.paths, exclude=out, skip_unfinished=args.skip_unfinished)
+        ds = combine(files, args.allow_identical_overlap)
         write(ds, out)
-    except CombineError as err:
+    except (CombineError, ConfigError) as err:
         sys.stderr.write(f"gyrolab-combine: error: {' '.join(str(err).split())}\n")
         return 2
+    except OSError as err:  # a full disk while writing: the old output, if any, is untouched
+        sys.stderr.write(f"gyrolab-combine: error: writing {args.output}: {err.strerror or err}\n")
+        return 1
     dims = ", ".join(f"{k}: {v}" for k, v in ds.sizes.items())
     print(f"gyrolab-combine: {len(files)} files -> {out} ({dims})")
     return 0

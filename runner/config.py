@@ -140,7 +140,9 @@ def check_values(cfg):
         raise ConfigError(f"output.every={output.every}: the sample interval must be > 0 s")
     if sweep.t_end < output.every:
         raise ConfigError(f"sweep.t_end={sweep.t_end}: shorter than the sample interval output.every={output.every}")
+    check_sizes(sweep, output)
     check_figures(output.figures)
+    check_scene_options(cfg.scene)
     if not str(output.path).strip():
         raise ConfigError("output.path='': needs a file name")
     if runner.threads is not None and runner.threads < 1:
@@ -152,6 +154,47 @@ def check_values(cfg):
     if runner.backend not in BACKENDS:
         raise ConfigError(f"runner.backend={runner.backend}: choose from {', '.join(BACKENDS)}")
     check_cluster(runner)
+
+
+# Largest sample count and step count of one run: beyond these the sizes overflow int64 arithmetic
+# (steps, bytes) long before any machine could hold or run them.
+MAX_SAMPLES = 2**40
+MAX_STEPS = 2**62
+# Spin frequencies (Hz) from which (2 pi f)^2 times a body's inertia is no longer a float64:
+# every run would be infinite from t = 0.
+MAX_F = 1e100
+
+
+def check_sizes(sweep, output):
+    """ConfigError when a run's sample count or step count cannot be represented (t_end/every,
+    t_end/dt too large), or a spin frequency overflows the energy."""
+    samples = sweep.t_end / output.every
+    if not samples < MAX_SAMPLES:
+        raise ConfigError(f"sweep.t_end={sweep.t_end}: {samples:.3g} samples of output.every={output.every} "
+                          f"per run; at most {MAX_SAMPLES:.3g} (raise output.every or lower sweep.t_end)")
+    for dt in sweep.dt:
+        steps = sweep.t_end / dt
+        if not steps < MAX_STEPS or not output.every / dt < MAX_STEPS:
+            raise ConfigError(f"sweep.dt={dt}: {steps:.3g} steps per run over sweep.t_end={sweep.t_end}; "
+                              f"at most {MAX_STEPS:.3g}")
+    for f in sweep.f:
+        if f > MAX_F:
+            raise ConfigError(f"sweep.f={f}: too fast: the spin energy overflows float64 "
+                              f"(every run is infinite from t = 0); at most {MAX_F:g} Hz")
+
+
+def check_scene_options(scene):
+    """ConfigError for a scene option that the scene's other options make meaningless
+    (heavy_top's ``phidot0`` is only read with ``init=precession``)."""
+    options = OmegaConf.to_container(scene, resolve=True)
+    module = SCENES.get(options.get("name"))
+    if module is None:
+        return
+    if "phidot0" in module.OPTIONS and "init" in module.OPTIONS:
+        phidot0, init = options.get("phidot0"), options.get("init")
+        if phidot0 != module.OPTIONS["phidot0"] and init != "precession":
+            raise ConfigError(f"scene.phidot0={phidot0}: only used with scene.init=precession "
+                              f"(here scene.init={init})")
 
 
 def check_cluster(runner):
@@ -201,8 +244,6 @@ def check_finite(node, key=""):
             check_finite(value, key)
     elif isinstance(node, float) and not math.isfinite(node):
         raise ConfigError(f"{key}={node}: must be a finite number")
-
-
 
 
 def data_config(cfg):

@@ -3,17 +3,32 @@
 The runs of a chunk go to the batch kernel in one call (parallel over runs);
 each run's result does not depend on which chunk it is in nor on the thread
 count, so a resumed sweep ends up with the same data as an uninterrupted one.
+
+A numba kernel holds the interpreter until it returns, so a signal (Ctrl-C,
+SIGTERM) is only seen between chunks.  Chunks are sized to ``chunk_seconds``,
+but a single run cannot be split: a chunk estimated to take longer than
+ISOLATE_SECONDS (a long run) is integrated in a worker process
+(``ChunkWorker``, spawned once per sweep) while this process waits in slices
+of POLL_SECONDS, so an interrupt is answered at once: the worker is killed and
+the journal keeps every chunk stored before.  Same kernels, same inputs: the
+worker's results are the same bits.
 """
+import multiprocessing
 import os
+import signal
 import time
 
 import numpy as np
 
 from ..kernels.batch import MIN_BLOCK_RUNS, integrate
-from .grid import plan_chunks
+from .grid import DEFAULT_STEP_RATE, STEP_RATE, plan_chunks
 
 # Test hook: seconds to sleep after each stored chunk, so a test can kill a sweep mid-way.
 DELAY_ENV = "GYROLAB_TEST_CHUNK_DELAY"
+# Test hook: override ISOLATE_SECONDS (e.g. 0: every chunk in the worker process).
+ISOLATE_ENV = "GYROLAB_TEST_ISOLATE_SECONDS"
+ISOLATE_SECONDS = 2.0  # chunks estimated longer than this run in the worker (spawning it costs ~1.5 s)
+POLL_SECONDS = 0.1
 
 
 class BackendError(RuntimeError):
@@ -65,20 +80,121 @@ def integrate_chunk(method, runs, inputs, n_samples, threshold, threads):
             "n_steps": n_steps, "wall_time": wall_time}
 
 
+def isolate_seconds():
+    return float(os.environ.get(ISOLATE_ENV, "") or ISOLATE_SECONDS)
+
+
+def chunk_estimate(grid, runs, threads, rates):
+    """Estimated seconds of integrating the chunk ``runs`` here (measured rates first)."""
+    method = grid.methods[int(grid.index(runs[:1])[0][0])]
+    rate = rates.get(method, STEP_RATE.get(method, DEFAULT_STEP_RATE))
+    per_thread = -(-len(runs) // max(threads, 1))
+    return per_thread * float(grid.steps(runs).max()) / rate
+
+
+class ChunkWorker:
+    """A spawned process that integrates chunks of one grid; ``run(runs)`` waits for a result
+    in slices of POLL_SECONDS, so signals reach this process while the worker computes.
+    Any exception (KeyboardInterrupt included) while waiting kills the worker."""
+
+    def __init__(self, grid, threads):
+        self.grid, self.threads = grid, threads
+        self.process = self.conn = None
+
+    def start(self):
+        ctx = multiprocessing.get_context("spawn")
+        self.conn, child = ctx.Pipe()
+        self.process = ctx.Process(target=_worker_main, args=(child, self.grid, self.threads), daemon=True)
+        self.process.start()
+        child.close()
+
+    def run(self, runs):
+        if self.process is None:
+            self.start()
+        try:
+            self.conn.send(np.asarray(runs, dtype=np.int64))
+            while not self.conn.poll(POLL_SECONDS):
+                if not self.process.is_alive():
+                    raise RuntimeError(f"the chunk worker (pid {self.process.pid}) died "
+                                       f"(exit {self.process.exitcode})")
+            return self.conn.recv()
+        except BaseException:
+            self.kill()
+            raise
+
+    def kill(self):
+        if self.process is not None:
+            if self.process.is_alive():
+                self.process.kill()
+            self.process.join(5)
+            self.conn.close()
+            self.process = self.conn = None
+
+    def close(self):
+        if self.process is not None:
+            try:
+                self.conn.send(None)
+                self.process.join(5)
+            except OSError:
+                pass
+            self.kill()
+
+
+def _die_with_parent():
+    """Linux: ask the kernel to SIGKILL this process when its parent dies (prctl PR_SET_PDEATHSIG),
+    so a ``kill -9`` of the runner never leaves a worker writing behind it."""
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)
+    except (OSError, AttributeError):
+        pass
+
+
+def _worker_main(conn, grid, threads):
+    """The worker process: signals are the parent's business (it kills us); compile first, so
+    that JIT time stays out of wall_time, then integrate each chunk sent until None."""
+    for sig in (signal.SIGINT, signal.SIGHUP, signal.SIGTERM):
+        signal.signal(sig, signal.SIG_IGN)
+    _die_with_parent()
+    import numba
+
+    numba.set_num_threads(threads)
+    warm_up(grid)
+    while True:
+        runs = conn.recv()
+        if runs is None:
+            return
+        conn.send(run_chunk(grid, runs, threads))
+
+
 def run_missing(grid, journal, todo, threads, chunk_seconds, first_number, progress=None):
     """Run the runs in ``todo`` (flat numbers) in chunks, storing each in ``journal``.
 
     Chunks are re-planned after each one with the measured speed of its method,
-    so each takes about ``chunk_seconds``.  ``progress(runs, steps)`` is called
-    after each stored chunk.
+    so each takes about ``chunk_seconds``; chunks that would take longer than
+    ISOLATE_SECONDS (single long runs) go to a ``ChunkWorker``.
+    ``progress(runs, steps)`` is called after each stored chunk.
     """
+    worker = ChunkWorker(grid, threads)
+    try:
+        _run_missing(grid, journal, todo, threads, chunk_seconds, first_number, progress, worker)
+    finally:
+        worker.close()
+
+
+def _run_missing(grid, journal, todo, threads, chunk_seconds, first_number, progress, worker):
     delay = chunk_delay()
+    limit = isolate_seconds()
     rates = {}
     number = first_number
     remaining = np.sort(np.asarray(todo, dtype=np.int64))
     while remaining.size:
         runs = plan_chunks(grid, remaining, threads, chunk_seconds, rates)[0]
-        result = run_chunk(grid, runs, threads)
+        if chunk_estimate(grid, runs, threads, rates) > limit:
+            result = worker.run(runs)
+        else:
+            result = run_chunk(grid, runs, threads)
         steps = int(result["n_steps"].sum())
         wall = float(result["wall_time"].sum()) / min(threads, len(runs))
         if wall > 0 and steps == int(grid.steps(runs).sum()):  # diverged runs stop early: no speed sample

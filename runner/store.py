@@ -2,14 +2,22 @@
 
 Crash safety: each finished chunk goes to ``<out>.partial/chunk-NNNNN.npz``
 through a temporary name, fsync and ``os.replace``, so a chunk file is
-either complete or absent.  The results file is assembled from the journal
-into a temporary name and renamed into place only when complete; then the
-journal is removed.  ``OutputLock`` (``fcntl.flock`` on ``<out>.lock``)
-refuses a second writer to the same output.
+either complete or absent; then its sha256 and expected shape are added to
+``manifest.json`` (written the same way).  A resume verifies every chunk
+(``Journal.verify``: listed, checksum, keys, shapes, run numbers, finite
+samples of finished runs) and moves a bad one aside into
+``<out>.partial/rejected/`` so that its runs are computed again.  The results
+file is assembled from the journal into a temporary name and renamed into
+place only when complete; then the journal is removed.  Temporaries a killed
+process left (``.<out>.tmp<pid>``) are removed by the next writer
+(``remove_stale_temporaries``).  ``OutputLock`` (``fcntl.flock`` on
+``<out>.lock``) refuses a second writer to the same output.
 
 The results layout (dims, variables, units, attrs) is gyrolab/layout.py's.
 """
+import errno
 import fcntl
+import hashlib
 import json
 import os
 import shutil
@@ -23,6 +31,7 @@ from ..layout import (
     GRID_DIMS,
     INPUT_DIMS,
     INPUT_VARIABLES,
+    RAW_PER_SAMPLE,
     RUN_VARIABLES,
     SAMPLE_VARIABLES,
     VARIABLE_ATTRS,
@@ -49,11 +58,35 @@ def fsync_dir(directory):
         os.close(fd)
 
 
+def temporary_name(path):
+    """The temporary name ``atomic_replace`` writes ``path`` under (hidden, with this process's pid)."""
+    path = Path(path)
+    return path.with_name(f".{path.name}.tmp{os.getpid()}")
+
+
+def remove_stale_temporaries(path):
+    """Remove the ``.<name>.tmp<pid>`` files next to ``path`` that a killed assembly or combine
+    left; returns the removed paths.  Call with the output's lock held: every writer of
+    ``path`` holds it, so no such file is in use."""
+    path = Path(path)
+    removed = []
+    if not path.parent.is_dir():
+        return removed
+    for tmp in path.parent.glob(f".{path.name}.tmp*"):
+        if tmp.name[len(f".{path.name}.tmp"):].isdigit():
+            try:
+                tmp.unlink()
+                removed.append(tmp)
+            except OSError:
+                pass
+    return removed
+
+
 def atomic_replace(path, write_to):
     """Call ``write_to(tmp_path)``, fsync that file and rename it to ``path``; the
     temporary file is removed if anything fails, so ``path`` is old or whole."""
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp = temporary_name(path)
     try:
         write_to(tmp)
         with open(tmp, "rb") as fh:
@@ -142,25 +175,58 @@ class OutputLock:
         self.release()
 
 
+class JournalError(ConfigError):
+    """A journal whose manifest cannot be trusted (one-line message)."""
+
+
+CHUNK_KEYS = ("runs", "samples", "status", "n_steps", "wall_time")
+
+
+def sha256(path):
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
 class Journal:
-    """Finished chunks of one sweep in ``<out>.partial/``; ``manifest.json`` names the config hash."""
+    """Finished chunks of one sweep in ``<out>.partial/``; ``manifest.json`` names the config
+    hash, the grid (n_runs, shape, n_samples) and each chunk's sha256 and number of runs."""
 
     def __init__(self, out):
         self.dir = partial_dir(out)
         self.manifest_path = self.dir / "manifest.json"
+        self.rejected_dir = self.dir / "rejected"
+        self._manifest = None
 
     def exists(self):
         return self.manifest_path.exists()
 
     def manifest(self):
-        with open(self.manifest_path) as fh:
-            return json.load(fh)
+        """The manifest as a dict; JournalError (one line) if it is unreadable or malformed."""
+        try:
+            with open(self.manifest_path, "rb") as fh:
+                manifest = json.loads(fh.read().decode())
+        except (OSError, UnicodeDecodeError, ValueError) as err:
+            raise JournalError(f"{self.manifest_path}: damaged journal manifest ({_reason(err)}); "
+                               "start over with output.overwrite=true") from None
+        problem = _manifest_problem(manifest)
+        if problem:
+            raise JournalError(f"{self.manifest_path}: damaged journal manifest ({problem}); "
+                               "start over with output.overwrite=true")
+        return manifest
 
     def create(self, manifest):
         """Start an empty journal (removing any old one)."""
         self.discard()
         self.dir.mkdir(parents=True)
-        atomic_write(self.manifest_path, lambda fh: fh.write(json.dumps(manifest, indent=1).encode()))
+        self._manifest = {**manifest, "chunks": {}}
+        self._write_manifest()
+
+    def _write_manifest(self):
+        text = json.dumps(self._manifest, indent=1).encode()
+        atomic_write(self.manifest_path, lambda fh: fh.write(text))
 
     def discard(self):
         if self.dir.exists():
@@ -170,24 +236,66 @@ class Journal:
         return sorted(self.dir.glob("chunk-*.npz"))
 
     def clean_temporaries(self):
-        """Remove half-written chunk files a killed process left behind."""
-        for tmp in self.dir.glob(".chunk-*.tmp*"):
+        """Remove half-written chunk and manifest files a killed process left behind."""
+        for tmp in [*self.dir.glob(".chunk-*.tmp*"), *self.dir.glob(".manifest.json.tmp*")]:
             tmp.unlink()
 
     def write_chunk(self, number, runs, samples, status, n_steps, wall_time):
         """Store one finished chunk durably: runs (flat numbers), raw samples (n, time, RAW_PER_SAMPLE),
-        per-run arrays."""
+        per-run arrays; then record its checksum in the manifest."""
 
         def write(fh):
             np.savez(fh, runs=runs, samples=samples, status=status, n_steps=n_steps, wall_time=wall_time)
 
-        atomic_write(self.dir / f"chunk-{number:05d}.npz", write)
+        path = self.dir / f"chunk-{number:05d}.npz"
+        atomic_write(path, write)
+        self.record_chunk(path, len(runs))
+
+    def record_chunk(self, path, n_runs):
+        """Add a chunk file written by this or another process to the manifest."""
+        if self._manifest is None:
+            self._manifest = self.manifest()
+        self._manifest.setdefault("chunks", {})[Path(path).name] = {"sha256": sha256(path), "runs": int(n_runs)}
+        self._write_manifest()
 
     def chunks(self):
         """Yield each stored chunk as a dict of arrays."""
         for path in self.chunk_files():
             with np.load(path, allow_pickle=False) as data:
                 yield {key: data[key] for key in data.files}
+
+    def verify(self, n_runs, n_samples):
+        """Check every chunk file against the manifest and the grid; move each bad one into
+        ``rejected/``.  Returns [(chunk file name, reason)] of the chunks set aside."""
+        manifest = self._manifest = self.manifest()
+        listed = manifest.get("chunks")
+        rejected, seen, changed = [], set(), listed is None
+        listed = manifest["chunks"] = listed if listed is not None else {}
+        for path in self.chunk_files():
+            problem = _chunk_problem(path, listed, n_runs, n_samples, seen)
+            if problem:
+                rejected.append((path.name, problem))
+                self._reject(path)
+                changed |= listed.pop(path.name, None) is not None
+            elif path.name not in listed:  # killed before its manifest entry, or a journal without checksums
+                with np.load(path, allow_pickle=False) as data:
+                    listed[path.name] = {"sha256": sha256(path), "runs": int(data["runs"].size)}
+                changed = True
+        have = {p.name for p in self.chunk_files()}
+        for name in [n for n in listed if n not in have]:
+            listed.pop(name)  # listed but gone: its runs are simply not done
+            changed = True
+        if changed:
+            self._write_manifest()
+        return rejected
+
+    def _reject(self, path):
+        self.rejected_dir.mkdir(exist_ok=True)
+        target = self.rejected_dir / path.name
+        k = 1
+        while target.exists():
+            target, k = self.rejected_dir / f"{path.stem}.{k}{path.suffix}", k + 1
+        os.replace(path, target)
 
     def done_runs(self):
         """Flat numbers of the runs already stored and the next free chunk number."""
@@ -197,13 +305,96 @@ class Journal:
             with np.load(path, allow_pickle=False) as data:
                 runs.append(data["runs"])
         done = np.concatenate(runs) if runs else np.empty(0, dtype=np.int64)
-        next_number = int(files[-1].stem.split("-")[1]) + 1 if files else 0
-        return done, next_number
+        numbers = [int(p.stem.split("-")[1]) for p in files]
+        numbers += [int(p.stem.split("-")[1].split(".")[0]) for p in self.rejected_dir.glob("chunk-*.npz")
+                    if p.stem.split("-")[1].split(".")[0].isdigit()]
+        return done, max(numbers) + 1 if numbers else 0
+
+
+def _reason(err):
+    text = " ".join(str(err).split())
+    return f"{type(err).__name__}: {text[:100]}" if text else type(err).__name__
+
+
+def _manifest_problem(manifest):
+    """What is wrong with a parsed manifest, or None."""
+    if not isinstance(manifest, dict):
+        return "not a JSON object"
+    if not isinstance(manifest.get("config_hash"), str):
+        return "no config_hash"
+    if "n_runs" in manifest and not (isinstance(manifest["n_runs"], int) and manifest["n_runs"] > 0):
+        return f"n_runs={manifest['n_runs']!r}"
+    chunks = manifest.get("chunks")
+    if chunks is not None:
+        if not isinstance(chunks, dict):
+            return "chunks is not a JSON object"
+        for name, entry in chunks.items():
+            if not (isinstance(entry, dict) and isinstance(entry.get("sha256"), str)
+                    and isinstance(entry.get("runs"), int)):
+                return f"bad entry for {name}"
+    return None
+
+
+def _chunk_problem(path, listed, n_runs, n_samples, seen):
+    """Why the chunk file ``path`` cannot be used, or None (then its runs are added to ``seen``)."""
+    # A chunk missing from the manifest was renamed into place just before a kill, ahead of its
+    # manifest entry: whole (atomic rename, fsync), so it is judged by its content alone.
+    listed = listed if listed is not None and path.name in listed else None
+    if listed is not None and sha256(path) != listed[path.name]["sha256"]:
+        return "checksum differs from the manifest's (damaged file)"
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            missing = [k for k in CHUNK_KEYS if k not in data.files]
+            if missing:
+                return f"not a gyrolab chunk (no array {missing[0]!r})"
+            arrays = {k: data[k] for k in CHUNK_KEYS}
+    except Exception as err:  # zipfile, numpy and zlib raise many kinds on damaged input
+        return f"unreadable ({_reason(err)})"
+    runs = arrays["runs"]
+    if runs.ndim != 1 or runs.size == 0 or runs.dtype.kind not in "iu":
+        return f"runs has shape {runs.shape} and dtype {runs.dtype}"
+    n = runs.size
+    if listed is not None and listed[path.name]["runs"] != n:
+        return f"{n} runs where the manifest says {listed[path.name]['runs']}"
+    if runs.min() < 0 or runs.max() >= n_runs:
+        return f"run numbers outside 0..{n_runs - 1}"
+    if len(set(runs.tolist())) != n or seen.intersection(runs.tolist()):
+        return "runs stored twice"
+    expected = (n, n_samples, RAW_PER_SAMPLE)
+    if arrays["samples"].shape != expected or arrays["samples"].dtype != np.float64:
+        return f"samples have shape {arrays['samples'].shape}, expected {expected}"
+    for key in ("status", "n_steps", "wall_time"):
+        if arrays[key].shape != (n,):
+            return f"{key} has shape {arrays[key].shape}, expected ({n},)"
+    finished = arrays["status"] == 0
+    if not np.isfinite(arrays["samples"][finished]).all():
+        return "non-finite samples in runs marked finished (status 0)"
+    seen.update(runs.tolist())
+    return None
+
+
+# Test hook: seconds to sleep after each chunk copied into the results file being assembled.
+ASSEMBLY_DELAY_ENV = "GYROLAB_TEST_ASSEMBLY_DELAY"
 
 
 def assemble(out, grid, journal, attrs):
     """Write the results file from the journal into a temporary name, fsync it, rename it to ``out``."""
-    atomic_replace(out, lambda tmp: write_results(tmp, grid, journal.chunks(), attrs))
+    need = grid.bytes_stored() * 1.05 + 2**20  # samples plus HDF5 metadata, coordinates and inputs
+    free = shutil.disk_usage(Path(out).parent).free
+    if free < need:  # HDF5 can crash (not raise) when the disk fills while it closes a file
+        raise OSError(errno.ENOSPC, f"No space left on device: the results need ~{need / 1e6:.3g} MB, "
+                                    f"{free / 1e6:.3g} MB free", str(out))
+    delay = float(os.environ.get(ASSEMBLY_DELAY_ENV, "0") or 0)
+    chunks = journal.chunks() if not delay else _slowly(journal.chunks(), delay)
+    atomic_replace(out, lambda tmp: write_results(tmp, grid, chunks, attrs))
+
+
+def _slowly(chunks, delay):
+    import time
+
+    for chunk in chunks:
+        yield chunk
+        time.sleep(delay)
 
 
 def write_results(path, grid, chunks, attrs):

@@ -94,3 +94,24 @@ def test_hash_ignores_how_a_sweep_is_run_but_not_what_it_computes():
     assert config_hash(composed("output.every=2e-3")) != base
     assert config_hash(composed("scene.M=2")) != base
     assert config_hash(composed("runner.divergence_threshold=5")) != base
+
+
+@pytest.mark.parametrize(
+    "overrides, message",
+    [
+        (["sweep.t_end=1e20"], "sweep.t_end=1e+20"),
+        (["sweep.dt=[1e-300]"], "sweep.dt=1e-300"),
+        (["sweep.f=[1e200]"], "sweep.f=1e+200: too fast"),
+        (["output.figures=2"], "output.figures=2"),
+        (["scene.phidot0=3"], "scene.phidot0=3.0: only used with scene.init=precession"),
+        (["scene.init=steady_slow", "scene.phidot0=1"], "scene.phidot0=1.0"),
+    ],
+)
+def test_values_a_type_cannot_rule_out_are_one_line_errors(overrides, message):
+    with pytest.raises(ConfigError) as info:
+        check_values(composed(*overrides))
+    assert message in str(info.value) and "\n" not in str(info.value)
+
+
+def test_phidot0_with_precession_is_accepted():
+    check_values(composed("scene.init=precession", "scene.phidot0=3"))

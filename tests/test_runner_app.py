@@ -14,10 +14,12 @@ def out(tmp_path):
     return tmp_path / "results.h5"
 
 
-def test_fresh_output_is_fresh_whatever_the_flags(out):
+def test_fresh_output_is_fresh_unless_a_resume_finds_nothing(out):
     for overwrite in (False, True):
-        for resume in (False, True):
-            assert output_state(out, "h", overwrite, resume) == "fresh"
+        assert output_state(out, "h", overwrite, False) == "fresh"
+    assert output_state(out, "h", True, True) == "fresh"
+    with pytest.raises(ConfigError, match="runner.resume=true: nothing to resume"):
+        output_state(out, "h", False, True)
 
 
 def test_existing_file_needs_overwrite_or_a_matching_resume(out):

@@ -153,6 +153,19 @@ def test_multirun_writes_one_file_per_job_and_combine_merges_them(tmp_path):
         assert ds.sizes["source"] == 2 and "sweep:" in str(ds["source_config"].values[0])
 
 
+@pytest.mark.parametrize("text, message", [
+    ("sweep:\n  f: [10\n  dt: x\n", "badexp.yaml, line 4, column 5: YAML syntax error"),
+    ("sweep:\n  t_end: ten\n", "sweep.t_end (in experiment/badexp.yaml): Value 'ten'"),
+], ids=["syntax", "type"])
+def test_bad_experiment_yaml_is_one_line_naming_the_file_and_key(tmp_path, text, message):
+    (tmp_path / "conf" / "experiment").mkdir(parents=True)
+    (tmp_path / "conf" / "experiment" / "badexp.yaml").write_text("# @package _global_\n" + text)
+    result = gyrolab(f"--config-dir={tmp_path / 'conf'}", "experiment=badexp", cwd=tmp_path)
+    assert result.returncode == 2
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("gyrolab: error: ") and message in line and "Traceback" not in result.stderr
+
+
 def test_multirun_with_a_bad_job_stops_before_any_job_runs(tmp_path):
     result = gyrolab("-m", "scene.M=1,-1", *TINY, f"hydra.sweep.dir={tmp_path / 'mr'}", cwd=tmp_path)
     assert result.returncode == 2
@@ -190,6 +203,16 @@ BAD_INPUTS = [
     (["sweep.f=10"], "sweep.f=10"),
     (["sweep.tend=3"], "sweep.tend=3"),
     (["runner.backend=slurm"], "runner.backend=slurm"),
+    # issue 16: overflowing sizes (also in a dry run), absurd spins, options that would be ignored
+    (["sweep.t_end=1e20"], "sweep.t_end=1e+20"),
+    (["sweep.dt=[1e-300]"], "sweep.dt=1e-300"),
+    (["sweep.dt=[1e-300]", "runner.dry_run=true"], "sweep.dt=1e-300"),
+    (["sweep.f=[1e200]"], "sweep.f=1e+200"),
+    (["output.figures=2"], "output.figures=2"),
+    (["scene.phidot0=3"], "scene.phidot0=3.0: only used with scene.init=precession"),
+    (["runner.resume=true", "hydra.run.dir={tmp}/nothing"], "runner.resume=true: nothing to resume"),
+    (["hydra.run.dir={existing}"], "hydra.run.dir={existing}: exists and is not a directory"),
+    (["hydra.run.dir=/proc/gyrolab-test"], "hydra.run.dir=/proc/gyrolab-test: cannot write"),
 ]
 
 
@@ -197,12 +220,12 @@ BAD_INPUTS = [
 def test_bad_input_is_refused_in_one_line_with_status_2_and_no_file(tmp_path, args, message):
     existing = tmp_path / "old.h5"
     existing.write_bytes(b"an earlier result")
-    args = [a.format(existing=existing) for a in args]
+    args = [a.format(existing=existing, tmp=tmp_path) for a in args]
     result = gyrolab(*args, cwd=tmp_path)
     assert result.returncode == 2, result.stderr
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("gyrolab: error: "), result.stderr
-    assert message.format(existing=existing) in lines[0]
+    assert message.format(existing=existing, tmp=tmp_path) in lines[0]
     assert "Traceback" not in result.stdout + result.stderr
     assert [p.name for p in tmp_path.rglob("*")] == ["old.h5"]
     assert existing.read_bytes() == b"an earlier result"

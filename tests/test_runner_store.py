@@ -80,3 +80,23 @@ def test_results_file_layout_and_attrs(tmp_path, grid):
 def test_incomplete_journal_is_not_assembled(tmp_path, grid):
     with pytest.raises(RuntimeError, match="4 of 8 runs missing"):
         write_results(tmp_path / "r.h5", grid, [run_chunk(grid, np.arange(4), 2)], {})
+
+
+def test_a_journal_without_checksums_is_verified_by_content_and_then_sealed(tmp_path, grid):
+    journal = Journal(tmp_path / "results.h5")
+    journal.create({"config_hash": "abc"})
+    journal.write_chunk(0, **run_chunk(grid, np.array([0, 2]), threads=1))
+    journal.manifest_path.write_text('{"config_hash": "abc"}')  # as written before checksums
+    assert journal.verify(grid.n_runs, grid.n_samples) == []
+    assert list(journal.manifest()["chunks"]) == ["chunk-00000.npz"]
+
+
+def test_stale_result_temporaries_are_removed(tmp_path):
+    from gyrolab.runner.store import remove_stale_temporaries
+
+    out = tmp_path / "results.h5"
+    for name in (".results.h5.tmp123", ".results.h5.tmp9", ".other.h5.tmp5", ".results.h5.tmpx"):
+        (tmp_path / name).write_bytes(b"half")
+    removed = remove_stale_temporaries(out)
+    assert sorted(p.name for p in removed) == [".results.h5.tmp123", ".results.h5.tmp9"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".other.h5.tmp5", ".results.h5.tmpx"]
