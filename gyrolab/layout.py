@@ -117,6 +117,30 @@ RUN_ONLY = {"output": ("path", "overwrite", "figures"),
                        "connect_timeout")}
 
 
+# Files written before layout_version existed (gyrolab at c0ed527 and earlier) are layout 0: the same
+# grid and variables less these, and no stored run inputs.  Every reader opens them.
+ABSENT_BEFORE = {0: ("L",)}
+
+
+def file_layout_version(ds):
+    """The layout version of an opened file: its ``layout_version`` attr; 0 for a gyrolab file from
+    before that attr (it carries ``gyrolab_version`` and a ``config``); None for anything else."""
+    if "layout_version" in ds.attrs:
+        try:
+            return int(ds.attrs["layout_version"])
+        except (TypeError, ValueError):
+            return None
+    return 0 if "gyrolab_version" in ds.attrs and "config" in ds.attrs else None
+
+
+def required_variables(version):
+    """{name: dims} every results file of layout ``version`` holds (grid dims first)."""
+    absent = ABSENT_BEFORE.get(version, ())
+    wanted = {name: GRID_DIMS + sample_dims(name) for name in SAMPLE_VARIABLES if name not in absent}
+    wanted.update({name: GRID_DIMS for name in RUN_VARIABLES})
+    return wanted
+
+
 def sample_dims(name):
     """Dims of per-sample variable ``name`` after the grid dims: (time,) or (time, xyz)."""
     return ("time", "xyz") if SAMPLE_VARIABLES[name].vector else ("time",)

@@ -1,0 +1,58 @@
+"""The results layout: files of the current layout and of layout 0 (before layout_version) open with
+every reader; foreign files are refused."""
+import subprocess
+
+import pytest
+
+from gyrolab.analysis.compare import compare_files
+from gyrolab.analysis.io import SelectionError, open_results
+from gyrolab.layout import LAYOUT_VERSION, SAMPLE_VARIABLES, file_layout_version
+
+from helpers import BIN, make_dataset
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """(current, layout 0) files of the same runs: layout 0 is gyrolab at c0ed527 (no layout_version,
+    no L, no stored run inputs)."""
+    root = tmp_path_factory.mktemp("layout")
+    ds = make_dataset({"method": ["rk4", "lie_poisson"], "f": [10.0], "dt": [1e-3]}, t_end=0.2, every=1e-2)
+    ds.attrs.update(gyrolab_version="0.1.0", config="sweep:\n  t_end: 0.2\n")
+    new, old = root / "new.h5", root / "old.h5"
+    ds.to_netcdf(new, engine="h5netcdf")
+    legacy = ds.drop_vars(["L", "body", "omega0", "q0"])
+    legacy.attrs = {k: v for k, v in ds.attrs.items() if k not in ("layout_version", "conserved", "closed_form")}
+    legacy.to_netcdf(old, engine="h5netcdf")
+    return new, old
+
+
+def test_current_and_layout_0_files_open(files):
+    new, old = files
+    assert file_layout_version(open_results(new)) == LAYOUT_VERSION
+    legacy = open_results(old)
+    assert file_layout_version(legacy) == 0 and "L" not in legacy and set(SAMPLE_VARIABLES) - {"L"} <= set(legacy)
+
+
+def test_compare_across_layouts_compares_the_shared_variables(files):
+    report = compare_files(*files)
+    assert report.ok
+    assert any("variable L" in note for note in report.dropped)
+
+
+def test_every_figure_of_a_layout_0_file(files, tmp_path):
+    """The standard figures draw from a layout-0 file (invariants it lacks are left out)."""
+    done = subprocess.run([str(BIN / "gyrolab-plot"), "standard", str(files[1]), "-o", str(tmp_path / "figs")],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert len(list((tmp_path / "figs").glob("*.png"))) == 4
+
+
+def test_a_newer_layout_is_refused_in_one_line(files, tmp_path):
+    import xarray as xr
+
+    ds = xr.open_dataset(files[0], engine="h5netcdf").load()
+    ds.attrs["layout_version"] = LAYOUT_VERSION + 1
+    path = tmp_path / "future.h5"
+    ds.to_netcdf(path, engine="h5netcdf")
+    with pytest.raises(SelectionError, match="newer than this gyrolab reads"):
+        open_results(path)
