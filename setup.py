@@ -6,6 +6,7 @@ installed files, not the code that was installed, so the build writes
 ``gyrolab/_build_info.py`` into the wheel instead (as REBOUND bakes its git
 hash in at build time).  Everything else is in pyproject.toml.
 """
+
 import subprocess
 from pathlib import Path
 
@@ -16,9 +17,11 @@ from setuptools.command.build_py import build_py
 def git_state(directory):
     """(commit, dirty) of the git work tree at ``directory``; ("unknown", -1) outside git."""
     try:
+
         def git(*args):
-            return subprocess.run(["git", "-C", str(directory), *args], capture_output=True, text=True,
-                                  timeout=10, check=True).stdout.strip()
+            return subprocess.run(
+                ["git", "-C", str(directory), *args], capture_output=True, text=True, timeout=10, check=True
+            ).stdout.strip()
 
         return git("rev-parse", "HEAD"), int(bool(git("status", "--porcelain", "--untracked-files=no")))
     except (OSError, subprocess.SubprocessError):

@@ -5,6 +5,7 @@ radius r at distance l along it; the spin about e3 is not drawn).  Frames are
 every k-th stored sample so that the GIF shows ``seconds`` of simulated time
 in at most ``max_frames`` frames.  matplotlib's PillowWriter (no ffmpeg needed).
 """
+
 import math
 from pathlib import Path
 
@@ -94,11 +95,16 @@ def _render(ds, out, sel=None, seconds=None, fps=20):
 def _make_figure():
     from .figure import Figure
 
-    return Figure("animation", "GIF of the top (disc, axis, tip trace) from a stored run",
-                  options={"--seconds": {"type": float, "default": None,
-                                         "help": "simulated seconds shown (default: up to 2 s)"},
-                           "--fps": {"type": int, "default": 20, "help": "frames per second of the GIF (default 20)"}},
-                  file_name="animation.gif", render=_render)
+    return Figure(
+        "animation",
+        "GIF of the top (disc, axis, tip trace) from a stored run",
+        options={
+            "--seconds": {"type": float, "default": None, "help": "simulated seconds shown (default: up to 2 s)"},
+            "--fps": {"type": int, "default": 20, "help": "frames per second of the GIF (default 20)"},
+        },
+        file_name="animation.gif",
+        render=_render,
+    )
 
 
 FIGURE = _make_figure()

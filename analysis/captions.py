@@ -9,6 +9,7 @@ from that file (worst relative errors over the run, closed-form bounds,
 counts of diverged runs); nothing is typed in by hand, so a caption cannot
 disagree with its figure.  A section whose input is not given is left out.
 """
+
 import argparse
 import math
 from pathlib import Path
@@ -43,15 +44,21 @@ def nutation_caption(path):
         nut = yardstick.nutation(ds, f, ds.theta0.values[0])
         if nut is None:
             continue
-        th = np.degrees(ds.theta.sel({"method": "seed_prev", "f": f, "dt": dt, **_run_at(ds)}).values) \
-            if "seed_prev" in ds.method.values else None
+        th = (
+            np.degrees(ds.theta.sel({"method": "seed_prev", "f": f, "dt": dt, **_run_at(ds)}).values)
+            if "seed_prev" in ds.method.values
+            else None
+        )
         out = "" if th is None else (f"; seed_prev spans {np.nanmin(th):.1f}°–{np.nanmax(th):.1f}° over the run")
-        parts.append(f"f = {f:g} Hz: θ ∈ [{math.degrees(nut.theta_min):.2f}°, {math.degrees(nut.theta_max):.2f}°], "
-                     f"nutation period {nut.period * 1e3:.1f} ms{out}")
-    return (f"`gyrolab` (default study), `gyrolab-plot nutation {Path(path).name}`. θ(t) at the finest "
-            f"dt = {dt:g} s (the others: `dt=...`), first and last three nutation periods, with the closed-form "
-            "θ_min, θ_max dashed; a note names the methods whose curves lie on top of each other. "
-            + "; ".join(parts) + ".")
+        parts.append(
+            f"f = {f:g} Hz: θ ∈ [{math.degrees(nut.theta_min):.2f}°, {math.degrees(nut.theta_max):.2f}°], "
+            f"nutation period {nut.period * 1e3:.1f} ms{out}"
+        )
+    return (
+        f"`gyrolab` (default study), `gyrolab-plot nutation {Path(path).name}`. θ(t) at the finest "
+        f"dt = {dt:g} s (the others: `dt=...`), first and last three nutation periods, with the closed-form "
+        "θ_min, θ_max dashed; a note names the methods whose curves lie on top of each other. " + "; ".join(parts) + "."
+    )
 
 
 def tip_caption(path):
@@ -63,11 +70,15 @@ def tip_caption(path):
         if nut is None:
             continue
         tmax = math.degrees(nut.theta_max)
-        parts.append(f"{f:g} Hz: θ_max = {tmax:.1f}°" + (" (annulus drawn)" if tmax <= 90 else
-                                                         " (past the horizon: no bounding circles)"))
-    return (f"`gyrolab-plot tip {Path(path).name}` (seed_next, dt = {dt:g} s, one turn of precession). The "
-            "closed-form circles sin θ_min, sin θ_max are drawn only where they bound the trace (θ_max ≤ 90°); "
-            "start, pivot and circles are in the legend. " + "; ".join(parts) + ".")
+        parts.append(
+            f"{f:g} Hz: θ_max = {tmax:.1f}°"
+            + (" (annulus drawn)" if tmax <= 90 else " (past the horizon: no bounding circles)")
+        )
+    return (
+        f"`gyrolab-plot tip {Path(path).name}` (seed_next, dt = {dt:g} s, one turn of precession). The "
+        "closed-form circles sin θ_min, sin θ_max are drawn only where they bound the trace (θ_max ≤ 90°); "
+        "start, pivot and circles are in the legend. " + "; ".join(parts) + "."
+    )
 
 
 def energy_caption(path):
@@ -75,13 +86,17 @@ def energy_caption(path):
     dt = float(ds.dt.values.max())
     lines = []
     for f in ds.f.values:
-        vals = ", ".join(f"{m} {_g(_worst(ds, 'energy', method=m, f=f, dt=dt, **_run_at(ds)))}"
-                         for m in ds.method.values)
+        vals = ", ".join(
+            f"{m} {_g(_worst(ds, 'energy', method=m, f=f, dt=dt, **_run_at(ds)))}" for m in ds.method.values
+        )
         lines.append(f"f = {f:g} Hz: {vals}")
-    return (f"`gyrolab-plot energy {Path(path).name}` ({ds.method.size} methods × f = "
-            f"{', '.join(f'{v:g}' for v in ds.f.values)} Hz × dt = {', '.join(f'{v:g}' for v in ds.dt.values)} s, "
-            f"{float(ds.time[-1]):g} s). Running maximum of |E(t) − E0|/|E0|; worst values at dt = {dt:g} s: "
-            + "; ".join(lines) + ".")
+    return (
+        f"`gyrolab-plot energy {Path(path).name}` ({ds.method.size} methods × f = "
+        f"{', '.join(f'{v:g}' for v in ds.f.values)} Hz × dt = {', '.join(f'{v:g}' for v in ds.dt.values)} s, "
+        f"{float(ds.time[-1]):g} s). Running maximum of |E(t) − E0|/|E0|; worst values at dt = {dt:g} s: "
+        + "; ".join(lines)
+        + "."
+    )
 
 
 def invariants_caption(path):
@@ -90,15 +105,28 @@ def invariants_caption(path):
     ds = open_results(path)
     dt = float(ds.dt.values.max())
     qs = drawable_invariants(ds)
-    exact = [q for q in qs if all(_worst(ds, q, method=m, f=f, dt=d, **_run_at(ds)) == 0
-                                  for m in ds.method.values for f in ds.f.values for d in ds.dt.values)]
+    exact = [
+        q
+        for q in qs
+        if all(
+            _worst(ds, q, method=m, f=f, dt=d, **_run_at(ds)) == 0
+            for m in ds.method.values
+            for f in ds.f.values
+            for d in ds.dt.values
+        )
+    ]
     f = 10.0 if 10.0 in ds.f.values else float(ds.f.values[0])
-    lz = ", ".join(f"{m} {_g(_worst(ds, 'Lz', method=m, f=f, dt=dt, **_run_at(ds)))}" for m in ds.method.values) \
-        if "Lz" in qs else ""
-    return (f"`gyrolab-plot invariants {Path(path).name}`. One row per invariant the scene declares "
-            f"({', '.join(qs)})" + (f"; {', '.join(exact)} kept exactly by every run, so no row (the figure says so)"
-                                     if exact else "")
-            + (f". Worst relative L_z error at f = {f:g} Hz, dt = {dt:g} s: {lz}." if lz else "."))
+    lz = (
+        ", ".join(f"{m} {_g(_worst(ds, 'Lz', method=m, f=f, dt=dt, **_run_at(ds)))}" for m in ds.method.values)
+        if "Lz" in qs
+        else ""
+    )
+    return (
+        f"`gyrolab-plot invariants {Path(path).name}`. One row per invariant the scene declares "
+        f"({', '.join(qs)})"
+        + (f"; {', '.join(exact)} kept exactly by every run, so no row (the figure says so)" if exact else "")
+        + (f". Worst relative L_z error at f = {f:g} Hz, dt = {dt:g} s: {lz}." if lz else ".")
+    )
 
 
 def work_precision_caption(path):
@@ -109,14 +137,15 @@ def work_precision_caption(path):
     key = max(data)
     dts = sorted({p[0] for pts in data[key]["methods"].values() for p in pts})
     dt = min(dts, key=lambda d: abs(math.log10(d / 1e-4)))
-    errs = ", ".join(f"{m} {_g(next(p[3] for p in pts if p[0] == dt))} rad"
-                     for m, pts in data[key]["methods"].items())
-    return (f"`gyrolab experiment=work_precision` ({ds.method.size} methods, f = "
-            f"{', '.join(f'{v:g}' for v in ds.f.values)} Hz, dt = {dts[0]:g} … {dts[-1]:g} s, "
-            f"{float(ds.time[-1]):g} s). Error = max deviation of the axis from {reference_name(ds)}; cost "
-            "re-timed on one thread after JIT warm-up; scipy DOP853 and RK45 as peers. Right panels: method steps "
-            "per simulated second, which are not equal work (a DOP853 step is 12 RHS evaluations, rk4 4 stages; "
-            f"the figure says so). At f = {key[0]:g} Hz, dt = {dt:g} s: {errs}.")
+    errs = ", ".join(f"{m} {_g(next(p[3] for p in pts if p[0] == dt))} rad" for m, pts in data[key]["methods"].items())
+    return (
+        f"`gyrolab experiment=work_precision` ({ds.method.size} methods, f = "
+        f"{', '.join(f'{v:g}' for v in ds.f.values)} Hz, dt = {dts[0]:g} … {dts[-1]:g} s, "
+        f"{float(ds.time[-1]):g} s). Error = max deviation of the axis from {reference_name(ds)}; cost "
+        "re-timed on one thread after JIT warm-up; scipy DOP853 and RK45 as peers. Right panels: method steps "
+        "per simulated second, which are not equal work (a DOP853 step is 12 RHS evaluations, rk4 4 stages; "
+        f"the figure says so). At f = {key[0]:g} Hz, dt = {dt:g} s: {errs}."
+    )
 
 
 def stability_caption(paths):
@@ -128,18 +157,32 @@ def stability_caption(paths):
         th = float(ds.theta0.values[0])
         measure = default_measure(ds)
         bad = {str(m): int((ds.status.sel({"method": m, "theta0": th}) != 0).sum()) for m in ds.method.values}
-        maps = {str(m): _logerr(ds.sel({"method": m, "theta0": th}).sortby("f").sortby("dt"), th, measure, ds)
-                for m in ds.method.values}
-        same = sorted({tuple(sorted(k for k in maps if np.allclose(maps[k], v, atol=0.01, equal_nan=True)))
-                       for v in maps.values()})
+        maps = {
+            str(m): _logerr(ds.sel({"method": m, "theta0": th}).sortby("f").sortby("dt"), th, measure, ds)
+            for m in ds.method.values
+        }
+        same = sorted(
+            {
+                tuple(sorted(k for k in maps if np.allclose(maps[k], v, atol=0.01, equal_nan=True)))
+                for v in maps.values()
+            }
+        )
         same = [g for g in same if len(g) > 1]
-        what = "log10 worst relative energy error" if measure == "energy" else \
-            "log10 worst axis deviation (rad) from the exact Euler–Poinsot flow"
-        out.append(f"{ds.attrs.get('scene')}: {what}; diverged runs of {ds.f.size * ds.dt.size}: "
-                   + ", ".join(f"{m} {n}" for m, n in bad.items())
-                   + (f"; identical maps: {'; '.join(' = '.join(g) for g in same)}" if same else ""))
-    return ("`gyrolab experiment=stability` (every pinned method over f × dt, 10 s each; red ×: diverged). "
-            + ". ".join(out) + ".")
+        what = (
+            "log10 worst relative energy error"
+            if measure == "energy"
+            else "log10 worst axis deviation (rad) from the exact Euler–Poinsot flow"
+        )
+        out.append(
+            f"{ds.attrs.get('scene')}: {what}; diverged runs of {ds.f.size * ds.dt.size}: "
+            + ", ".join(f"{m} {n}" for m, n in bad.items())
+            + (f"; identical maps: {'; '.join(' = '.join(g) for g in same)}" if same else "")
+        )
+    return (
+        "`gyrolab experiment=stability` (every pinned method over f × dt, 10 s each; red ×: diverged). "
+        + ". ".join(out)
+        + "."
+    )
 
 
 def seed_captions(directory):
@@ -149,9 +192,11 @@ def seed_captions(directory):
     lines = []
     for name, (ds, f) in jobs.items():
         at = {"f": f, "theta0": float(ds.theta0.values[0])}
-        vals = ", ".join(f"dt = {d:g} s: seed_next {_g(_worst(ds, 'energy', method='seed_next', dt=d, **at))}, "
-                         f"seed_prev {_g(_worst(ds, 'energy', method='seed_prev', dt=d, **at))}"
-                         for d in ds.dt.values)
+        vals = ", ".join(
+            f"dt = {d:g} s: seed_next {_g(_worst(ds, 'energy', method='seed_next', dt=d, **at))}, "
+            f"seed_prev {_g(_worst(ds, 'energy', method='seed_prev', dt=d, **at))}"
+            for d in ds.dt.values
+        )
         lines.append(f"{name} ({f:g} Hz): {vals}")
     cusp = jobs.get("cusp")
     remark = ""
@@ -165,12 +210,18 @@ def seed_captions(directory):
             I1, I2, I3, mgl = (float(v) for v in body.sel({"f": f}).values[:4])
             ratio = I3 * 2 * math.pi * f * f / (mgl * math.sin(math.radians(float(ds.theta0.values[0]))))
             nut = yardstick.nutation(ds, f, ds.theta0.values[0])
-            parts.append(f"{f:g} Hz: L/ΔL = {ratio:.3g}, θ ∈ [{math.degrees(nut.theta_min):.1f}°, "
-                         f"{math.degrees(nut.theta_max):.1f}°]")
+            parts.append(
+                f"{f:g} Hz: L/ΔL = {ratio:.3g}, θ ∈ [{math.degrees(nut.theta_min):.1f}°, "
+                f"{math.degrees(nut.theta_max):.1f}°]"
+            )
         remark = "Remark 1 (`seed_remark1.png`), released at 45°: " + "; ".join(parts) + "."
-    return ("`gyrolab experiment=seed_figures` (the seed_* PNGs; `gyrolab-plot seed <dir>` redraws them). "
-            "Worst relative energy error over the run in the figure's panels (`seed_next_vs_prev.png`): "
-            + "; ".join(lines) + ".", remark)
+    return (
+        "`gyrolab experiment=seed_figures` (the seed_* PNGs; `gyrolab-plot seed <dir>` redraws them). "
+        "Worst relative energy error over the run in the figure's panels (`seed_next_vs_prev.png`): "
+        + "; ".join(lines)
+        + ".",
+        remark,
+    )
 
 
 def build(default=None, seed=None, work_precision=None, stability=()):
@@ -180,15 +231,21 @@ def build(default=None, seed=None, work_precision=None, stability=()):
         next_prev, remark = seed_captions(seed)
         sections += [("seed_next_vs_prev.png, seed_regimes.png", next_prev), ("seed_remark1.png", remark)]
     if default:
-        sections += [("nutation_theta.png", nutation_caption(default)), ("tip_locus.png", tip_caption(default)),
-                     ("energy_drift.png", energy_caption(default)), ("invariants.png", invariants_caption(default))]
+        sections += [
+            ("nutation_theta.png", nutation_caption(default)),
+            ("tip_locus.png", tip_caption(default)),
+            ("energy_drift.png", energy_caption(default)),
+            ("invariants.png", invariants_caption(default)),
+        ]
     if work_precision:
         sections.append(("work_precision.png", work_precision_caption(work_precision)))
     if stability:
         sections.append(("stability_heavy_top.png, stability_free_asymmetric.png", stability_caption(stability)))
     body = "\n\n".join(f"### {name}\n\n{text}" for name, text in sections if text)
-    return ("# Figure captions (generated)\n\nWritten by `python -m gyrolab.analysis.captions`; every number is "
-            "read from the results file the figure is drawn from.\n\n" + body + "\n")
+    return (
+        "# Figure captions (generated)\n\nWritten by `python -m gyrolab.analysis.captions`; every number is "
+        "read from the results file the figure is drawn from.\n\n" + body + "\n"
+    )
 
 
 def _stability_files(paths):
@@ -200,8 +257,11 @@ def _stability_files(paths):
 
 def main(argv=None):
     """``python -m gyrolab.analysis.captions``: write the captions file."""
-    p = argparse.ArgumentParser(prog="python -m gyrolab.analysis.captions", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="python -m gyrolab.analysis.captions",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("--default", help="results.h5 of the default study (`gyrolab`)")
     p.add_argument("--seed", help="multirun directory of experiment=seed_figures")
     p.add_argument("--work-precision", help="work_precision.h5 of experiment=work_precision")

@@ -17,6 +17,7 @@ errors, dimensionless), so rates come out in "relative error per second" etc.
 
 Every record has ``as_dict()`` (JSON-ready: NaN → None) for ``verdict.json``.
 """
+
 import math
 from dataclasses import asdict, dataclass, field
 
@@ -84,8 +85,9 @@ def _local_slopes(ldt, lerr):
     return np.diff(lerr) / np.diff(ldt)
 
 
-def fit_order(dt, err, *, scale=1.0, floor_ulps=1e3, diverged_err=1.0, min_slope=0.3, slope_tol=0.1,
-              min_points=3, confidence=0.95):
+def fit_order(
+    dt, err, *, scale=1.0, floor_ulps=1e3, diverged_err=1.0, min_slope=0.3, slope_tol=0.1, min_points=3, confidence=0.95
+):
     """Order of convergence of a dt ladder, fitted over its asymptotic range.
 
     dt (s), err: one error per step size (any positive measure, e.g. the final
@@ -143,20 +145,29 @@ def fit_order(dt, err, *, scale=1.0, floor_ulps=1e3, diverged_err=1.0, min_slope
             break
     if chosen is not None:
         start, end = chosen
-        for i in order[end + 2:]:
+        for i in order[end + 2 :]:
             excluded[i] = "flat"
         for i in order[:start]:
             excluded[i] = "pre_asymptotic"
-        order = order[start:end + 2]
+        order = order[start : end + 2]
     else:
         order = []
     fit = OrderFit(confidence=confidence, excluded=excluded, used=[not e for e in excluded])
     if len(order) < max(2, min_points):
         fit.used = [False] * n
         fit.excluded = [e or "too_few" for e in excluded]
-        fit.reason = f"{len(order)} usable point(s) after excluding " + (
-            ", ".join(f"{excluded.count(k)} {k}" for k in ("nonfinite", "diverged", "floor", "flat", "pre_asymptotic")
-                      if excluded.count(k)) or "none") + f"; need {max(2, min_points)}"
+        fit.reason = (
+            f"{len(order)} usable point(s) after excluding "
+            + (
+                ", ".join(
+                    f"{excluded.count(k)} {k}"
+                    for k in ("nonfinite", "diverged", "floor", "flat", "pre_asymptotic")
+                    if excluded.count(k)
+                )
+                or "none"
+            )
+            + f"; need {max(2, min_points)}"
+        )
         return fit
     x, y = np.log(dt[order]), np.log(err[order])
     res = stats.linregress(x, y)
@@ -227,13 +238,24 @@ def _growth_rate(t, y):
     ly = np.log(y)
     exp_fit = stats.linregress(t, ly)
     pow_fit = stats.linregress(np.log(t), ly)
-    if exp_fit.rvalue ** 2 >= pow_fit.rvalue ** 2:
+    if exp_fit.rvalue**2 >= pow_fit.rvalue**2:
         return float(exp_fit.slope), "1/s e-folding", float(exp_fit.stderr)
     return float(pow_fit.slope), "power", float(pow_fit.stderr)
 
 
-def classify_drift(t, rel_err, *, n_windows=None, blowup=1.0, preserved_ulps=500.0, z_crit=4.0, accel_crit=1.5,
-                   eta_crit=1.0, zeta_crit=0.15, min_wander=0.05):
+def classify_drift(
+    t,
+    rel_err,
+    *,
+    n_windows=None,
+    blowup=1.0,
+    preserved_ulps=500.0,
+    z_crit=4.0,
+    accel_crit=1.5,
+    eta_crit=1.0,
+    zeta_crit=0.15,
+    min_wander=0.05,
+):
     """Drift class of a relative error series e(t) = X(t)/X(0) − 1 of an invariant X.
 
     t (s), increasing; rel_err: e at those times (dimensionless).  The series
@@ -284,7 +306,8 @@ def classify_drift(t, rel_err, *, n_windows=None, blowup=1.0, preserved_ulps=500
        m_k)²⟩ over ℓ = 1 … K/2 (≈ 0 bounded, 1 random walk, 2 trend; an
        oscillation's S(ℓ) rises then falls back), must exceed ``zeta_crit``
        (0.15; measured on 300 seeded walks of 4e4 steps the 1st percentile of
-       ζ is 0.20, and on amplitude-modulated sines with η < 1 its maximum 0.11).  Both: ``random_walk``, rate σ = √(1.5 ⟨d²⟩/τ) (1/√s, e(t) ~
+       ζ is 0.20, and on amplitude-modulated sines with η < 1 its maximum
+       0.11).  Both: ``random_walk``, rate σ = √(1.5 ⟨d²⟩/τ) (1/√s, e(t) ~
        σ √t: means of a Brownian path over adjacent windows differ by
        var = (2/3) σ² τ; relative stderr 1/√(2(K−1))).  Else ``bounded`` (no
        rate; see amplitude).  An oscillation slower than ~1/3 of the run is
@@ -304,8 +327,11 @@ def classify_drift(t, rel_err, *, n_windows=None, blowup=1.0, preserved_ulps=500
     finite = np.isfinite(e)
     bad = ~finite | (np.abs(np.where(finite, e, 0.0)) > blowup)
     amplitude = float(np.max(np.abs(e[finite]))) if finite.any() else math.nan
-    base = dict(amplitude=amplitude, preserved_to_rounding=bool(finite.all() and amplitude <= preserved_ulps * EPS),
-                mean=float(np.mean(e[finite])) if finite.any() else math.nan)
+    base = dict(
+        amplitude=amplitude,
+        preserved_to_rounding=bool(finite.all() and amplitude <= preserved_ulps * EPS),
+        mean=float(np.mean(e[finite])) if finite.any() else math.nan,
+    )
     if bad.any():
         first = int(np.argmax(bad))
         why = "non-finite" if not finite[first] else f"|e| > {blowup:g}"
@@ -316,15 +342,23 @@ def classify_drift(t, rel_err, *, n_windows=None, blowup=1.0, preserved_ulps=500
     tw, m = _window_means(t, e, k)
     tau = float(np.mean(np.diff(tw)))
     n_used = (e.size // k) * k
-    within = e[e.size - n_used:].reshape(k, -1) - m[:, None]
+    within = e[e.size - n_used :].reshape(k, -1) - m[:, None]
     oscillation = math.sqrt(2.0) * float(np.std(within))  # a sine's amplitude from its rms
     wander = float(np.ptp(m))
     d = np.diff(m)
     scale_floor = EPS * max(amplitude, EPS)  # increments below this are rounding of the means
     se = max(float(np.std(d, ddof=1)) / math.sqrt(d.size), scale_floor)
     z = float(np.mean(d)) / se
-    rec = Drift("bounded", late_mean=float(m[-1]), n_windows=k, window=tau, z_trend=z, oscillation=oscillation,
-                wander=wander, **base)
+    rec = Drift(
+        "bounded",
+        late_mean=float(m[-1]),
+        n_windows=k,
+        window=tau,
+        z_trend=z,
+        oscillation=oscillation,
+        wander=wander,
+        **base,
+    )
     if wander < min_wander * oscillation:
         rec.reason = f"window means move by {wander:.3g} < {min_wander:g} x the oscillation {oscillation:.3g}"
         return rec
@@ -354,7 +388,7 @@ def classify_drift(t, rel_err, *, n_windows=None, blowup=1.0, preserved_ulps=500
     fit = stats.linregress(tw, m)
     resid = m - (fit.intercept + fit.slope * tw)
     var_r = float(np.var(resid, ddof=2))
-    eta_r = float(np.mean(np.diff(resid) ** 2)) / var_r if var_r > scale_floor ** 2 else 2.0
+    eta_r = float(np.mean(np.diff(resid) ** 2)) / var_r if var_r > scale_floor**2 else 2.0
     if fit.stderr > 0 and abs(fit.slope) / fit.stderr > z_crit and eta_r >= eta_crit:
         rec.drift_class = "linear"
         rec.rate, rec.rate_unit, rec.rate_stderr = float(fit.slope), "1/s", float(fit.stderr)
@@ -364,7 +398,7 @@ def classify_drift(t, rel_err, *, n_windows=None, blowup=1.0, preserved_ulps=500
     S = np.array([np.mean((m[l:] - m[:-l]) ** 2) for l in lags])
     rec.zeta = float(stats.linregress(np.log(lags), np.log(S)).slope) if np.all(S > 0) else 0.0
     var_m = float(np.var(m, ddof=1))
-    rec.eta = float(np.mean(d * d)) / var_m if var_m > scale_floor ** 2 else 2.0
+    rec.eta = float(np.mean(d * d)) / var_m if var_m > scale_floor**2 else 2.0
     if rec.eta < eta_crit and rec.zeta > zeta_crit:
         rec.drift_class = "random_walk"
         # Means of a Brownian path over adjacent windows of length τ differ by var = (2/3) σ² τ.
@@ -450,8 +484,20 @@ def stability_threshold(run_ok, lo, hi, *, omega=1.0, rtol=1e-3, max_evals=60, b
     return _finish(rec, lo, hi, omega, evals)
 
 
-def method_stability_threshold(method, scene, t_end, *, lo=None, hi=None, threshold=1.0, rtol=1e-3, batch=None,
-                               n_samples=65, integrate=None, max_evals=200):
+def method_stability_threshold(
+    method,
+    scene,
+    t_end,
+    *,
+    lo=None,
+    hi=None,
+    threshold=1.0,
+    rtol=1e-3,
+    batch=None,
+    n_samples=65,
+    integrate=None,
+    max_evals=200,
+):
     """(|ω| dt)_crit of a registered method on a scene, by batched bisection over t_end seconds.
 
     method: a registered method name (or whatever ``integrate`` accepts as its
@@ -480,8 +526,16 @@ def method_stability_threshold(method, scene, t_end, *, lo=None, hi=None, thresh
         dts = np.asarray(dts, dtype=float)
         n = dts.size
         strides = np.maximum(1, np.ceil(t_end / every_steps / dts)).astype(np.int64)
-        _, status, _ = integrate(method, np.tile(scene.body, (n, 1)), np.tile(scene.omega0, (n, 1)),
-                                 np.tile(scene.q0, (n, 1)), dts, strides, n_samples, threshold)
+        _, status, _ = integrate(
+            method,
+            np.tile(scene.body, (n, 1)),
+            np.tile(scene.omega0, (n, 1)),
+            np.tile(scene.q0, (n, 1)),
+            dts,
+            strides,
+            n_samples,
+            threshold,
+        )
         return status == 0
 
     return stability_threshold(run_ok, lo, hi, omega=omega, rtol=rtol, batch=batch, max_evals=max_evals)

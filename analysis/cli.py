@@ -20,6 +20,7 @@ the others.  -o into a directory that does not exist is refused unless
 --parents.  Bad input: one line on stderr naming the key and value, exit
 status 2, no file written.
 """
+
 import argparse
 import sys
 from pathlib import Path
@@ -32,20 +33,32 @@ def _common(p, many=False):
         p.add_argument("file", metavar="FILE_OR_DIR", nargs="+", help="results files or a multirun directory")
     else:
         p.add_argument("file", metavar="FILE", help="results file (HDF5, gyrolab/layout.py)")
-        p.add_argument("selection", nargs="*", metavar="KEY=VALUE",
-                       help="grid values to draw: method=..., f=... (Hz), theta0=... (deg), dt=... (s)")
+        p.add_argument(
+            "selection",
+            nargs="*",
+            metavar="KEY=VALUE",
+            help="grid values to draw: method=..., f=... (Hz), theta0=... (deg), dt=... (s)",
+        )
     p.add_argument("-o", "--output", help="output path (suffix replaced per --format); default next to FILE")
     p.add_argument("--parents", action="store_true", help="create -o's missing parent directories")
-    p.add_argument("--format", nargs="+", default=["png"], choices=["png", "svg", "pdf"],
-                   help="file formats to write (default: png)")
+    p.add_argument(
+        "--format",
+        nargs="+",
+        default=["png"],
+        choices=["png", "svg", "pdf"],
+        help="file formats to write (default: png)",
+    )
 
 
 def build_parser():
     from .figures import FIGURES
 
     parser = argparse.ArgumentParser(
-        prog="gyrolab-plot", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="Run `gyrolab-plot KIND --help` for each kind's options.")
+        prog="gyrolab-plot",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="Run `gyrolab-plot KIND --help` for each kind's options.",
+    )
     sub = parser.add_subparsers(dest="kind", metavar="KIND", required=True)
     for name, figure in FIGURES.items():
         p = sub.add_parser(name, help=figure.help, description=figure.help)
@@ -102,8 +115,9 @@ def run(args, notes=None):
     sel = parse_selection(args.selection)
     default = Path(args.file).with_name(f"{kind.replace('-', '_')}.png")
     out = Path(args.output) if args.output else default
-    options = {flag.lstrip("-").replace("-", "_"): getattr(args, flag.lstrip("-").replace("-", "_"))
-               for flag in figure.options}
+    options = {
+        flag.lstrip("-").replace("-", "_"): getattr(args, flag.lstrip("-").replace("-", "_")) for flag in figure.options
+    }
     drawn = []
     path = figure.write(ds, out, sel, formats=args.format, notes=drawn, **options)
     if notes is not None:

@@ -21,6 +21,7 @@ data-relevant config are printed before the table.
 Exit status: 0 within tolerance, 1 not, 2 the files cannot be compared
 (one line on stderr saying why).
 """
+
 import argparse
 import math
 import sys
@@ -110,8 +111,9 @@ class Report:
         for v in self.variables:
             tol = ("exact", "exact") if v.exact else (f"{v.rtol:.3g}", f"{v.atol:.3g}")
             bad = f"{v.n_bad}/{v.n_values}" + (f" ({v.n_nan} NaN)" if v.n_nan else "")
-            rows.append((v.name, *tol, f"{v.max_abs:.3g}", f"{v.max_rel:.3g}", bad,
-                         _where(v.worst) if v.worst else "-"))
+            rows.append(
+                (v.name, *tol, f"{v.max_abs:.3g}", f"{v.max_rel:.3g}", bad, _where(v.worst) if v.worst else "-")
+            )
         widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]) - 1)]
         for r in rows:
             lines.append("  ".join(c.ljust(w) for c, w in zip(r, widths)) + "  " + r[-1])
@@ -120,8 +122,10 @@ class Report:
         if self.ok:
             lines.append(f"RESULT: OK, {len(self.variables)} variables of {self.n_runs} runs within tolerance")
         else:
-            lines.append(f"RESULT: DIFFERENT, {', '.join(self.failed())} out of tolerance "
-                         f"in {self.bad_runs} of {self.n_runs} runs")
+            lines.append(
+                f"RESULT: DIFFERENT, {', '.join(self.failed())} out of tolerance "
+                f"in {self.bad_runs} of {self.n_runs} runs"
+            )
         return "\n".join(lines)
 
 
@@ -143,6 +147,7 @@ def _where(labels, run_only=False):
 
 
 # --------------------------------------------------------------------------- tolerances
+
 
 def tolerance_for(tol, name):
     """Tolerance of variable ``name`` from a number (all variables) or a dict {name: value, "*": default}."""
@@ -169,6 +174,7 @@ def parse_tolerances(items, option):
 
 # --------------------------------------------------------------------------- opening and matching
 
+
 def open_results(path, label):
     """Open a results file fully loaded (xarray, h5netcdf); CompareError if unreadable."""
     import xarray as xr
@@ -179,8 +185,9 @@ def open_results(path, label):
     except FileNotFoundError:
         raise CompareError(f"{label}: {path}: no such file") from None
     except Exception as err:  # h5py/h5netcdf raise many kinds on non-HDF5 input
-        raise CompareError(f"{label}: {path}: not a readable results file ({type(err).__name__}: "
-                           f"{' '.join(str(err).split())[:120]})") from None
+        raise CompareError(
+            f"{label}: {path}: not a readable results file ({type(err).__name__}: {' '.join(str(err).split())[:120]})"
+        ) from None
     missing = [d for d in RUN_DIMS + ("time",) if d not in ds.coords]
     if missing:
         raise CompareError(f"{label}: {path}: not a gyrolab results file (no coordinate {missing[0]})")
@@ -225,12 +232,15 @@ def align(da, db, shared_runs=False):
         ia, ib = _match(va, vb), _match(vb, va)
         if None in ia or None in ib:
             if not shared_runs:
-                raise CompareError(f"different grids: {dim} is {_fmt_values(va)} in A and {_fmt_values(vb)} in B "
-                                   "(use --shared-runs to compare only the runs in both)")
+                raise CompareError(
+                    f"different grids: {dim} is {_fmt_values(va)} in A and {_fmt_values(vb)} in B "
+                    "(use --shared-runs to compare only the runs in both)"
+                )
             keep = [i for i, j in enumerate(ia) if j is not None]
             if not keep:
-                raise CompareError(f"nothing to compare: no {dim} in both files (A {_fmt_values(va)}, "
-                                   f"B {_fmt_values(vb)})")
+                raise CompareError(
+                    f"nothing to compare: no {dim} in both files (A {_fmt_values(va)}, B {_fmt_values(vb)})"
+                )
             only_a = [va[i] for i, j in enumerate(ia) if j is None]
             only_b = [vb[i] for i, j in enumerate(ib) if j is None]
             dropped.append(f"{dim} {_fmt_values(only_a)} only in A, {_fmt_values(only_b)} only in B")
@@ -240,8 +250,10 @@ def align(da, db, shared_runs=False):
             sel_b[dim] = ia
     ta, tb = da["time"].values, db["time"].values
     if ta.shape != tb.shape or not np.allclose(ta, tb, rtol=COORD_RTOL, atol=COORD_RTOL * max(ta.max(), 1e-300)):
-        raise CompareError(f"different grids: time has {ta.size} samples to {ta[-1]:g} s in A "
-                           f"and {tb.size} samples to {tb[-1]:g} s in B")
+        raise CompareError(
+            f"different grids: time has {ta.size} samples to {ta[-1]:g} s in A "
+            f"and {tb.size} samples to {tb[-1]:g} s in B"
+        )
     da = da.isel(sel_a) if sel_a else da
     db = db.isel(sel_b)
     return da, db, dropped
@@ -249,11 +261,14 @@ def align(da, db, shared_runs=False):
 
 # --------------------------------------------------------------------------- provenance
 
+
 def _header(ds):
     at = ds.attrs
     commit = str(at.get("git_commit", "?"))[:10] + ("+dirty" if at.get("git_dirty", 0) == 1 else "")
-    return (f"gyrolab {at.get('gyrolab_version', '?')}, git {commit}, numba {at.get('numba_version', '?')}, "
-            f"numpy {at.get('numpy_version', '?')}, created {at.get('created', '?')}")
+    return (
+        f"gyrolab {at.get('gyrolab_version', '?')}, git {commit}, numba {at.get('numba_version', '?')}, "
+        f"numpy {at.get('numpy_version', '?')}, created {at.get('created', '?')}"
+    )
 
 
 def _flatten(node, prefix=""):
@@ -294,12 +309,16 @@ def config_notes(da, db):
     if ca is None or cb is None:
         return [] if ca is None and cb is None else [f"config recorded only in {'A' if cb is None else 'B'}"]
     fa, fb = data_config(ca), data_config(cb)
-    diffs = [f"{k}: A {fa.get(k, '(absent)')}, B {fb.get(k, '(absent)')}"
-             for k in sorted(set(fa) | set(fb)) if fa.get(k) != fb.get(k)]
+    diffs = [
+        f"{k}: A {fa.get(k, '(absent)')}, B {fb.get(k, '(absent)')}"
+        for k in sorted(set(fa) | set(fb))
+        if fa.get(k) != fb.get(k)
+    ]
     return ["config differs: " + "; ".join(diffs)] if diffs else []
 
 
 # --------------------------------------------------------------------------- the comparison
+
 
 def _diff_block(a, b, exact):
     """Per-point |a−b|, relative difference and NaN-mismatch mask; NaN at the same place in both = equal."""
@@ -338,8 +357,9 @@ def compare_variable(name, a, b, rtol, atol, exact, dims, coords):
     finite = np.where(np.isinf(d), np.nan, d)
     vd.max_abs = float(np.nanmax(finite)) if np.isfinite(finite).any() else (math.inf if vd.n_nan else 0.0)
     finite_rel = np.where(np.isinf(rel), np.nan, rel)
-    vd.max_rel = float(np.nanmax(finite_rel)) if np.isfinite(finite_rel).any() else (
-        math.inf if np.isinf(rel).any() else 0.0)
+    vd.max_rel = (
+        float(np.nanmax(finite_rel)) if np.isfinite(finite_rel).any() else (math.inf if np.isinf(rel).any() else 0.0)
+    )
     if d.size and d.max() > 0:
         at = np.unravel_index(_first_largest(ratio, rel), d.shape)
         vd.worst = {dim: coords[dim][i] for dim, i in zip(dims, at)}
@@ -378,21 +398,31 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
         if v not in va:
             raise CompareError(f"missing variables: {v} is in B but not in A")
     for tol, option in ((rtol, "--rtol"), (atol, "--atol")):
-        for key in (tol if isinstance(tol, dict) else {}):
+        for key in tol if isinstance(tol, dict) else {}:
             if key != "*" and key not in va:
-                raise OptionError(f"{option} {key}={tol[key]}: no variable {key} to compare "
-                                   f"(variables: {', '.join(va)})")
+                raise OptionError(
+                    f"{option} {key}={tol[key]}: no variable {key} to compare (variables: {', '.join(va)})"
+                )
             if key in EXACT:
                 raise OptionError(f"{option} {key}={tol[key]}: {key} is compared exactly")
     coords = {d: [x.item() for x in da[d].values] for d in da.dims}
     shape = tuple(da.sizes[d] for d in RUN_DIMS)
-    grid = (f"scene {da.attrs.get('scene', '?')}; " + " x ".join(f"{n} {d}" for d, n in zip(RUN_DIMS, shape))
-            + f" = {int(np.prod(shape))} runs; {da.sizes['time']} samples, t = 0 to {coords['time'][-1]:g} s")
-    report = Report(a=names[0], b=names[1], headers=[_header(da), _header(db)], versions=versions + inputs,
-                    configs=configs,
-                    grid=grid,
-                    ignored={k: v for k, v in ignored.items() if k in da.data_vars or k in db.data_vars},
-                    dropped=dropped, n_runs=int(np.prod(shape)))
+    grid = (
+        f"scene {da.attrs.get('scene', '?')}; "
+        + " x ".join(f"{n} {d}" for d, n in zip(RUN_DIMS, shape))
+        + f" = {int(np.prod(shape))} runs; {da.sizes['time']} samples, t = 0 to {coords['time'][-1]:g} s"
+    )
+    report = Report(
+        a=names[0],
+        b=names[1],
+        headers=[_header(da), _header(db)],
+        versions=versions + inputs,
+        configs=configs,
+        grid=grid,
+        ignored={k: v for k, v in ignored.items() if k in da.data_vars or k in db.data_vars},
+        dropped=dropped,
+        n_runs=int(np.prod(shape)),
+    )
     best = [np.full(shape, -1.0), np.full(shape, -1.0), np.zeros(shape)]  # ratio, rel, abs of the worst variable
     best_var = np.full(shape, "", dtype=object)
     any_bad = np.zeros(shape, dtype=bool)
@@ -402,8 +432,9 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
             raise CompareError(f"different layout: {name} has dims {xa.dims} in A and {xb.dims} in B")
         a, b = xa.values, xb.transpose(*xa.dims).values
         exact = name in EXACT or not np.issubdtype(a.dtype, np.floating)
-        vd, per_run, run_bad = compare_variable(name, a, b, tolerance_for(rtol, name),
-                                                variable_atol(atol, scaled, name, b), exact, xa.dims, coords)
+        vd, per_run, run_bad = compare_variable(
+            name, a, b, tolerance_for(rtol, name), variable_atol(atol, scaled, name, b), exact, xa.dims, coords
+        )
         report.variables.append(vd)
         better = (per_run[0] > best[0]) | ((per_run[0] == best[0]) & (per_run[1] > best[1]))
         for mine, theirs in zip(best, per_run):
@@ -462,6 +493,7 @@ def compare_files(a, b, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, scaled
 
 # --------------------------------------------------------------------------- command line
 
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message):
         sys.stderr.write(f"gyrolab-compare: error: {message}\n")
@@ -479,22 +511,42 @@ def _non_negative(text):
 
 
 def build_parser():
-    p = _Parser(prog="gyrolab-compare", description="Compare two gyrolab results files variable by variable.",
-                formatter_class=argparse.RawDescriptionHelpFormatter,
-                epilog="exit status: 0 within tolerance, 1 out of tolerance, 2 cannot compare")
+    p = _Parser(
+        prog="gyrolab-compare",
+        description="Compare two gyrolab results files variable by variable.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="exit status: 0 within tolerance, 1 out of tolerance, 2 cannot compare",
+    )
     p.add_argument("a", help="results file A (e.g. a fresh run)")
     p.add_argument("b", help="results file B (e.g. the stored reference)")
-    p.add_argument("--rtol", action="append", metavar="[VAR=]X",
-                   help="relative tolerance, for every variable or for VAR (repeatable; default 0)")
-    p.add_argument("--atol", action="append", metavar="[VAR=]X",
-                   help="absolute tolerance in the variable's units, for every variable or for VAR "
-                        "(repeatable; default 0)")
-    p.add_argument("--scaled", type=_non_negative, metavar="X",
-                   help="atol of each variable not given by --atol VAR=: at least X times its largest |value| in B")
-    p.add_argument("--ignore", action="append", default=[], metavar="VAR",
-                   help="skip a variable (repeatable); wall_time is always skipped")
-    p.add_argument("--shared-runs", action="store_true",
-                   help="compare only the runs (method, f, theta0, dt) present in both files")
+    p.add_argument(
+        "--rtol",
+        action="append",
+        metavar="[VAR=]X",
+        help="relative tolerance, for every variable or for VAR (repeatable; default 0)",
+    )
+    p.add_argument(
+        "--atol",
+        action="append",
+        metavar="[VAR=]X",
+        help="absolute tolerance in the variable's units, for every variable or for VAR (repeatable; default 0)",
+    )
+    p.add_argument(
+        "--scaled",
+        type=_non_negative,
+        metavar="X",
+        help="atol of each variable not given by --atol VAR=: at least X times its largest |value| in B",
+    )
+    p.add_argument(
+        "--ignore",
+        action="append",
+        default=[],
+        metavar="VAR",
+        help="skip a variable (repeatable); wall_time is always skipped",
+    )
+    p.add_argument(
+        "--shared-runs", action="store_true", help="compare only the runs (method, f, theta0, dt) present in both files"
+    )
     return p
 
 

@@ -9,6 +9,7 @@ symmetric top) are drawn at 1e-17, below double precision, and said so.
 Runs that diverged (status ≠ 0) end where their samples turn NaN and are
 marked "diverged" in the legend.
 """
+
 import matplotlib.pyplot as plt
 import numpy as np
 
@@ -40,8 +41,10 @@ def drift_table(ds, quantity="energy", sel=None):
                     err = relative_error(run)
                     finite = err[np.isfinite(err)]
                     final = err[-1] if np.isfinite(err[-1]) else np.inf
-                    out[(str(m), float(f), float(th), float(dt))] = (float(finite.max()) if finite.size else np.inf,
-                                                                      float(final))
+                    out[(str(m), float(f), float(th), float(dt))] = (
+                        float(finite.max()) if finite.size else np.inf,
+                        float(final),
+                    )
     return out
 
 
@@ -49,8 +52,9 @@ def _check_quantity(ds, quantity):
     """ValueError unless the file's scene conserves ``quantity`` (layout.conserved)."""
     have = drawable_invariants(ds)
     if quantity not in have:
-        raise ValueError(f"quantity={quantity}: the scene {scene_name(ds)} does not conserve it; "
-                         f"choose from {', '.join(have)}")
+        raise ValueError(
+            f"quantity={quantity}: the scene {scene_name(ds)} does not conserve it; choose from {', '.join(have)}"
+        )
 
 
 def _series(sub, quantity, f, th, envelope):
@@ -99,18 +103,33 @@ def _panel(ax, sub, quantity, f, th, envelope=True):
     ax.grid(alpha=0.3, which="major")
     groups = _coincidences(series)
     if groups:
-        ax.text(0.02, 0.97, coincidence_text(groups, "same curve"), transform=ax.transAxes, ha="left", va="top",
-                fontsize=7, color="0.15", bbox=dict(fc="white", ec="0.7", alpha=0.85))
+        ax.text(
+            0.02,
+            0.97,
+            coincidence_text(groups, "same curve"),
+            transform=ax.transAxes,
+            ha="left",
+            va="top",
+            fontsize=7,
+            color="0.15",
+            bbox=dict(fc="white", ec="0.7", alpha=0.85),
+        )
     if any_zero:
-        ax.text(0.98, 0.03, "at 1e-17: exactly conserved", transform=ax.transAxes, ha="right", fontsize=7,
-                color="0.3")
+        ax.text(0.98, 0.03, "at 1e-17: exactly conserved", transform=ax.transAxes, ha="right", fontsize=7, color="0.3")
     return series
 
 
 def _limits(axes):
     """Common log y-limits from the floor to above the largest finite value drawn (set after every panel)."""
-    top = max([np.nanmax(np.where(np.isfinite(y := ln.get_ydata()), y, np.nan), initial=FLOOR)
-               for ax in axes for ln in ax.get_lines() if len(ln.get_ydata())] or [1.0])
+    top = max(
+        [
+            np.nanmax(np.where(np.isfinite(y := ln.get_ydata()), y, np.nan), initial=FLOOR)
+            for ax in axes
+            for ln in ax.get_lines()
+            if len(ln.get_ydata())
+        ]
+        or [1.0]
+    )
     for ax in axes:
         ax.set_ylim(FLOOR / 3, max(top * 5, 1e-15))
 
@@ -132,9 +151,16 @@ def drift_figure(ds, quantity="energy", sel=None, envelope=True):
         _panel(ax, sub, quantity, f, th, envelope)
     _limits(axes)
     sym = QUANTITY_LABELS[quantity]
-    suptitle(fig, f"Relative drift of {sym}: {scene_label(sub)}, {float(sub.time[-1]):g} s; "
-                 + (f"max over s ≤ t of |{sym}(s) − {sym}(0)| / |{sym}(0)|" if envelope
-                    else f"|{sym}(t) − {sym}(0)| / |{sym}(0)|"), fontsize=10.5)
+    suptitle(
+        fig,
+        f"Relative drift of {sym}: {scene_label(sub)}, {float(sub.time[-1]):g} s; "
+        + (
+            f"max over s ≤ t of |{sym}(s) − {sym}(0)| / |{sym}(0)|"
+            if envelope
+            else f"|{sym}(t) − {sym}(0)| / |{sym}(0)|"
+        ),
+        fontsize=10.5,
+    )
     fig.tight_layout()
     add_note(fig, note)
     handles, labels = axes[0].get_legend_handles_labels()
@@ -153,8 +179,12 @@ def invariants_figure(ds, sel=None, envelope=True):
     panels = [(f, th) for f in sub.f.values for th in sub.theta0.values]
     exact, rows = [], []
     for q in quantities:
-        errs = [invariant_error(sub.sel({"method": m, "f": f, "theta0": th, "dt": dt}), q)
-                for m in sub.method.values for f, th in panels for dt in sub.dt.values]
+        errs = [
+            invariant_error(sub.sel({"method": m, "f": f, "theta0": th, "dt": dt}), q)
+            for m in sub.method.values
+            for f, th in panels
+            for dt in sub.dt.values
+        ]
         (exact if all(np.all(e[np.isfinite(e)] == 0) for e in errs) else rows).append(q)
     rows = rows or quantities[:1]
     width, height = panel_size(len(rows), len(panels), 4.4, 2.9)
@@ -170,12 +200,17 @@ def invariants_figure(ds, sel=None, envelope=True):
                 axes[r, c].set_ylabel("")
         _limits(list(axes[r]))
     names = ", ".join(QUANTITY_LABELS.get(q, q) for q in rows)
-    suptitle(fig, f"Invariants {names}: relative drift (running maximum), {scene_label(sub)}, "
-                 f"{float(sub.time[-1]):g} s", fontsize=10.5)
+    suptitle(
+        fig,
+        f"Invariants {names}: relative drift (running maximum), {scene_label(sub)}, {float(sub.time[-1]):g} s",
+        fontsize=10.5,
+    )
     fig.tight_layout()
     if exact:
-        add_note(fig, ", ".join(QUANTITY_LABELS.get(q, q) for q in exact)
-                 + ": kept exactly (error 0) by every run drawn; no row")
+        add_note(
+            fig,
+            ", ".join(QUANTITY_LABELS.get(q, q) for q in exact) + ": kept exactly (error 0) by every run drawn; no row",
+        )
     add_note(fig, note)
     handles, labels = axes[0, 0].get_legend_handles_labels()
     legend_below(fig, handles, labels, ncol=min(len(labels), 5))
@@ -186,13 +221,20 @@ def _make_figures():
     from .figure import Figure
 
     raw = {"--raw": {"action": "store_true", "help": "raw error instead of its running maximum"}}
-    drift = Figure("energy", "relative drift of an invariant vs time (log scale)",
-                   lambda ds, sel=None, quantity="energy", raw=False: drift_figure(ds, quantity, sel, not raw),
-                   {"--quantity": {"choices": list(QUANTITY_LABELS), "default": "energy"}, **raw},
-                   file_name="energy_drift.png")
-    invariants = Figure("invariants", "drift of every invariant the scene conserves, in one figure",
-                        lambda ds, sel=None, raw=False: invariants_figure(ds, sel, not raw), raw,
-                        file_name="invariants.png")
+    drift = Figure(
+        "energy",
+        "relative drift of an invariant vs time (log scale)",
+        lambda ds, sel=None, quantity="energy", raw=False: drift_figure(ds, quantity, sel, not raw),
+        {"--quantity": {"choices": list(QUANTITY_LABELS), "default": "energy"}, **raw},
+        file_name="energy_drift.png",
+    )
+    invariants = Figure(
+        "invariants",
+        "drift of every invariant the scene conserves, in one figure",
+        lambda ds, sel=None, raw=False: invariants_figure(ds, sel, not raw),
+        raw,
+        file_name="invariants.png",
+    )
     return drift, invariants
 
 

@@ -2,6 +2,7 @@
 figure shares: faceting (panels wrap into rows, bounded size), selections that say what they drew,
 and notes where curves coincide.
 """
+
 import math
 from dataclasses import dataclass, field
 from typing import Callable
@@ -128,7 +129,7 @@ def coincident(series, tol):
         if a in seen:
             continue
         group = [a]
-        for b in labels[i + 1:]:
+        for b in labels[i + 1 :]:
             if b in seen:
                 continue
             x, y = np.asarray(series[a], float), np.asarray(series[b], float)
@@ -181,8 +182,9 @@ def legend_below(fig, handles, labels, ncol=None, fontsize=8):
     legend = None
     if handles:
         ncol = ncol or min(len(labels), 4)
-        legend = fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=ncol,
-                            fontsize=fontsize, frameon=False)
+        legend = fig.legend(
+            handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=ncol, fontsize=fontsize, frameon=False
+        )
     notes = getattr(fig, "gyrolab_notes", [])
     if not notes:
         return legend
@@ -190,8 +192,9 @@ def legend_below(fig, handles, labels, ncol=None, fontsize=8):
     if legend is not None:
         renderer = fig.canvas.get_renderer()
         y = fig.transFigure.inverted().transform(legend.get_window_extent(renderer))[0, 1]
-    fig.text(0.01, y - 0.005, "\n".join(wrap_note(n, fig) for n in notes), ha="left", va="top", fontsize=7.5,
-             color="0.25")
+    fig.text(
+        0.01, y - 0.005, "\n".join(wrap_note(n, fig) for n in notes), ha="left", va="top", fontsize=7.5, color="0.25"
+    )
     return legend
 
 

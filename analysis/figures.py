@@ -14,6 +14,7 @@ a selection and says which, in the figure and on the command line, with the
 is reported on stderr and skipped, so a sweep's results are never lost to a
 plotting problem; each figure drawn is reported on one progress line.
 """
+
 import sys
 import time
 from pathlib import Path
@@ -52,8 +53,10 @@ def figure_names(setting):
     names = [setting] if isinstance(setting, str) else list(setting)
     for name in names:
         if name not in FIGURES:
-            raise ValueError(f"output.figures={name}: unknown figure; choose from {', '.join(FIGURES)} "
-                             "(or true for the default set, false for none)")
+            raise ValueError(
+                f"output.figures={name}: unknown figure; choose from {', '.join(FIGURES)} "
+                "(or true for the default set, false for none)"
+            )
     return tuple(names)
 
 

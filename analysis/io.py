@@ -5,6 +5,7 @@ A results file (gyrolab/layout.py) opens as an xarray Dataset with dims
 text ``method=seed_next,rk4 f=10 dt=1e-4``) of coordinate values; numbers
 match their coordinate to a relative 1e-9, so ``dt=1e-4`` finds 0.0001.
 """
+
 import math
 from pathlib import Path
 
@@ -62,8 +63,10 @@ def open_results(path):
     if version is None:
         raise SelectionError(f"FILE={path}: not a gyrolab results file (no layout_version attr)")
     if version > LAYOUT_VERSION:
-        raise SelectionError(f"FILE={path}: layout_version={version} is newer than this gyrolab reads "
-                             f"({LAYOUT_VERSION}); upgrade gyrolab")
+        raise SelectionError(
+            f"FILE={path}: layout_version={version} is newer than this gyrolab reads "
+            f"({LAYOUT_VERSION}); upgrade gyrolab"
+        )
     for name, dims in required_variables(version).items():
         if name not in ds.data_vars:
             raise SelectionError(f"FILE={path}: not a complete gyrolab results file (no variable {name!r})")
@@ -79,9 +82,7 @@ def parse_selection(words):
         for item in str(word).split():
             key, eq, value = item.partition("=")
             if not eq or key not in GRID_DIMS:
-                raise SelectionError(
-                    f"{item}: a selection is KEY=VALUE[,VALUE...] with KEY in {', '.join(GRID_DIMS)}"
-                )
+                raise SelectionError(f"{item}: a selection is KEY=VALUE[,VALUE...] with KEY in {', '.join(GRID_DIMS)}")
             values = [v for v in value.split(",") if v]
             if not values:
                 raise SelectionError(f"{item}: no value given for {key}")
@@ -145,7 +146,7 @@ def scene_options(ds):
                 value = value.decode()
             if isinstance(value, np.generic):
                 value = value.item()
-            opts[key[len("scene_"):]] = value
+            opts[key[len("scene_") :]] = value
     return opts
 
 
@@ -164,8 +165,12 @@ def build_run_scene(ds, f, theta0):
     if all(name in ds.data_vars for name in ("body", "omega0", "q0")):
         at = {"f": _match(ds["f"], [f], "f")[0], "theta0": _match(ds["theta0"], [theta0], "theta0")[0]}
         run = ds[["body", "omega0", "q0"]].sel(at)
-        return Scene(scene_name(ds), Body(*map(float, run["body"].values)),
-                     tuple(map(float, run["omega0"].values)), tuple(map(float, run["q0"].values)))
+        return Scene(
+            scene_name(ds),
+            Body(*map(float, run["body"].values)),
+            tuple(map(float, run["omega0"].values)),
+            tuple(map(float, run["q0"].values)),
+        )
     return build_scene(scene_name(ds), float(f), float(theta0), **scene_options(ds))
 
 
@@ -241,8 +246,20 @@ def save_figure(fig, out, formats=("png",)):
     return paths[0]
 
 
-PALETTE = ("#8c564b", "#e377c2", "#17becf", "#bcbd22", "#393b79", "#637939", "#8c6d31", "#843c39",
-           "#7b4173", "#3182bd", "#e6550d", "#31a354")
+PALETTE = (
+    "#8c564b",
+    "#e377c2",
+    "#17becf",
+    "#bcbd22",
+    "#393b79",
+    "#637939",
+    "#8c6d31",
+    "#843c39",
+    "#7b4173",
+    "#3182bd",
+    "#e6550d",
+    "#31a354",
+)
 
 
 def color(method):

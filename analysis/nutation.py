@@ -8,6 +8,7 @@ exact Euler–Poinsot θ(t) with its flips marked; none for a scene without one.
 The tip locus is the lab x, y of the unit axis R e3 seen from above (z up),
 the write-up's figures 6-9.
 """
+
 import math
 
 import matplotlib.pyplot as plt
@@ -75,14 +76,24 @@ def _theta_panel(ax, sub, f, th, lo, hi, exact_t, exact_theta, nut, flips):
     lo_y, hi_y = ax.get_ylim()
     groups = coincident(series, 0.004 * (hi_y - lo_y))  # closer than a line width: drawn on top of each other
     if groups:
-        ax.text(0.99, 0.02, coincidence_text(groups, "on top of each other"), transform=ax.transAxes, ha="right",
-                va="bottom", fontsize=6.5, bbox=dict(fc="white", ec="0.7", alpha=0.85))
+        ax.text(
+            0.99,
+            0.02,
+            coincidence_text(groups, "on top of each other"),
+            transform=ax.transAxes,
+            ha="right",
+            va="bottom",
+            fontsize=6.5,
+            bbox=dict(fc="white", ec="0.7", alpha=0.85),
+        )
 
 
 def _yardstick_text(sub, f, th, nut, period):
     if nut is not None:
-        return (f"closed form θ ∈ [{math.degrees(nut.theta_min):.2f}°, {math.degrees(nut.theta_max):.2f}°], "
-                f"T = {nut.period * 1e3:.1f} ms")
+        return (
+            f"closed form θ ∈ [{math.degrees(nut.theta_min):.2f}°, {math.degrees(nut.theta_max):.2f}°], "
+            f"T = {nut.period * 1e3:.1f} ms"
+        )
     if period is not None:
         return f"exact; {period.label.split(' 2')[0]} {period.seconds:.3g} s"
     return "no closed form for this scene"
@@ -121,8 +132,13 @@ def theta_figure(ds, sel=None, n_periods=3.0):
             _theta_panel(ax, sub, f, th, lo, hi, time, exact_theta, nut, flips)
             ax.set_xlabel("time t (s)")
             ax.set_ylabel("tilt θ (deg)" if c == 0 else "")
-            ax.set_title(f"f = {f:g} Hz, θ0 = {th:g}°" + (f": {what.split(' of')[0]}" if len(wins) > 1 else "")
-                         if c == 0 else what.split(" of")[0], fontsize=9, loc="left")
+            ax.set_title(
+                f"f = {f:g} Hz, θ0 = {th:g}°" + (f": {what.split(' of')[0]}" if len(wins) > 1 else "")
+                if c == 0
+                else what.split(" of")[0],
+                fontsize=9,
+                loc="left",
+            )
             if c == 0:
                 ax.set_title(_yardstick_text(sub, f, th, nut, period), fontsize=7.5, loc="right")
     handles, labels = first.get_legend_handles_labels()
@@ -162,10 +178,15 @@ def _tip_note(ds, method, dt):
     dts = [f"{v:g}" for v in ds.dt.values if not math.isclose(float(v), float(dt))]
     if not methods and not dts:
         return None
-    other = (f"methods {', '.join(methods)}" if methods else "") + ("; " if methods and dts else "") \
+    other = (
+        (f"methods {', '.join(methods)}" if methods else "")
+        + ("; " if methods and dts else "")
         + (f"dt = {', '.join(dts)} s" if dts else "")
-    return (f"drawn: {method} at dt = {float(dt):g} s (one method and dt per figure); also in the file: {other}: "
-            f"gyrolab-plot tip FILE method=M dt=DT")
+    )
+    return (
+        f"drawn: {method} at dt = {float(dt):g} s (one method and dt per figure); also in the file: {other}: "
+        f"gyrolab-plot tip FILE method=M dt=DT"
+    )
 
 
 def tip_locus_figure(ds, method=None, f=None, theta0=None, dt=None, t_max=None):
@@ -180,8 +201,15 @@ def tip_locus_figure(ds, method=None, f=None, theta0=None, dt=None, t_max=None):
     method = pick(ds, "method", method)
     dt = pick(ds, "dt", dt, prefer="min")
     fixed = _tip_note(ds, method, dt)
-    sub = select(ds, {"method": [method], "dt": [dt], "f": None if f is None else [f],
-                      "theta0": None if theta0 is None else [theta0]})
+    sub = select(
+        ds,
+        {
+            "method": [method],
+            "dt": [dt],
+            "f": None if f is None else [f],
+            "theta0": None if theta0 is None else [theta0],
+        },
+    )
     sub, note = choose(sub, f"tip method={method} dt={dt:g}", max_panels=9)
     panels = [(fv, th) for fv in sub.f.values for th in sub.theta0.values]
     fig, axes = subplots(len(panels), width=4.0, height=4.1)
@@ -199,9 +227,16 @@ def tip_locus_figure(ds, method=None, f=None, theta0=None, dt=None, t_max=None):
         dense = np.linspace(0.0, float(time[mask][-1]), 2001)  # the exact trace is cheap: draw it smooth
         exact = yardstick.exact_axis(sub, fv, th, dense)
         if int(mask.sum()) < 60:  # a stored trace this sparse is drawn as straight segments: say so
-            ax.text(0.98, 0.02, f"{int(mask.sum())} stored samples\n(every {float(time[1] - time[0]):g} s)",
-                    transform=ax.transAxes, ha="right", va="bottom", fontsize=7,
-                    bbox=dict(fc="white", ec="0.7", alpha=0.85))
+            ax.text(
+                0.98,
+                0.02,
+                f"{int(mask.sum())} stored samples\n(every {float(time[1] - time[0]):g} s)",
+                transform=ax.transAxes,
+                ha="right",
+                va="bottom",
+                fontsize=7,
+                bbox=dict(fc="white", ec="0.7", alpha=0.85),
+            )
         if exact is not None:
             (h,) = ax.plot(exact[:, 0], exact[:, 1], **EXACT_STYLE)
             handles[yardstick.label(sub)] = h
@@ -215,8 +250,15 @@ def tip_locus_figure(ds, method=None, f=None, theta0=None, dt=None, t_max=None):
         elif nut is not None:  # the tip dips below the pivot: the circles would not bound it
             (h,) = ax.plot(np.cos(circle), np.sin(circle), color="0.6", lw=0.7)
             handles["horizon (θ = 90°)"] = h
-            ax.text(0.02, 0.02, f"θ_max = {math.degrees(nut.theta_max):.0f}° > 90°:\nno bounding circles",
-                    transform=ax.transAxes, fontsize=7, va="bottom", bbox=dict(fc="white", ec="0.7", alpha=0.85))
+            ax.text(
+                0.02,
+                0.02,
+                f"θ_max = {math.degrees(nut.theta_max):.0f}° > 90°:\nno bounding circles",
+                transform=ax.transAxes,
+                fontsize=7,
+                va="bottom",
+                bbox=dict(fc="white", ec="0.7", alpha=0.85),
+            )
             lim = max(lim, 1.05)
         (h,) = ax.plot(xy[0, 0], xy[0, 1], "o", color="k", ms=4)
         handles["start (t = 0)"] = h
@@ -267,15 +309,20 @@ def _standard_tip(ds, sel=None, t_max=None):
 def _make_figures():
     from .figure import Figure
 
-    theta = Figure("nutation", "θ(t) per method with the scene's closed form (bounds or exact θ(t))",
-                   lambda ds, sel=None, periods=3.0: theta_figure(ds, sel, n_periods=periods),
-                   {"--periods": {"type": float, "default": 3.0,
-                                  "help": "characteristic periods per window (default 3)"}},
-                   file_name="nutation_theta.png")
-    tip = Figure("tip", "locus of the axis tip seen from above (write-up figs 6-9)", _standard_tip,
-                 {"--t-max": {"type": float, "default": None,
-                              "help": "last time drawn (s); default one precession turn"}},
-                 file_name="tip_locus.png")
+    theta = Figure(
+        "nutation",
+        "θ(t) per method with the scene's closed form (bounds or exact θ(t))",
+        lambda ds, sel=None, periods=3.0: theta_figure(ds, sel, n_periods=periods),
+        {"--periods": {"type": float, "default": 3.0, "help": "characteristic periods per window (default 3)"}},
+        file_name="nutation_theta.png",
+    )
+    tip = Figure(
+        "tip",
+        "locus of the axis tip seen from above (write-up figs 6-9)",
+        _standard_tip,
+        {"--t-max": {"type": float, "default": None, "help": "last time drawn (s); default one precession turn"}},
+        file_name="tip_locus.png",
+    )
     return theta, tip
 
 

@@ -9,6 +9,7 @@ experiment=verdict` regenerates docs/verdict.json) and the method registry:
 nobody types a measured number into it.  tests/test_verdict_readme.py runs
 ``--check``, so the README cannot drift from the verdicts it quotes.
 """
+
 import argparse
 import json
 import sys
@@ -36,8 +37,9 @@ def table(records, scene="heavy_top"):
     """Markdown rows: one per registered method, from its ``summary`` records on ``scene``."""
     from ..kernels.registry import METHODS
 
-    summary = {(r["method"], r["quantity"]): r for r in records if r.get("kind") == "summary"
-               and r.get("scene") == scene}
+    summary = {
+        (r["method"], r["quantity"]): r for r in records if r.get("kind") == "summary" and r.get("scene") == scene
+    }
     first = next(r for r in summary.values())
     lines = [
         f"Measured on `{scene}` (f = {first['order_f']:g} Hz, θ0 = {first['order_theta0']:g}°): order from the final "
@@ -52,18 +54,25 @@ def table(records, scene="heavy_top"):
     for name, module in METHODS.items():
         rec = summary.get((name, "energy"))
         if rec is None:
-            lines.append(f"| `{name}` | {module.ORDER} | (no verdict yet) | {'yes' if module.SYMPLECTIC else 'no'} "
-                         f"| | | {module.__doc__.strip().splitlines()[0].split(': ', 1)[1]} |")
+            lines.append(
+                f"| `{name}` | {module.ORDER} | (no verdict yet) | {'yes' if module.SYMPLECTIC else 'no'} "
+                f"| | | {module.__doc__.strip().splitlines()[0].split(': ', 1)[1]} |"
+            )
             continue
         order = rec.get("order")
-        measured = (f"{order:.2f} [{rec['order_ci'][0]:.2f}, {rec['order_ci'][1]:.2f}]" if order is not None
-                    else f"— ({rec.get('order_reason') or 'no fit'})")
+        measured = (
+            f"{order:.2f} [{rec['order_ci'][0]:.2f}, {rec['order_ci'][1]:.2f}]"
+            if order is not None
+            else f"— ({rec.get('order_reason') or 'no fit'})"
+        )
         crit = rec.get("omega_dt_crit")
         low = (rec.get("omega_dt_bracket") or [None])[0]
         crit_text = _fmt(crit) if crit is not None else (f"> {low:g}" if low is not None else "—")
         doc = module.__doc__.strip().splitlines()[0].split(": ", 1)[1]
-        lines.append(f"| `{name}` | {module.ORDER} | {measured} | {'yes' if module.SYMPLECTIC else 'no'} | "
-                     f"{_drift(rec)} | {crit_text} | {doc} |")
+        lines.append(
+            f"| `{name}` | {module.ORDER} | {measured} | {'yes' if module.SYMPLECTIC else 'no'} | "
+            f"{_drift(rec)} | {crit_text} | {doc} |"
+        )
     return "\n".join(lines)
 
 
@@ -92,8 +101,9 @@ def main(argv=None):
         return 2
     if args.check:
         if new != text:
-            sys.stderr.write("readme_verdict: README.md's methods table is stale; run "
-                             "python -m gyrolab.analysis.readme_verdict\n")
+            sys.stderr.write(
+                "readme_verdict: README.md's methods table is stale; run python -m gyrolab.analysis.readme_verdict\n"
+            )
             return 1
         return 0
     Path(args.readme).write_text(new)

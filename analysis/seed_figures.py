@@ -12,6 +12,7 @@ than 0.01° → steady precession (fig. 9), else waves (fig. 8).  Three PNGs:
 - ``seed_next_vs_prev.png``: ω(t+dt) vs ω(t): energy drift and θ(t) of
   seed_next and seed_prev in every regime.
 """
+
 import math
 import sys
 from pathlib import Path
@@ -22,11 +23,16 @@ import numpy as np
 from .io import DT_STYLES, FLOOR, color, fmt_dt, open_results, relative_error, save_figure, scene_options
 from .nutation import closed_form_nutation
 
-REGIME_TITLES = {"cusp": "cusps (fig. 6)", "loop": "loops (fig. 7)", "wave": "waves (fig. 8)",
-                 "steady": "steady precession (fig. 9)"}
+REGIME_TITLES = {
+    "cusp": "cusps (fig. 6)",
+    "loop": "loops (fig. 7)",
+    "wave": "waves (fig. 8)",
+    "steady": "steady precession (fig. 9)",
+}
 WRITEUP_F = 20.0  # Hz: the write-up's steady case (impossible at 45 deg) and our f for figs 6-8
-STEADY_NOTE = ("write-up: 20 Hz at 45° is impossible\nfor its body (steady precession needs\n"
-               "f ≥ 22.07 Hz); nearest possible case")
+STEADY_NOTE = (
+    "write-up: 20 Hz at 45° is impossible\nfor its body (steady precession needs\nf ≥ 22.07 Hz); nearest possible case"
+)
 
 
 def find_files(paths):
@@ -95,38 +101,58 @@ def regimes_figure(jobs):
         t_max = min(float(ds.time[-1]), 1.02 * 2 * math.pi / abs(nut.precession_rate))
         methods = [str(m) for m in ds.method.values]
         if "lie_poisson4" in methods:
-            _tip(ax, ds, f, "lie_poisson4", dt, t_max, color="k", lw=2.6, alpha=0.25,
-                 label=f"lie_poisson4, {fmt_dt(dt)}")
-        xy = _tip(ax, ds, f, "seed_next", dt, t_max, color=color("seed_next"), lw=0.9,
-                  label=f"seed_next, {fmt_dt(dt)}")
+            _tip(
+                ax, ds, f, "lie_poisson4", dt, t_max, color="k", lw=2.6, alpha=0.25, label=f"lie_poisson4, {fmt_dt(dt)}"
+            )
+        xy = _tip(ax, ds, f, "seed_next", dt, t_max, color=color("seed_next"), lw=0.9, label=f"seed_next, {fmt_dt(dt)}")
         ax.plot(xy[0, 0], xy[0, 1], "ko", ms=4, label="start (t = 0)")
         circle = np.linspace(0, 2 * math.pi, 361)
         for k, val in enumerate((nut.theta_min, nut.theta_max)):
-            ax.plot(math.sin(val) * np.cos(circle), math.sin(val) * np.sin(circle), "k", ls=(0, (4, 3)), lw=0.6,
-                    label="closed-form sin θ_min, sin θ_max" if k == 0 else None)
+            ax.plot(
+                math.sin(val) * np.cos(circle),
+                math.sin(val) * np.sin(circle),
+                "k",
+                ls=(0, (4, 3)),
+                lw=0.6,
+                label="closed-form sin θ_min, sin θ_max" if k == 0 else None,
+            )
         ax.set_aspect("equal")
         lim = 1.05 * np.abs(xy[:, :2]).max()
         ax.set_xlim(-lim, lim)
         ax.set_ylim(-lim, lim)
         phidot0 = float(scene_options(ds).get("phidot0", 0.0))
-        ax.set_title(f"{REGIME_TITLES[name]}\nf = {f:g} Hz, θ0 = {th:g}°, φ̇0 = {phidot0:.4g} rad/s, "
-                     f"0 ≤ t ≤ {t_max:.2g} s", fontsize=9)
+        ax.set_title(
+            f"{REGIME_TITLES[name]}\nf = {f:g} Hz, θ0 = {th:g}°, φ̇0 = {phidot0:.4g} rad/s, 0 ≤ t ≤ {t_max:.2g} s",
+            fontsize=9,
+        )
         ax.set_xlabel("tip x (unit axis, lab)")
         ax.set_ylabel("tip y (unit axis, lab)")
         ax.grid(alpha=0.3)
         if name == "steady":
-            ax.text(0.5, 0.5, STEADY_NOTE + f":\nf = {f:g} Hz, slow root of Goldstein 5.77", transform=ax.transAxes,
-                    ha="center", va="center", fontsize=7.5, bbox=dict(fc="lightyellow", ec="0.6"))
-    fig.suptitle("The write-up's figures 6-9: axis tip seen from above, heavy top (seed body)\n"
-                 "dashed: closed-form sin θ_min, sin θ_max", fontsize=11)
+            ax.text(
+                0.5,
+                0.5,
+                STEADY_NOTE + f":\nf = {f:g} Hz, slow root of Goldstein 5.77",
+                transform=ax.transAxes,
+                ha="center",
+                va="center",
+                fontsize=7.5,
+                bbox=dict(fc="lightyellow", ec="0.6"),
+            )
+    fig.suptitle(
+        "The write-up's figures 6-9: axis tip seen from above, heavy top (seed body)\n"
+        "dashed: closed-form sin θ_min, sin θ_max",
+        fontsize=11,
+    )
     fig.tight_layout()
     handles, labels = {}, []
     for ax in axes.ravel():  # one legend for the four panels, under them: it covers no trace
         for h, lab in zip(*ax.get_legend_handles_labels()):
             handles.setdefault(lab, h)
     labels = list(handles)
-    fig.legend(list(handles.values()), labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=2, fontsize=8,
-               frameon=False)
+    fig.legend(
+        list(handles.values()), labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=2, fontsize=8, frameon=False
+    )
     return fig
 
 
@@ -149,9 +175,11 @@ def remark1_figure(ds, fs=(1.0, 10.0, 50.0), method="seed_next"):
         ax.plot(time[mask], np.degrees(run.theta.values[mask]), color=color(method), lw=1.0)
         for val in (nut.theta_min, nut.theta_max):
             ax.axhline(math.degrees(val), color="k", ls=(0, (4, 3)), lw=0.8)
-        ax.set_title(f"f = {f:g} Hz: L/ΔL = I3·2πf²/(Mgl sin θ0) = {ratio:.3g}\n"
-                     f"closed form θ ∈ [{math.degrees(nut.theta_min):.1f}°, {math.degrees(nut.theta_max):.1f}°]",
-                     fontsize=9)
+        ax.set_title(
+            f"f = {f:g} Hz: L/ΔL = I3·2πf²/(Mgl sin θ0) = {ratio:.3g}\n"
+            f"closed form θ ∈ [{math.degrees(nut.theta_min):.1f}°, {math.degrees(nut.theta_max):.1f}°]",
+            fontsize=9,
+        )
         ax.set_xlabel("time t (s)")
         ax.set_ylabel("tilt θ (deg)")
         ax.grid(alpha=0.3)
@@ -168,8 +196,11 @@ def remark1_figure(ds, fs=(1.0, 10.0, 50.0), method="seed_next"):
         ax.set_xlabel("tip x (unit axis, lab)")
         ax.set_ylabel("tip y (unit axis, lab)")
         ax.grid(alpha=0.3)
-    fig.suptitle(f"Remark 1: released at θ0 = {th:g}° with spin only ({method}, {fmt_dt(dt)}); "
-                 "a slow top (L ≲ ΔL) just falls, precession and nutation need L ≫ ΔL", fontsize=10.5)
+    fig.suptitle(
+        f"Remark 1: released at θ0 = {th:g}° with spin only ({method}, {fmt_dt(dt)}); "
+        "a slow top (L ≲ ΔL) just falls, precession and nutation need L ≫ ΔL",
+        fontsize=10.5,
+    )
     fig.tight_layout()
     return fig
 
@@ -187,8 +218,14 @@ def next_vs_prev_figure(jobs):
         for m in ("seed_next", "seed_prev"):
             for k, dt in enumerate(ds.dt.values):
                 e = relative_error(ds.energy.sel({"method": m, "f": f, "theta0": th, "dt": dt}).values)
-                ax.plot(tp, np.maximum(np.fmax.accumulate(e), FLOOR), DT_STYLES[k % 4], color=color(m), lw=1.1,
-                        label=f"{m}, {fmt_dt(dt)}")
+                ax.plot(
+                    tp,
+                    np.maximum(np.fmax.accumulate(e), FLOOR),
+                    DT_STYLES[k % 4],
+                    color=color(m),
+                    lw=1.1,
+                    label=f"{m}, {fmt_dt(dt)}",
+                )
         ax.set_yscale("log")
         ax.set_xlabel("time t (s)")
         ax.set_ylabel("max over s ≤ t of |E(s) − E0| / |E0|")
@@ -200,17 +237,34 @@ def next_vs_prev_figure(jobs):
             if m not in ds.method.values:
                 continue
             th_t = np.degrees(ds.theta.sel({"method": m, "f": f, "theta0": th, "dt": dt}).values)
-            ax.plot(t, th_t, color=color(m) if m != "lie_poisson4" else "k", lw=lw,
-                    alpha=0.3 if m == "lie_poisson4" else 0.9, label=f"{m}, {fmt_dt(dt)}")
+            ax.plot(
+                t,
+                th_t,
+                color=color(m) if m != "lie_poisson4" else "k",
+                lw=lw,
+                alpha=0.3 if m == "lie_poisson4" else 0.9,
+                label=f"{m}, {fmt_dt(dt)}",
+            )
         ax.set_xlabel("time t (s)")
         ax.set_ylabel("tilt θ (deg)")
         ax.grid(alpha=0.3)
     for row, where in ((0, "energy"), (1, "θ(t)")):  # legends right of the last panel, not over the traces
         handles, labels = axes[row, 0].get_legend_handles_labels()
-        axes[row, -1].legend(handles, labels, fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0),
-                             title=where, title_fontsize=7, frameon=False)
-    fig.suptitle("ω(t+dt) (seed_next) vs ω(t) (seed_prev) in the rotation step: energy drift (top) and "
-                 "tilt θ(t) (bottom), heavy top θ0 = 45°", fontsize=10.5)
+        axes[row, -1].legend(
+            handles,
+            labels,
+            fontsize=7,
+            loc="upper left",
+            bbox_to_anchor=(1.02, 1.0),
+            title=where,
+            title_fontsize=7,
+            frameon=False,
+        )
+    fig.suptitle(
+        "ω(t+dt) (seed_next) vs ω(t) (seed_prev) in the rotation step: energy drift (top) and "
+        "tilt θ(t) (bottom), heavy top θ0 = 45°",
+        fontsize=10.5,
+    )
     fig.tight_layout()
     return fig
 

@@ -13,6 +13,7 @@ past the runner's threshold) are hatched and marked ×; their colour is the
 worst error reached before they stopped.  A file from ``gyrolab-combine``
 with a ``scene`` (or ``job``) dimension gets one row of panels per scene.
 """
+
 import math
 
 import matplotlib.pyplot as plt
@@ -75,8 +76,15 @@ def _panel(ax, sub, method, theta0, measure="energy"):
             if status[i, j] != 0:
                 ax.plot(dv, fv, "x", color="red", ms=9, mew=2)
             else:
-                ax.text(dv, fv, f"{int(round(logerr[i, j]))}", ha="center", va="center", fontsize=6.5,
-                        color="white" if logerr[i, j] < -6 else "black")
+                ax.text(
+                    dv,
+                    fv,
+                    f"{int(round(logerr[i, j]))}",
+                    ha="center",
+                    va="center",
+                    fontsize=6.5,
+                    color="white" if logerr[i, j] < -6 else "black",
+                )
     bad = np.argwhere(status != 0)
     for i, j in bad:
         xe, ye = _edges(dt), _edges(f)
@@ -100,8 +108,11 @@ def _panel(ax, sub, method, theta0, measure="energy"):
 
 def default_measure(ds):
     """'axis' when the scene's closed form gives the exact motion, else 'energy'."""
-    return "axis" if yardstick.exact_axis(ds, ds.f.values[0], ds.theta0.values[0], ds.time.values[:2]) is not None \
+    return (
+        "axis"
+        if yardstick.exact_axis(ds, ds.f.values[0], ds.theta0.values[0], ds.time.values[:2]) is not None
         else "energy"
+    )
 
 
 def stability_figure(ds, sel=None, theta0=None, measure=None):
@@ -110,8 +121,13 @@ def stability_figure(ds, sel=None, theta0=None, measure=None):
     sub = select(ds, sel)
     th = sub.theta0.values[0] if theta0 is None else pick(sub, "theta0", theta0)
     extra = [d for d in ("scene", "job") if d in sub.dims]
-    sub, note = choose(sub, "stability", max_methods=10 if not extra else 5, max_dt=sub.dt.size,
-                       max_panels=sub.f.size * sub.theta0.size)
+    sub, note = choose(
+        sub,
+        "stability",
+        max_methods=10 if not extra else 5,
+        max_dt=sub.dt.size,
+        max_panels=sub.f.size * sub.theta0.size,
+    )
     measure = measure or (default_measure(sub) if not extra else "energy")
     if measure not in ("energy", "axis"):
         raise ValueError(f"measure={measure}: choose from energy, axis")
@@ -125,8 +141,9 @@ def stability_figure(ds, sel=None, theta0=None, measure=None):
     else:
         rows, cols = facet(len(methods), 5)
         cells = [(k // cols, k % cols, None, sub, m) for k, m in enumerate(methods)]
-    fig, axes = plt.subplots(rows, cols, figsize=panel_size(rows, cols, 3.4, 3.2, extra_w=1.4, extra_h=1.6),
-                             squeeze=False)
+    fig, axes = plt.subplots(
+        rows, cols, figsize=panel_size(rows, cols, 3.4, 3.2, extra_w=1.4, extra_h=1.6), squeeze=False
+    )
     mesh, maps = None, {}
     for r, c, label, part, m in cells:
         mesh, values = _panel(axes[r, c], part, m, th, measure)
@@ -136,11 +153,17 @@ def stability_figure(ds, sel=None, theta0=None, measure=None):
             axes[r, c].tick_params(labelleft=False)  # every panel has the same f axis
         if label is not None and c == 0:
             axes[r, c].set_ylabel(f"{label}\nspin f (Hz)")
-    for ax in axes.ravel()[len(cells):]:
+    for ax in axes.ravel()[len(cells) :]:
         ax.set_visible(False)
     for r, c, label, _, m in cells:  # identical maps (to 0.01 decades): say so in the title
-        same = [m2 for (l2, m2), v in maps.items() if l2 == label and m2 != m and v.shape == maps[(label, m)].shape
-                and np.allclose(v, maps[(label, m)], atol=0.01, equal_nan=True)]
+        same = [
+            m2
+            for (l2, m2), v in maps.items()
+            if l2 == label
+            and m2 != m
+            and v.shape == maps[(label, m)].shape
+            and np.allclose(v, maps[(label, m)], atol=0.01, equal_nan=True)
+        ]
         if same:
             axes[r, c].set_title(axes[r, c].get_title() + f"\n(same map as {', '.join(same)})", fontsize=8)
     cbar = fig.colorbar(mesh, ax=axes, shrink=0.9, pad=0.03)
@@ -148,15 +171,23 @@ def stability_figure(ds, sel=None, theta0=None, measure=None):
     cbar.set_label(f"log10 {what_err}")
     t_end = float(sub.time[-1])
     what = scene_label(sub) if not extra else ", ".join(str(v) for v in sub[extra[0]].values)
-    against = "" if measure == "energy" else \
-        f" against the {yardstick.label(sub)}".replace(" exact (", " exact motion (")
-    suptitle(fig, f"Stability map: {what}, θ0 = {float(th):g}°, {t_end:g} s; {what_err}{against}\n"
-                 "numbers: log10 error; red × hatched: diverged; dotted: ω3·dt = 0.01, 0.1, 1 rad per step",
-                 fontsize=10.5, y=1.0 + 0.12 / rows)
+    against = (
+        "" if measure == "energy" else f" against the {yardstick.label(sub)}".replace(" exact (", " exact motion (")
+    )
+    suptitle(
+        fig,
+        f"Stability map: {what}, θ0 = {float(th):g}°, {t_end:g} s; {what_err}{against}\n"
+        "numbers: log10 error; red × hatched: diverged; dotted: ω3·dt = 0.01, 0.1, 1 rad per step",
+        fontsize=10.5,
+        y=1.0 + 0.12 / rows,
+    )
     others = [f"{v:g}" for v in sub.theta0.values if float(v) != float(th)]
     if others:
-        add_note(fig, f"drawn: θ0 = {float(th):g}° (one θ0 per map); the others, one per figure: "
-                      + ", ".join(f"gyrolab-plot stability FILE theta0={v}" for v in others))
+        add_note(
+            fig,
+            f"drawn: θ0 = {float(th):g}° (one θ0 per map); the others, one per figure: "
+            + ", ".join(f"gyrolab-plot stability FILE theta0={v}" for v in others),
+        )
     add_note(fig, note)
     notes = getattr(fig, "gyrolab_notes", [])
     if notes:
@@ -167,12 +198,19 @@ def stability_figure(ds, sel=None, theta0=None, measure=None):
 def _make_figure():
     from .figure import Figure
 
-    return Figure("stability", "heatmap of log10 worst error (energy, or axis vs the exact motion) over dt x f",
-                  lambda ds, sel=None, measure=None: stability_figure(ds, sel, measure=measure),
-                  {"--measure": {"choices": ["energy", "axis"], "default": None,
-                                 "help": "error drawn (default: axis against the exact motion when the scene "
-                                         "has one, else energy)"}},
-                  file_name="stability_map.png")
+    return Figure(
+        "stability",
+        "heatmap of log10 worst error (energy, or axis vs the exact motion) over dt x f",
+        lambda ds, sel=None, measure=None: stability_figure(ds, sel, measure=measure),
+        {
+            "--measure": {
+                "choices": ["energy", "axis"],
+                "default": None,
+                "help": "error drawn (default: axis against the exact motion when the scene has one, else energy)",
+            }
+        },
+        file_name="stability_map.png",
+    )
 
 
 FIGURE = _make_figure()

@@ -36,6 +36,7 @@ most steps; per-run records (``kind: "run"``) and order records (``kind:
 unreadable or foreign file, no runs): one line on stderr, exit 2, nothing
 written.
 """
+
 import argparse
 import json
 import math
@@ -52,8 +53,23 @@ MIN_DRIFT_SAMPLES = 16
 MIN_LADDER = 3
 DOP853_TOL = 1e-13
 STATE_CLOSED_FORMS = ("free_symmetric", "euler_poinsot")  # closed forms that give the full state at any time
-RECORD_KEYS = ("kind", "scene", "method", "quantity", "order", "order_ci", "drift_class", "drift_rate",
-               "drift_rate_unit", "omega_dt_crit", "preserved", "declared_preserved", "f", "theta0", "dt")
+RECORD_KEYS = (
+    "kind",
+    "scene",
+    "method",
+    "quantity",
+    "order",
+    "order_ci",
+    "drift_class",
+    "drift_rate",
+    "drift_rate_unit",
+    "omega_dt_crit",
+    "preserved",
+    "declared_preserved",
+    "f",
+    "theta0",
+    "dt",
+)
 
 
 class VerdictError(ValueError):
@@ -173,15 +189,17 @@ class References:
                 fine, next_ = runs.sel(dt=ok[0]), runs.sel(dt=ok[1])
                 omega0 = float(np.linalg.norm(ds["omega0"].sel(f=f, theta0=theta0).values))
                 # Self-consistency: the finest run against the next finest, an upper estimate of its error.
-                spread = state_error(fine.axis.values, fine.omega.values, next_.axis.values, next_.omega.values,
-                                     omega0)
+                spread = state_error(fine.axis.values, fine.omega.values, next_.axis.values, next_.omega.values, omega0)
                 if best is None or spread < best[0]:
                     best = (spread, name, ok[0], fine)
             if best is not None:
                 spread, name, dt, run = best
-                return (run.axis.values, run.omega.values,
-                        f"finest {name} run (dt = {dt:.3g} s; differs from its next finest by {spread:.1e})",
-                        (name, dt))
+                return (
+                    run.axis.values,
+                    run.omega.values,
+                    f"finest {name} run (dt = {dt:.3g} s; differs from its next finest by {spread:.1e})",
+                    (name, dt),
+                )
         if self.how == "yardstick":
             raise VerdictError(f"--reference yardstick: no ok run of {' or '.join(YARDSTICKS)} in the file")
         key = (scene.body, scene.omega0, scene.q0, t)
@@ -214,15 +232,33 @@ def order_records(ds, refs):
                     run = runs.sel(dt=dt)
                     bad = int(run.status) != 0
                     dts.append(float(dt))
-                    errs.append(math.inf if bad else state_error(run.axis.values, run.omega.values, ref_axis,
-                                                                 ref_omega, omega0))
+                    errs.append(
+                        math.inf if bad else state_error(run.axis.values, run.omega.values, ref_axis, ref_omega, omega0)
+                    )
                 fit = fit_order(dts, errs)
-                out.append(dict(
-                    kind="order", scene=scene_name(ds), method=str(m), quantity="state", f=float(f),
-                    theta0=float(th), dt=None, t_end=float(ds.time.values[-1]), reference=label,
-                    order=fit.order, order_ci=[fit.ci_low, fit.ci_high], order_dt_range=[fit.dt_min, fit.dt_max],
-                    order_points=fit.n_points, order_reason=fit.reason, declared_order=declared_order(m),
-                    ladder_dt=dts, ladder_err=errs, ladder_used=fit.used, ladder_excluded=fit.excluded))
+                out.append(
+                    dict(
+                        kind="order",
+                        scene=scene_name(ds),
+                        method=str(m),
+                        quantity="state",
+                        f=float(f),
+                        theta0=float(th),
+                        dt=None,
+                        t_end=float(ds.time.values[-1]),
+                        reference=label,
+                        order=fit.order,
+                        order_ci=[fit.ci_low, fit.ci_high],
+                        order_dt_range=[fit.dt_min, fit.dt_max],
+                        order_points=fit.n_points,
+                        order_reason=fit.reason,
+                        declared_order=declared_order(m),
+                        ladder_dt=dts,
+                        ladder_err=errs,
+                        ladder_used=fit.used,
+                        ladder_excluded=fit.excluded,
+                    )
+                )
     return out
 
 
@@ -269,18 +305,38 @@ def drift_records(ds):
                         e = signed_error(invariant(run, q).values)
                         d = classify_drift(t, e, preserved_ulps=preserved_ulps(n_steps))
                         # A drift whose total stays below 0.1 ulp per step is a rounding bias, not truncation.
-                        rounding_drift = (not d.preserved_to_rounding and d.drift_class in ("linear", "random_walk")
-                                          and d.amplitude <= 0.1 * EPS * n_steps)
-                        out.append(dict(
-                            kind="run", scene=scene_name(ds), method=str(m), quantity=q, f=float(f),
-                            theta0=float(th), dt=float(dt), t_end=float(t[-1]), n_steps=n_steps,
-                            status=int(run.status), drift_class=d.drift_class, drift_rate=d.rate,
-                            drift_rate_unit=d.rate_unit, drift_rate_stderr=d.rate_stderr,
-                            amplitude=d.amplitude, late_mean=d.late_mean, t_diverged=d.t_diverged,
-                            preserved=d.preserved_to_rounding,
-                            rounding_drift=bool(rounding_drift),
-                            declared_preserved=None if declared is None else q in declared,
-                            order=None, order_ci=None, omega_dt_crit=None))
+                        rounding_drift = (
+                            not d.preserved_to_rounding
+                            and d.drift_class in ("linear", "random_walk")
+                            and d.amplitude <= 0.1 * EPS * n_steps
+                        )
+                        out.append(
+                            dict(
+                                kind="run",
+                                scene=scene_name(ds),
+                                method=str(m),
+                                quantity=q,
+                                f=float(f),
+                                theta0=float(th),
+                                dt=float(dt),
+                                t_end=float(t[-1]),
+                                n_steps=n_steps,
+                                status=int(run.status),
+                                drift_class=d.drift_class,
+                                drift_rate=d.rate,
+                                drift_rate_unit=d.rate_unit,
+                                drift_rate_stderr=d.rate_stderr,
+                                amplitude=d.amplitude,
+                                late_mean=d.late_mean,
+                                t_diverged=d.t_diverged,
+                                preserved=d.preserved_to_rounding,
+                                rounding_drift=bool(rounding_drift),
+                                declared_preserved=None if declared is None else q in declared,
+                                order=None,
+                                order_ci=None,
+                                omega_dt_crit=None,
+                            )
+                        )
     return out
 
 
@@ -301,11 +357,27 @@ def threshold_records(datasets, t_end, rtol=1e-3):
             done.add(key)
             f, th = float(ds.f.values[0]), float(ds.theta0.values[0])
             thr = method_stability_threshold(str(m), build_run_scene(ds, f, th), t_end, rtol=rtol)
-            out.append(dict(kind="threshold", scene=scene_name(ds), method=str(m), quantity="stability", f=f,
-                            theta0=th, dt=None, stability_t_end=float(t_end), omega_dt_crit=thr.omega_dt_crit,
-                            omega_dt_bracket=[thr.omega_dt_lo, thr.omega_dt_hi], omega=thr.omega,
-                            threshold_reason=thr.reason, order=None, order_ci=None, drift_class=None,
-                            drift_rate=None, preserved=None))
+            out.append(
+                dict(
+                    kind="threshold",
+                    scene=scene_name(ds),
+                    method=str(m),
+                    quantity="stability",
+                    f=f,
+                    theta0=th,
+                    dt=None,
+                    stability_t_end=float(t_end),
+                    omega_dt_crit=thr.omega_dt_crit,
+                    omega_dt_bracket=[thr.omega_dt_lo, thr.omega_dt_hi],
+                    omega=thr.omega,
+                    threshold_reason=thr.reason,
+                    order=None,
+                    order_ci=None,
+                    drift_class=None,
+                    drift_rate=None,
+                    preserved=None,
+                )
+            )
     return out
 
 
@@ -336,27 +408,65 @@ def summaries(datasets, orders, runs, thresholds):
     out = []
     for scene in [k for k in scenes if isinstance(k, str)]:
         for m in scenes[("methods", scene)]:
-            order = next((o for o in orders if o["scene"] == scene and o["method"] == m and not o["order_reason"]),
-                         next((o for o in orders if o["scene"] == scene and o["method"] == m), None))
+            order = next(
+                (o for o in orders if o["scene"] == scene and o["method"] == m and not o["order_reason"]),
+                next((o for o in orders if o["scene"] == scene and o["method"] == m), None),
+            )
             thr = next((r for r in thresholds if r["scene"] == scene and r["method"] == m), None)
             for q in scenes[scene]:
                 mine = [r for r in runs if r["scene"] == scene and r["method"] == m and r["quantity"] == q]
                 run = max(mine, key=lambda r: (r["n_steps"], r["t_end"], -r["dt"])) if mine else None
                 rec = _blank(kind="summary", scene=scene, method=m, quantity=q, declared_order=declared_order(m))
                 if order:
-                    rec.update({k: order[k] for k in ("order", "order_ci", "order_dt_range", "order_points",
-                                                       "order_reason", "reference", "ladder_excluded",
-                                                       "ladder_err")})
+                    rec.update(
+                        {
+                            k: order[k]
+                            for k in (
+                                "order",
+                                "order_ci",
+                                "order_dt_range",
+                                "order_points",
+                                "order_reason",
+                                "reference",
+                                "ladder_excluded",
+                                "ladder_err",
+                            )
+                        }
+                    )
                     rec.update(order_f=order["f"], order_theta0=order["theta0"], order_t_end=order["t_end"])
                 if run:
-                    rec.update({k: run[k] for k in ("drift_class", "drift_rate", "drift_rate_unit", "drift_rate_stderr",
-                                                    "amplitude", "late_mean", "t_diverged", "preserved",
-                                                    "rounding_drift", "declared_preserved",
-                                                    "f", "theta0", "dt", "t_end", "n_steps", "status")})
+                    rec.update(
+                        {
+                            k: run[k]
+                            for k in (
+                                "drift_class",
+                                "drift_rate",
+                                "drift_rate_unit",
+                                "drift_rate_stderr",
+                                "amplitude",
+                                "late_mean",
+                                "t_diverged",
+                                "preserved",
+                                "rounding_drift",
+                                "declared_preserved",
+                                "f",
+                                "theta0",
+                                "dt",
+                                "t_end",
+                                "n_steps",
+                                "status",
+                            )
+                        }
+                    )
                 if thr:
-                    rec.update(omega_dt_crit=thr["omega_dt_crit"], omega_dt_bracket=thr["omega_dt_bracket"],
-                               stability_t_end=thr["stability_t_end"], threshold_reason=thr["threshold_reason"],
-                               stability_f=thr["f"], stability_theta0=thr["theta0"])
+                    rec.update(
+                        omega_dt_crit=thr["omega_dt_crit"],
+                        omega_dt_bracket=thr["omega_dt_bracket"],
+                        stability_t_end=thr["stability_t_end"],
+                        threshold_reason=thr["threshold_reason"],
+                        stability_f=thr["f"],
+                        stability_theta0=thr["theta0"],
+                    )
                 out.append(rec)
     return out
 
@@ -424,8 +534,9 @@ def fmt_drift(rec):
         return "—"
     if c == "bounded":
         amp, late = rec.get("amplitude"), rec.get("late_mean")
-        settles = f", settles at {late:.2g}" if late is not None and amp and amp > 1e-6 and abs(late) > 0.5 * amp \
-            else ""
+        settles = (
+            f", settles at {late:.2g}" if late is not None and amp and amp > 1e-6 and abs(late) > 0.5 * amp else ""
+        )
         return f"bounded (≤ {_g(amp, 2)}{settles})"
     if c == "diverged":
         return f"diverged (t = {_g(rec.get('t_diverged'))} s)"
@@ -468,16 +579,20 @@ def markdown(records, title="Verdicts measured by gyrolab"):
     from ..kernels.scenes import scenes as scene_table
 
     summ = [r for r in records if r["kind"] == "summary"]
-    lines = [f"# {title}", "",
-             "Generated by `gyrolab-verdict` (analysis/verdict.py) from stored results; do not edit by hand.  "
-             "Regenerate docs/: `gyrolab experiment=verdict hydra.callbacks.verdict.docs_dir=$PWD/docs`.",
-             "Order: fitted p of err ≈ C dtᵖ over the asymptotic range of the dt ladder [95 % CI], err = the final "
-             "state's error max(‖axis − ref‖∞, ‖ω − ref‖∞/|ω0|).  Drift: class of e(t) = (X(t) − X0)/|X0| of each "
-             "declared invariant (|L(t) − L0|/|L0| for L) with its fitted rate; bounded shows max |e|.  "
-             "Preserved: max |e| ≤ max(500, 5√N) eps over N steps; 'rounding drift': a linear or √t drift whose "
-             "total stays below 0.1 eps per step; '!' = declared in PRESERVES but not kept.  "
-             "(‖ω‖dt)_crit: largest step, by bisection, whose run stays bounded (|E − E0| ≤ T0 + |Mgl|) over the "
-             "stated time; '< x' = not bounded even at the smallest step tried, '> x' = bounded at the largest.", ""]
+    lines = [
+        f"# {title}",
+        "",
+        "Generated by `gyrolab-verdict` (analysis/verdict.py) from stored results; do not edit by hand.  "
+        "Regenerate docs/: `gyrolab experiment=verdict hydra.callbacks.verdict.docs_dir=$PWD/docs`.",
+        "Order: fitted p of err ≈ C dtᵖ over the asymptotic range of the dt ladder [95 % CI], err = the final "
+        "state's error max(‖axis − ref‖∞, ‖ω − ref‖∞/|ω0|).  Drift: class of e(t) = (X(t) − X0)/|X0| of each "
+        "declared invariant (|L(t) − L0|/|L0| for L) with its fitted rate; bounded shows max |e|.  "
+        "Preserved: max |e| ≤ max(500, 5√N) eps over N steps; 'rounding drift': a linear or √t drift whose "
+        "total stays below 0.1 eps per step; '!' = declared in PRESERVES but not kept.  "
+        "(‖ω‖dt)_crit: largest step, by bisection, whose run stays bounded (|E − E0| ≤ T0 + |Mgl|) over the "
+        "stated time; '< x' = not bounded even at the smallest step tried, '> x' = bounded at the largest.",
+        "",
+    ]
     for scene in dict.fromkeys(r["scene"] for r in summ):
         rows = [r for r in summ if r["scene"] == scene]
         quantities = list(dict.fromkeys(r["quantity"] for r in rows))
@@ -485,8 +600,11 @@ def markdown(records, title="Verdicts measured by gyrolab"):
         lines += [f"## {scene}", "", f"{info.get('doc', '')}", ""]
         conds = _conditions(records, scene)
         lines += [f"- {c}" for c in conds] + [""]
-        head = ["method", "declared order", "measured order"] + [f"{q} drift" for q in quantities] + [
-            "preserved to rounding", "(‖ω‖dt)_crit"]
+        head = (
+            ["method", "declared order", "measured order"]
+            + [f"{q} drift" for q in quantities]
+            + ["preserved to rounding", "(‖ω‖dt)_crit"]
+        )
         lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
         for m in dict.fromkeys(r["method"] for r in rows):
             mine = [r for r in rows if r["method"] == m]
@@ -506,18 +624,23 @@ def _conditions(records, scene):
     for key in dict.fromkeys((o["f"], o["theta0"], o["t_end"], o["reference"]) for o in orders):
         o = next(x for x in orders if (x["f"], x["theta0"], x["t_end"], x["reference"]) == key)
         dts = o["ladder_dt"] + ([] if "finest" not in o["reference"] else [])
-        out.append(f"order: f = {o['f']:g} Hz, θ0 = {o['theta0']:g}°, final state at t = {o['t_end']:g} s, "
-                   f"dt = {max(dts):.3g} … {min(dts):.3g} s ({len(dts)} steps, halving); reference: {o['reference']}")
+        out.append(
+            f"order: f = {o['f']:g} Hz, θ0 = {o['theta0']:g}°, final state at t = {o['t_end']:g} s, "
+            f"dt = {max(dts):.3g} … {min(dts):.3g} s ({len(dts)} steps, halving); reference: {o['reference']}"
+        )
     runs = [r for r in records if r["kind"] == "summary" and r["scene"] == scene and r.get("drift_class")]
-    for key in dict.fromkeys((r["f"], r["theta0"], r["dt"], r["t_end"], r["n_steps"]) for r in runs
-                             if r.get("status") == 0):
+    for key in dict.fromkeys(
+        (r["f"], r["theta0"], r["dt"], r["t_end"], r["n_steps"]) for r in runs if r.get("status") == 0
+    ):
         f, th, dt, t_end, n = key
         out.append(f"drift: f = {f:g} Hz, θ0 = {th:g}°, dt = {dt:g} s, t_end = {t_end:g} s ({n:.3g} steps)")
     thr = [r for r in records if r["kind"] == "threshold" and r["scene"] == scene]
     for key in dict.fromkeys((r["f"], r["theta0"], r["stability_t_end"], r["omega"]) for r in thr):
         f, th, t_end, omega = key
-        out.append(f"(‖ω‖dt)_crit: f = {f:g} Hz, θ0 = {th:g}°, ‖ω0‖ = {omega:.4g} rad/s, bounded over "
-                   f"{t_end:g} s, bisection to 0.1 % in dt")
+        out.append(
+            f"(‖ω‖dt)_crit: f = {f:g} Hz, θ0 = {th:g}°, ‖ω0‖ = {omega:.4g} rad/s, bounded over "
+            f"{t_end:g} s, bisection to 0.1 % in dt"
+        )
     return out
 
 
@@ -526,10 +649,11 @@ def table(records):
     lines = []
     for r in (r for r in records if r["kind"] == "summary"):
         ref = f"  ref: {r['reference']}" if r.get("reference") and r["quantity"] == "energy" else ""
-        cond = f"f={r['f']:g} θ0={r['theta0']:g} dt={r['dt']:g} t_end={r['t_end']:g}" if r.get("f") is not None \
-            else ""
-        lines.append(f"{r['scene']:16s} {r['method']:21s} {r['quantity']:7s} order {fmt_order(r):22s} "
-                     f"{fmt_drift(r):34s} preserved={r.get('preserved')} crit={fmt_threshold(r)} {cond}{ref}")
+        cond = f"f={r['f']:g} θ0={r['theta0']:g} dt={r['dt']:g} t_end={r['t_end']:g}" if r.get("f") is not None else ""
+        lines.append(
+            f"{r['scene']:16s} {r['method']:21s} {r['quantity']:7s} order {fmt_order(r):22s} "
+            f"{fmt_drift(r):34s} preserved={r.get('preserved')} crit={fmt_threshold(r)} {cond}{ref}"
+        )
     return "\n".join(lines)
 
 
@@ -537,15 +661,24 @@ def table(records):
 
 
 def build_parser():
-    p = argparse.ArgumentParser(prog="gyrolab-verdict", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="gyrolab-verdict", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     p.add_argument("file", nargs="+", metavar="FILE", help="results files (or directories of them)")
     p.add_argument("--json", metavar="PATH", help="write the records as a JSON list")
     p.add_argument("--markdown", metavar="PATH", help="write the verdict tables as Markdown")
-    p.add_argument("--stability", metavar="T", type=float,
-                   help="also bisect the stability threshold over T seconds per (scene, method)")
-    p.add_argument("--reference", choices=("auto", "closed_form", "yardstick", "dop853"), default="auto",
-                   help="reference of the order fits (default auto: closed form, yardstick run, DOP853)")
+    p.add_argument(
+        "--stability",
+        metavar="T",
+        type=float,
+        help="also bisect the stability threshold over T seconds per (scene, method)",
+    )
+    p.add_argument(
+        "--reference",
+        choices=("auto", "closed_form", "yardstick", "dop853"),
+        default="auto",
+        help="reference of the order fits (default auto: closed form, yardstick run, DOP853)",
+    )
     p.add_argument("--figures", metavar="DIR", help="draw verdict_<scene>.png into DIR")
     return p
 

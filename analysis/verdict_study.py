@@ -16,6 +16,7 @@ method; (c) one panel per declared invariant: |e(t)| of the long run on
 log–log axes with the fitted class drawn dashed (linear |rate| t, random walk
 σ √t, bounded its max |e|; × where a run diverged).
 """
+
 import math
 import sys
 import time
@@ -38,28 +39,33 @@ def _order_panel(ax, orders, methods):
         dt, err = np.array(o["ladder_dt"], float), np.array(o["ladder_err"], float)
         ok = np.isfinite(err) & (err > 0)
         c = color(o["method"])
-        ax.loglog(dt[ok], np.maximum(err[ok], FLOOR), marker(o["method"], methods), ms=3, color=c, alpha=0.6,
-                  mfc="none")
+        ax.loglog(
+            dt[ok], np.maximum(err[ok], FLOOR), marker(o["method"], methods), ms=3, color=c, alpha=0.6, mfc="none"
+        )
         if o["order"] is not None and math.isfinite(o["order"]):
             used = np.array(o["ladder_used"], bool)
             p = o["order"]
             logc = np.mean(np.log(err[used]) - p * np.log(dt[used]))
             x = np.geomspace(o["order_dt_range"][0], o["order_dt_range"][1], 10)
-            ax.loglog(x, np.exp(logc) * x ** p, "-", color=c, lw=1.2)
+            ax.loglog(x, np.exp(logc) * x**p, "-", color=c, lw=1.2)
     ax.set_xlabel("time step dt (s)")
     ax.set_ylabel("final-state error (dimensionless)")
     o = orders[0] if orders else None
     ref = o["reference"] if o else ""
-    ax.set_title(f"(a) order fits: lines over the asymptotic range, final state at t = {o['t_end']:g} s\n"
-                 f"reference: {ref}"
-                 if o else "(a) no dt ladder", fontsize=9)
+    ax.set_title(
+        f"(a) order fits: lines over the asymptotic range, final state at t = {o['t_end']:g} s\nreference: {ref}"
+        if o
+        else "(a) no dt ladder",
+        fontsize=9,
+    )
     ax.grid(alpha=0.3, which="both")
 
 
 def _threshold_panel(ax, thresholds):
     if not thresholds:
-        ax.text(0.5, 0.5, "no stability bisection\n(gyrolab-verdict --stability T)", ha="center",
-                transform=ax.transAxes)
+        ax.text(
+            0.5, 0.5, "no stability bisection\n(gyrolab-verdict --stability T)", ha="center", transform=ax.transAxes
+        )
         ax.set_axis_off()
         return
     y = np.arange(len(thresholds))
@@ -82,8 +88,11 @@ def _threshold_panel(ax, thresholds):
     ax.set_xlim(3e-4, 60)
     r = thresholds[0]
     ax.set_xlabel("(|ω| dt)_crit (rad)")
-    ax.set_title(f"(b) stability threshold by bisection\nbounded over {r['stability_t_end']:g} s, "
-                 f"f = {r['f']:g} Hz, θ0 = {r['theta0']:g}°", fontsize=9)
+    ax.set_title(
+        f"(b) stability threshold by bisection\nbounded over {r['stability_t_end']:g} s, "
+        f"f = {r['f']:g} Hz, θ0 = {r['theta0']:g}°",
+        fontsize=9,
+    )
     ax.grid(alpha=0.3, axis="x", which="both")
 
 
@@ -123,8 +132,13 @@ def _drift_panel(ax, q, runs, datasets):
 def _has_run(ds, r):
     from .io import scene_name
 
-    return (scene_name(ds) == r["scene"] and r["method"] in ds.method.values and ds.sizes["time"] > 2
-            and np.any(np.isclose(ds.dt.values, r["dt"])) and np.any(np.isclose(ds.f.values, r["f"])))
+    return (
+        scene_name(ds) == r["scene"]
+        and r["method"] in ds.method.values
+        and ds.sizes["time"] > 2
+        and np.any(np.isclose(ds.dt.values, r["dt"]))
+        and np.any(np.isclose(ds.f.values, r["f"]))
+    )
 
 
 def scene_figure(scene, records, datasets):
@@ -144,10 +158,10 @@ def scene_figure(scene, records, datasets):
         runs = [r for r in summ if r["quantity"] == q and r.get("drift_class")]
         _drift_panel(fig.add_subplot(grid[1, k]), q, runs, datasets)
     handles = [plt.Line2D([], [], color=color(m), lw=2, marker=marker(m, methods), mfc="none") for m in methods]
-    fig.legend(handles, methods, loc="lower center", ncol=min(10, len(methods)), fontsize=7.5,
-               bbox_to_anchor=(0.5, -0.045))
-    fig.suptitle(f"Verdicts measured on {scene}: order, stability threshold, long-time invariant errors",
-                 fontsize=12)
+    fig.legend(
+        handles, methods, loc="lower center", ncol=min(10, len(methods)), fontsize=7.5, bbox_to_anchor=(0.5, -0.045)
+    )
+    fig.suptitle(f"Verdicts measured on {scene}: order, stability threshold, long-time invariant errors", fontsize=12)
     fig.tight_layout()
     return fig
 

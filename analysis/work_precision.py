@@ -18,6 +18,7 @@ axes, scipy's DOP853 and RK45 on the (ω, R) formulation at several
 tolerances (steps = RHS evaluations / 12 resp. / 6).  ``retime=False`` uses
 the stored wall_time instead.
 """
+
 import math
 import time
 
@@ -51,8 +52,15 @@ def time_method(method, scene, dt, t_end, every, repeats=3):
     from ..kernels.batch import integrate, sample_schedule
 
     stride, n_samples = sample_schedule(dt, every, t_end)
-    args = (method, np.array([scene.body]), np.array([scene.omega0]), np.array([scene.q0]),
-            np.array([dt]), np.array([stride]), n_samples)
+    args = (
+        method,
+        np.array([scene.body]),
+        np.array([scene.omega0]),
+        np.array([scene.q0]),
+        np.array([dt]),
+        np.array([stride]),
+        n_samples,
+    )
     old = numba.get_num_threads()
     numba.set_num_threads(1)
     try:
@@ -79,8 +87,16 @@ def peer_points(scene, t_end, every, ref_axis, solver):
     out = []
     for tol in PEER_TOLERANCES[solver]:
         start = time.perf_counter()
-        sol = solve_ivp(rhs, (0.0, times[-1]), y0, method=solver, t_eval=times, rtol=tol, atol=tol,
-                        args=tuple(float(v) for v in scene.body))
+        sol = solve_ivp(
+            rhs,
+            (0.0, times[-1]),
+            y0,
+            method=solver,
+            t_eval=times,
+            rtol=tol,
+            atol=tol,
+            args=tuple(float(v) for v in scene.body),
+        )
         wall = time.perf_counter() - start
         if not sol.success:
             continue
@@ -119,8 +135,9 @@ def work_precision_data(ds, sel=None, retime=True, peers=True, repeats=3):
             peer = {}
             if peers:
                 for name in PEER_TOLERANCES:
-                    peer[name] = [(tol, w / t_end, s / t_end, e) for tol, w, s, e in
-                                  peer_points(scene, t_end, every, ref, name)]
+                    peer[name] = [
+                        (tol, w / t_end, s / t_end, e) for tol, w, s, e in peer_points(scene, t_end, every, ref, name)
+                    ]
             data[(float(f), float(th))] = {"methods": methods, "peers": peer}
     return data
 
@@ -141,24 +158,34 @@ def work_precision_figure(ds, sel=None, retime=True, peers=True, data=None):
     fig, axes = plt.subplots(len(keys), 2, figsize=panel_size(len(keys), 2, 5.8, 4.0), squeeze=False)
     for r, key in enumerate(keys):
         entry = data[key]
-        for c, (col, xlabel) in enumerate(((1, "wall time per simulated second (s/s)"),
-                                           (2, "method steps per simulated second (1/s); not equal work"))):
+        for c, (col, xlabel) in enumerate(
+            (
+                (1, "wall time per simulated second (s/s)"),
+                (2, "method steps per simulated second (1/s); not equal work"),
+            )
+        ):
             ax = axes[r, c]
             errs = {}
             for m, pts in entry["methods"].items():
                 ok = [p for p in pts if math.isfinite(p[3])]
                 if ok:
-                    ax.plot([p[col] for p in ok], [max(p[3], 1e-16) for p in ok], "o-", color=color(m), ms=4,
-                            label=m)
+                    ax.plot([p[col] for p in ok], [max(p[3], 1e-16) for p in ok], "o-", color=color(m), ms=4, label=m)
                     errs[m] = np.log10([max(p[3], 1e-16) for p in pts])
                 n_bad = len(pts) - len(ok)
                 if n_bad:
                     ax.plot([], [], "x", color=color(m), label=f"{m}: {n_bad} dt diverged")
             for name, pts in entry["peers"].items():
                 if pts:
-                    ax.plot([p[col] for p in pts], [max(p[3], 1e-16) for p in pts], "s--", color=color(name),
-                            ms=4, mfc="none", label=f"scipy {name} (tol {pts[0][0]:.0e}…{pts[-1][0]:.0e}; "
-                            f"1 step = {STAGES[name]} RHS evaluations)")
+                    ax.plot(
+                        [p[col] for p in pts],
+                        [max(p[3], 1e-16) for p in pts],
+                        "s--",
+                        color=color(name),
+                        ms=4,
+                        mfc="none",
+                        label=f"scipy {name} (tol {pts[0][0]:.0e}…{pts[-1][0]:.0e}; "
+                        f"1 step = {STAGES[name]} RHS evaluations)",
+                    )
             ax.set_xscale("log")
             ax.set_yscale("log")
             ax.set_xlabel(xlabel, fontsize=9)
@@ -167,18 +194,26 @@ def work_precision_figure(ds, sel=None, retime=True, peers=True, data=None):
             ax.set_title(f"f = {key[0]:g} Hz, θ0 = {key[1]:g}°", fontsize=9)
             groups = coincident(errs, 0.02) if c == 1 else []
             if groups:  # in the title: inside the axes it would cover points
-                ax.set_title(f"f = {key[0]:g} Hz, θ0 = {key[1]:g}° ({coincidence_text(groups, 'same points')})",
-                             fontsize=9)
+                ax.set_title(
+                    f"f = {key[0]:g} Hz, θ0 = {key[1]:g}° ({coincidence_text(groups, 'same points')})", fontsize=9
+                )
     t_end = float(ds.time[-1])
     timing = "re-timed: 1 thread, after JIT warm-up, best of 3" if retime else "stored wall_time"
     dts = sorted(float(v) for v in sub.dt.values)
-    suptitle(fig, f"Work-precision: {scene_label(ds)}, {t_end:g} s; error against {reference_name(sub)}\n"
-                 f"our methods: one point per dt = {dts[0]:g} … {dts[-1]:g} s (smallest dt: most steps); "
-                 f"{timing}; scipy peers re-run", fontsize=9.5)
+    suptitle(
+        fig,
+        f"Work-precision: {scene_label(ds)}, {t_end:g} s; error against {reference_name(sub)}\n"
+        f"our methods: one point per dt = {dts[0]:g} … {dts[-1]:g} s (smallest dt: most steps); "
+        f"{timing}; scipy peers re-run",
+        fontsize=9.5,
+    )
     fig.tight_layout()
-    add_note(fig, "right: steps are not equal work: a step of seed_next/seed_prev = 1 torque evaluation + RK4 on "
-                  "Euler's equations, rk4 = 4 stages, lie_poisson = 1 Strang splitting, lie_poisson4 = 3 of them; "
-                  "scipy's steps = RHS evaluations / 12 (DOP853) or / 6 (RK45): compare costs on the left")
+    add_note(
+        fig,
+        "right: steps are not equal work: a step of seed_next/seed_prev = 1 torque evaluation + RK4 on "
+        "Euler's equations, rk4 = 4 stages, lie_poisson = 1 Strang splitting, lie_poisson4 = 3 of them; "
+        "scipy's steps = RHS evaluations / 12 (DOP853) or / 6 (RK45): compare costs on the left",
+    )
     add_note(fig, note)
     handles, labels = axes[0, 0].get_legend_handles_labels()
     legend_below(fig, handles, labels, ncol=3)
@@ -188,12 +223,18 @@ def work_precision_figure(ds, sel=None, retime=True, peers=True, data=None):
 def _make_figure():
     from .figure import Figure
 
-    return Figure("work-precision", "error vs cost on log-log axes, DOP853 as a peer",
-                  lambda ds, sel=None, no_peers=False, no_retime=False: work_precision_figure(
-                      ds, sel, retime=not no_retime, peers=not no_peers),
-                  {"--no-peers": {"action": "store_true", "help": "do not run the scipy peers"},
-                   "--no-retime": {"action": "store_true", "help": "use the stored wall_time (no re-timing)"}},
-                  file_name="work_precision.png")
+    return Figure(
+        "work-precision",
+        "error vs cost on log-log axes, DOP853 as a peer",
+        lambda ds, sel=None, no_peers=False, no_retime=False: work_precision_figure(
+            ds, sel, retime=not no_retime, peers=not no_peers
+        ),
+        {
+            "--no-peers": {"action": "store_true", "help": "do not run the scipy peers"},
+            "--no-retime": {"action": "store_true", "help": "use the stored wall_time (no re-timing)"},
+        },
+        file_name="work_precision.png",
+    )
 
 
 FIGURE = _make_figure()

@@ -13,6 +13,7 @@
 Every function returns None when the file's scene declares no such closed
 form, so a figure never draws a yardstick the scene does not have.
 """
+
 import math
 from dataclasses import dataclass
 
@@ -126,5 +127,8 @@ def period(ds, f, theta0):
 
 def label(ds):
     """What the yardstick is, for legends: e.g. 'exact (Euler–Poinsot flow)'; None without one."""
-    return {"heavy_top_nutation": "closed-form θ_min, θ_max", "free_symmetric": "exact (free symmetric top)",
-            "euler_poinsot": "exact (Euler–Poinsot flow)"}.get(kind(ds))
+    return {
+        "heavy_top_nutation": "closed-form θ_min, θ_max",
+        "free_symmetric": "exact (free symmetric top)",
+        "euler_poinsot": "exact (Euler–Poinsot flow)",
+    }.get(kind(ds))

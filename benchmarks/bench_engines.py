@@ -20,6 +20,7 @@ the engine as a rigid-body integrator costs, not its integrator alone.
 
 Quote ratios from one run only: the machine may be shared.
 """
+
 import argparse
 import importlib
 import math
@@ -31,15 +32,22 @@ import numpy as np
 from numba import get_num_threads, njit, prange, set_num_threads
 
 ENGINE_METHODS = (
-    "mujoco_euler", "mujoco_implicitfast", "mujoco_implicit", "mujoco_rk4",
-    "bullet_explicit", "bullet_implicit_body",
-    "jolt_rescale", "jolt_rescale_bare", "rapier_rescale", "no_gyro",
+    "mujoco_euler",
+    "mujoco_implicitfast",
+    "mujoco_implicit",
+    "mujoco_rk4",
+    "bullet_explicit",
+    "bullet_implicit_body",
+    "jolt_rescale",
+    "jolt_rescale_bare",
+    "rapier_rescale",
+    "no_gyro",
 )
 OWN_METHODS = ("rk4", "lie_poisson")
 
 M, R_DISC, ARM, G = 1.0, 0.05, 0.1, 10.0
-I1 = M * (R_DISC ** 2 / 4 + ARM ** 2)
-TOP = (I1, I1, M * R_DISC ** 2 / 2, M * G * ARM)
+I1 = M * (R_DISC**2 / 4 + ARM**2)
+TOP = (I1, I1, M * R_DISC**2 / 2, M * G * ARM)
 F_HZ, THETA0, DT = 50.0, 45.0, 1e-4
 
 
@@ -96,7 +104,7 @@ def bench_numba(name, n_runs, steps, repeat, threads):
 
 
 def top_xml(integrator):
-    ixx, izz = M * R_DISC ** 2 / 4, M * R_DISC ** 2 / 2
+    ixx, izz = M * R_DISC**2 / 4, M * R_DISC**2 / 2
     return f"""<mujoco>
   <option timestep="{DT!r}" gravity="0 0 {-G!r}" integrator="{integrator}">
     <flag contact="disable" constraint="disable" spring="disable" damper="disable" actuation="disable"/>
@@ -153,13 +161,19 @@ def main(argv=None):
 
         version = mujoco.__version__
         for integrator in ("Euler", "implicitfast", "implicit", "RK4"):
-            rows.append((f"MuJoCo {version} rollout {integrator}",
-                         bench_mujoco(integrator, args.runs, args.steps, args.repeat, threads)))
+            rows.append(
+                (
+                    f"MuJoCo {version} rollout {integrator}",
+                    bench_mujoco(integrator, args.runs, args.steps, args.repeat, threads),
+                )
+            )
     except ImportError:
         print("(mujoco not installed: no MuJoCo rows)")
     base = dict(rows)["rk4"]
-    print(f"heavy top f = {F_HZ:g} Hz, θ0 = {THETA0:g}°, dt = {DT:g} s; {args.runs} runs × {args.steps} steps, "
-          f"best of {args.repeat}; load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+    print(
+        f"heavy top f = {F_HZ:g} Hz, θ0 = {THETA0:g}°, dt = {DT:g} s; {args.runs} runs × {args.steps} steps, "
+        f"best of {args.repeat}; load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs"
+    )
     head = "".join(f"  ns/step {t} thr  / rk4" for t in threads)
     print(f"{'method':<34}{head}")
     for name, cost in rows:

@@ -13,6 +13,7 @@ Prints, from one process (ratios are taken under the same machine load):
    vectorised block path) for strang_exact, called in a loop over a small array, and its ns/step there.
 Times are medians of --repeat repeats after a warm-up call.
 """
+
 import argparse
 import math
 import os
@@ -47,6 +48,7 @@ def make_harness(step):
                 w, q = step(w, q, dt, body)
             W[i, 0], W[i, 1], W[i, 2] = w
             Q[i, 0], Q[i, 1], Q[i, 2], Q[i, 3] = q
+
     return harness
 
 
@@ -84,6 +86,7 @@ def box_inputs(n):
 def lane_compile(step, n_lanes=8, steps=2000):
     """Seconds to compile lane_step(step) inside a loop over a small array, and its ns/step there."""
     from gyrolab.kernels.lanes import lane_step
+
     start = time.perf_counter()
     fast = lane_step(step)
 
@@ -91,8 +94,12 @@ def lane_compile(step, n_lanes=8, steps=2000):
     def loop(W, Q, B, dt, n_steps):
         for _ in range(n_steps):
             for j in range(W.shape[0]):
-                w, q = fast((W[j, 0], W[j, 1], W[j, 2]), (Q[j, 0], Q[j, 1], Q[j, 2], Q[j, 3]), dt,
-                            (B[j, 0], B[j, 1], B[j, 2], B[j, 3]))
+                w, q = fast(
+                    (W[j, 0], W[j, 1], W[j, 2]),
+                    (Q[j, 0], Q[j, 1], Q[j, 2], Q[j, 3]),
+                    dt,
+                    (B[j, 0], B[j, 1], B[j, 2], B[j, 3]),
+                )
                 W[j, 0], W[j, 1], W[j, 2] = w
                 Q[j, 0], Q[j, 1], Q[j, 2], Q[j, 3] = q
 
@@ -115,8 +122,10 @@ def main():
     parser.add_argument("--no-lanes", action="store_true")
     args = parser.parse_args()
     threads = [1, 2] if numba.config.NUMBA_NUM_THREADS >= 2 else [1]
-    print(f"# bench_free_body: {args.runs} runs x {args.steps} steps, medians of {args.repeat}; "
-          f"{os.cpu_count()} CPUs; load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    print(
+        f"# bench_free_body: {args.runs} runs x {args.steps} steps, medians of {args.repeat}; "
+        f"{os.cpu_count()} CPUs; load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}"
+    )
 
     print("\n## 1. one step, generic asymmetric bodies (dt = 1e-3)\n")
     print("| step | " + " | ".join(f"{t} thread(s) ns/step" for t in threads) + " |")
@@ -127,28 +136,35 @@ def main():
         harness = make_harness(step)
         table[name] = [ns_per_step(harness, inputs, 1e-3, args.steps, t, args.repeat) for t in threads]
         print(f"| {name} | " + " | ".join(f"{v:.1f}" for v in table[name]) + " |", flush=True)
-    print("| ratio exact / rk4 | " + " | ".join(f"{a / b:.1f}x" for a, b in zip(table["exact free flow"],
-                                                                              table["rk4"])) + " |")
+    print(
+        "| ratio exact / rk4 | "
+        + " | ".join(f"{a / b:.1f}x" for a, b in zip(table["exact free flow"], table["rk4"]))
+        + " |"
+    )
 
     print("\n## 2. asymmetric box, f = 10 Hz, dt = 1e-4\n")
     print("| method | " + " | ".join(f"{t} thread(s) ns/step" for t in threads) + " |")
     print("|---|" + "---:|" * len(threads))
     inputs = box_inputs(args.runs)
     table = {}
-    for name, step in (("lie_poisson", lie_poisson.step), ("strang_exact", strang_exact.step),
-                       ("rk4", rk4.step)):
+    for name, step in (("lie_poisson", lie_poisson.step), ("strang_exact", strang_exact.step), ("rk4", rk4.step)):
         harness = make_harness(step)
         table[name] = [ns_per_step(harness, inputs, 1e-4, args.steps, t, args.repeat) for t in threads]
         print(f"| {name} | " + " | ".join(f"{v:.1f}" for v in table[name]) + " |", flush=True)
-    print("| ratio strang_exact / lie_poisson | " + " | ".join(
-        f"{a / b:.1f}x" for a, b in zip(table["strang_exact"], table["lie_poisson"])) + " |")
+    print(
+        "| ratio strang_exact / lie_poisson | "
+        + " | ".join(f"{a / b:.1f}x" for a, b in zip(table["strang_exact"], table["lie_poisson"]))
+        + " |"
+    )
 
     if not args.no_lanes:
         print("\n## 3. lanes.lane_step (forceinline recompilation for the block path)\n")
         for name, step in (("lie_poisson", lie_poisson.step), ("strang_exact", strang_exact.step)):
             seconds, ns, finite = lane_compile(step)
-            print(f"- {name}: compile {seconds:.1f} s, {ns:.1f} ns/step (8 lanes, scalar loop), "
-                  f"finite: {finite}", flush=True)
+            print(
+                f"- {name}: compile {seconds:.1f} s, {ns:.1f} ns/step (8 lanes, scalar loop), finite: {finite}",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

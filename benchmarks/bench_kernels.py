@@ -13,6 +13,7 @@ Prints, from one process (so that every ratio is taken under the same machine lo
    mujoco.rollout when mujoco is installed (an optional peer, never a dependency).
 Times are medians of --repeat repeats after a warm-up call (JIT compile or cache load).
 """
+
 import argparse
 import datetime
 import os
@@ -25,11 +26,12 @@ import llvmlite.binding as llvm
 import numba
 import numpy as np
 
-import mujoco_peer
-import precision
 from gyrolab.kernels.batch import integrate
 from gyrolab.kernels.registry import METHODS
 from gyrolab.kernels.scenes import build_scene
+
+import mujoco_peer
+import precision
 
 SCENES = {
     "heavy_top": ("heavy_top", 50.0, 45.0),
@@ -47,8 +49,7 @@ def batch_inputs(scene_name, f, theta0, n_runs):
     """n runs of a scene with spins spread over f ± 5 % (distinct runs, same cost)."""
     spins = f * (1.0 + 0.1 * (np.arange(n_runs) / max(n_runs - 1, 1) - 0.5))
     scenes = [build_scene(scene_name, s, theta0) for s in spins]
-    return (np.array([s.body for s in scenes]), np.array([s.omega0 for s in scenes]),
-            np.array([s.q0 for s in scenes]))
+    return (np.array([s.body for s in scenes]), np.array([s.omega0 for s in scenes]), np.array([s.q0 for s in scenes]))
 
 
 def ns_per_step(method, inputs, dt, steps, threads, path, repeat):
@@ -71,20 +72,28 @@ def header(args):
             cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
     except (OSError, StopIteration):
         pass
-    commit = subprocess.run(["git", "describe", "--always", "--dirty"], capture_output=True, text=True,
-                            cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip()
+    commit = subprocess.run(
+        ["git", "describe", "--always", "--dirty"],
+        capture_output=True,
+        text=True,
+        cwd=os.path.dirname(os.path.abspath(__file__)),
+    ).stdout.strip()
     print(f"# gyrolab kernel benchmark, {datetime.datetime.now().isoformat(timespec='seconds')}, commit {commit}")
     print(f"# command: python benchmarks/{os.path.basename(sys.argv[0])} {' '.join(sys.argv[1:])}".rstrip())
-    print(f"# machine: {cpu}, {os.cpu_count()} CPUs, {numba.config.NUMBA_NUM_THREADS} numba threads, "
-          f"LLVM target {llvm.get_host_cpu_name()}")
+    print(
+        f"# machine: {cpu}, {os.cpu_count()} CPUs, {numba.config.NUMBA_NUM_THREADS} numba threads, "
+        f"LLVM target {llvm.get_host_cpu_name()}"
+    )
     versions = f"numba {numba.__version__}, numpy {np.__version__}"
     try:
         import scipy
+
         versions += f", scipy {scipy.__version__}"
     except ImportError:
         pass
     if mujoco_peer.available():
         import mujoco
+
         versions += f", mujoco {mujoco.__version__}"
     else:
         versions += ", mujoco not installed"
@@ -93,10 +102,14 @@ def header(args):
 
 
 def kernel_table(args):
-    print(f"\n## 1. ns per step (dt = {DT} s; aggregate wall time / steps of all runs; {args.runs} runs in a "
-          f"batch, spins f ± 5 %)\n")
-    print("| scene | method | single run | runs one by one, 2 threads | blocks, 1 thread | blocks, 2 threads "
-          "| 2-thread speed-up | blocks 2 thr vs single |")
+    print(
+        f"\n## 1. ns per step (dt = {DT} s; aggregate wall time / steps of all runs; {args.runs} runs in a "
+        f"batch, spins f ± 5 %)\n"
+    )
+    print(
+        "| scene | method | single run | runs one by one, 2 threads | blocks, 1 thread | blocks, 2 threads "
+        "| 2-thread speed-up | blocks 2 thr vs single |"
+    )
     print("|---|---|---:|---:|---:|---:|---:|---:|")
     single_steps, batch_steps = args.steps, max(args.steps * 40 // args.runs, 100)
     threads = min(2, numba.config.NUMBA_NUM_THREADS)
@@ -107,8 +120,11 @@ def kernel_table(args):
             runs2 = ns_per_step(method, many, DT, batch_steps, threads, "runs", args.repeat)
             block1 = ns_per_step(method, many, DT, batch_steps, 1, "blocks", args.repeat)
             block2 = ns_per_step(method, many, DT, batch_steps, threads, "blocks", args.repeat)
-            print(f"| {scene_name} | {method} | {single:.1f} | {runs2:.1f} | {block1:.2f} | {block2:.2f} | "
-                  f"{block1 / block2:.2f}x | {single / block2:.0f}x |", flush=True)
+            print(
+                f"| {scene_name} | {method} | {single:.1f} | {runs2:.1f} | {block1:.2f} | {block2:.2f} | "
+                f"{block1 / block2:.2f}x | {single / block2:.0f}x |",
+                flush=True,
+            )
 
 
 def balance_table(args):
@@ -135,14 +151,18 @@ def balance_table(args):
     print("|---|---:|---:|---:|---:|")
     mixed = np.resize([1e-4, 2e-4, 2.5e-4, 5e-4], args.runs)
     half_bad = np.where(np.arange(args.runs) % 2 == 0, 1e-4, 2e-2)  # dt = 2e-2: ω dt = 6 rad, blows up
-    for label, dt, threshold in [("all dt = 1e-4 s", np.full(args.runs, 1e-4), 10.0),
-                                 ("dt 1e-4, 2e-4, 2.5e-4, 5e-4 s mixed", mixed, 10.0),
-                                 ("every other run at dt = 2e-2 s", half_bad, 10.0)]:
+    for label, dt, threshold in [
+        ("all dt = 1e-4 s", np.full(args.runs, 1e-4), 10.0),
+        ("dt 1e-4, 2e-4, 2.5e-4, 5e-4 s mixed", mixed, 10.0),
+        ("every other run at dt = 2e-2 s", half_bad, 10.0),
+    ]:
         w1, status, steps = wall(dt, 1, threshold)
         w2, _, _ = wall(dt, threads, threshold)
         extra = f" ({int((status != 0).sum())} diverged)" if (status != 0).any() else ""
-        print(f"| {label}{extra} | {steps} | {w1 / steps * 1e9:.2f} | {w2 / steps * 1e9:.2f} | {w1 / w2:.2f}x |",
-              flush=True)
+        print(
+            f"| {label}{extra} | {steps} | {w1 / steps * 1e9:.2f} | {w2 / steps * 1e9:.2f} | {w1 / w2:.2f}x |",
+            flush=True,
+        )
 
 
 def ladders(args):
@@ -167,8 +187,7 @@ def cost_at(method, dt, args, cache={}):
     if key not in cache:
         name, f, theta0 = SCENES["heavy_top"]
         single = ns_per_step(method, batch_inputs(name, f, theta0, 1), dt, args.steps // 2, 1, "runs", args.repeat)
-        block = ns_per_step(method, batch_inputs(name, f, theta0, 64), dt, args.steps // 20, 1, "blocks",
-                            args.repeat)
+        block = ns_per_step(method, batch_inputs(name, f, theta0, 64), dt, args.steps // 20, 1, "blocks", args.repeat)
         cache[key] = (single, block)
     return cache[key]
 
@@ -181,15 +200,21 @@ def accuracy_tables(args, sections):
     lad = ladders(args)
     scene = build_scene(*SCENES["heavy_top"])
     if "nutation" in sections:
-        print(f"\n## 2. Cost of an accuracy: relative error of the nutation bounds θ_min, θ_max (heavy top 50 Hz, "
-              f"45°, released, {T_ACCURACY:g} s, against the closed form)\n")
-        print("dt: the step that reaches the error, log-log interpolated between the two dt of the ladder "
-              "(halving from 3.2e-2 s) that bracket it; `~`: extrapolated beyond the finest dt with the last "
-              "slope; `<=`: already reached at the coarsest. Cost in ms of CPU per simulated second: "
-              "single run (run_batch), and per run in a batch of 64 (blocks, 1 thread).\n")
+        print(
+            f"\n## 2. Cost of an accuracy: relative error of the nutation bounds θ_min, θ_max (heavy top 50 Hz, "
+            f"45°, released, {T_ACCURACY:g} s, against the closed form)\n"
+        )
+        print(
+            "dt: the step that reaches the error, log-log interpolated between the two dt of the ladder "
+            "(halving from 3.2e-2 s) that bracket it; `~`: extrapolated beyond the finest dt with the last "
+            "slope; `<=`: already reached at the coarsest. Cost in ms of CPU per simulated second: "
+            "single run (run_batch), and per run in a batch of 64 (blocks, 1 thread).\n"
+        )
         dop = [(rtol,) + precision.dop853_point(scene, T_ACCURACY, rtol) for rtol in 10.0 ** -np.arange(4, 14.0)]
-        print("| error | method | dt (s) | ns/step single | ns/step batched | ms/sim-s single | "
-              "ms/sim-s batched | DOP853 / single | DOP853 / batched |")
+        print(
+            "| error | method | dt (s) | ns/step single | ns/step batched | ms/sim-s single | "
+            "ms/sim-s batched | DOP853 / single | DOP853 / batched |"
+        )
         print("|---:|---|---:|---:|---:|---:|---:|---:|---:|")
         for target in NUTATION_TARGETS:
             tol, tflag = precision.dt_for([(r, e) for r, _, e, _ in dop], target)
@@ -197,11 +222,15 @@ def accuracy_tables(args, sections):
             for method in METHODS:
                 dt, flag = precision.dt_for([(d, n) for d, n, _ in lad[method]], target)
                 _row(target, method, dt, flag, dop_cost * 1e3, args)
-            print(f"| {target:g} | scipy DOP853 | rtol {_fmt_dt(tol, tflag)} | | | {dop_cost * 1e3:.3g} | | | |",
-                  flush=True)
+            print(
+                f"| {target:g} | scipy DOP853 | rtol {_fmt_dt(tol, tflag)} | | | {dop_cost * 1e3:.3g} | | | |",
+                flush=True,
+            )
     if "energy" in sections:
-        print(f"\n## 3. Cost of an accuracy: max relative energy error over {T_ACCURACY:g} s (heavy top 50 Hz, "
-              f"45°, released)\n")
+        print(
+            f"\n## 3. Cost of an accuracy: max relative energy error over {T_ACCURACY:g} s (heavy top 50 Hz, "
+            f"45°, released)\n"
+        )
         mj = []
         if mujoco_peer.available():
             dt = 4e-3
@@ -213,8 +242,10 @@ def accuracy_tables(args, sections):
                 dt /= 2
         else:
             print("mujoco is not installed (`pip install mujoco` for MuJoCo's RK4 as a peer).\n")
-        print("| energy error | method | dt (s) | ns/step single | ns/step batched | ms/sim-s single | "
-              "ms/sim-s batched | MuJoCo / single | MuJoCo / batched |")
+        print(
+            "| energy error | method | dt (s) | ns/step single | ns/step batched | ms/sim-s single | "
+            "ms/sim-s batched | MuJoCo / single | MuJoCo / batched |"
+        )
         print("|---:|---|---:|---:|---:|---:|---:|---:|---:|")
         for target in ENERGY_TARGETS:
             mj_cost, mj_row = None, ""
@@ -225,8 +256,10 @@ def accuracy_tables(args, sections):
                     single = mujoco_peer.ns_per_step(scene_, dt, 1, 1, args.steps // 20, args.repeat)
                     batched = mujoco_peer.ns_per_step(scene_, dt, 64, 1, args.steps // 200, args.repeat)
                     mj_cost = single / dt * 1e-6
-                    mj_row = (f"| {target:g} | MuJoCo RK4 (mujoco.rollout) | {_fmt_dt(dt, flag)} | {single:.0f} | "
-                              f"{batched:.0f} | {mj_cost:.3g} | {batched / dt * 1e-6:.3g} | | |")
+                    mj_row = (
+                        f"| {target:g} | MuJoCo RK4 (mujoco.rollout) | {_fmt_dt(dt, flag)} | {single:.0f} | "
+                        f"{batched:.0f} | {mj_cost:.3g} | {batched / dt * 1e-6:.3g} | | |"
+                    )
             for method in METHODS:
                 dt, flag = precision.dt_for([(d, e) for d, _, e in lad[method]], target)
                 _row(target, method, dt, flag, mj_cost, args)
@@ -236,11 +269,14 @@ def accuracy_tables(args, sections):
     for method, rows in lad.items():
         print(f"- {method}: " + "; ".join(f"{d:.3g}: {n:.2g}, {e:.2g}" for d, n, e in rows))
     if "nutation" in sections:
-        print("- scipy DOP853 (rtol = atol: ms per sim-s, nutation bound error, steps): "
-              + "; ".join(f"{r:.0e}: {c * 1e3:.3g}, {e:.2g}, {n}" for r, c, e, n in dop))
+        print(
+            "- scipy DOP853 (rtol = atol: ms per sim-s, nutation bound error, steps): "
+            + "; ".join(f"{r:.0e}: {c * 1e3:.3g}, {e:.2g}, {n}" for r, c, e, n in dop)
+        )
     if "energy" in sections and mj:
-        print("- MuJoCo RK4 (dt: energy error, ns/step): "
-              + "; ".join(f"{d:.3g}: {e:.2g}, {ns:.0f}" for d, e, ns in mj))
+        print(
+            "- MuJoCo RK4 (dt: energy error, ns/step): " + "; ".join(f"{d:.3g}: {e:.2g}, {ns:.0f}" for d, e, ns in mj)
+        )
 
 
 def _interp_cost(points, x):
@@ -258,8 +294,11 @@ def _row(target, method, dt, flag, peer_ms, args):
     single, block = cost_at(method, float(f"{dt:.3g}"), args)
     ms_single, ms_block = single / dt * 1e-6, block / dt * 1e-6
     ratios = f"{_ratio(peer_ms / ms_single)} | {_ratio(peer_ms / ms_block)}" if peer_ms else " | "
-    print(f"| {target:g} | {method} | {_fmt_dt(dt, flag)} | {single:.1f} | {block:.2f} | {ms_single:.3g} | "
-          f"{ms_block:.3g} | {ratios} |", flush=True)
+    print(
+        f"| {target:g} | {method} | {_fmt_dt(dt, flag)} | {single:.1f} | {block:.2f} | {ms_single:.3g} | "
+        f"{ms_block:.3g} | {ratios} |",
+        flush=True,
+    )
 
 
 def _ratio(r):

@@ -7,6 +7,7 @@ contacts, constraints or damping.  A ball joint's qpos is the body's
 quaternion (w, x, y, z), the same convention as gyrolab's q, and its qvel the
 body-frame angular velocity, gyrolab's ω.
 """
+
 import time
 
 import numpy as np

@@ -11,6 +11,7 @@ method's own error, so the scan measures the method, not the sampling.
 ``dt_for(ladder, target)``: the dt (or tolerance) at which an error reaches a
 target, interpolated log-log between the ladder points that bracket it.
 """
+
 import math
 import time
 

@@ -7,6 +7,7 @@ changed; the differences say what each part costs.  The variants that change ari
 replaced by reciprocals) are for measurement only: they do not give seed_next's bits.  Also prints the
 packed instructions of the shipped loop body (the count of vdivpd is the count of divisions per vector).
 """
+
 import argparse
 import re
 import time
@@ -27,8 +28,11 @@ from gyrolab.kernels.scenes import build_scene
 def _euler_rhs_reciprocal(w, tau, inv):
     """euler_rhs with 1/I precomputed: multiplications instead of divisions (other bits)."""
     I1, I2, I3, i1, i2, i3 = inv
-    return ((tau[0] + (I2 - I3) * w[1] * w[2]) * i1, (tau[1] + (I3 - I1) * w[2] * w[0]) * i2,
-            (tau[2] + (I1 - I2) * w[0] * w[1]) * i3)
+    return (
+        (tau[0] + (I2 - I3) * w[1] * w[2]) * i1,
+        (tau[1] + (I3 - I1) * w[2] * w[0]) * i2,
+        (tau[2] + (I1 - I2) * w[0] * w[1]) * i3,
+    )
 
 
 @njit
@@ -41,8 +45,11 @@ def _step_reciprocal(w, q, dt, body):
     k3 = _euler_rhs_reciprocal((w[0] + h * k2[0], w[1] + h * k2[1], w[2] + h * k2[2]), tau, inv)
     k4 = _euler_rhs_reciprocal((w[0] + dt * k3[0], w[1] + dt * k3[1], w[2] + dt * k3[2]), tau, inv)
     s = dt * (1.0 / 6.0)
-    wn = (w[0] + s * (k1[0] + 2.0 * (k2[0] + k3[0]) + k4[0]), w[1] + s * (k1[1] + 2.0 * (k2[1] + k3[1]) + k4[1]),
-          w[2] + s * (k1[2] + 2.0 * (k2[2] + k3[2]) + k4[2]))
+    wn = (
+        w[0] + s * (k1[0] + 2.0 * (k2[0] + k3[0]) + k4[0]),
+        w[1] + s * (k1[1] + 2.0 * (k2[1] + k3[1]) + k4[1]),
+        w[2] + s * (k1[2] + 2.0 * (k2[2] + k3[2]) + k4[2]),
+    )
     return wn, rotate_body_step(q, wn[0] * dt, wn[1] * dt, wn[2] * dt)
 
 
@@ -63,8 +70,12 @@ def _plain_loop(fast):
     def steps(W, Q, B, DT, n, m):
         for _ in range(m):
             for j in range(n):
-                w, q = fast((W[0, j], W[1, j], W[2, j]), (Q[0, j], Q[1, j], Q[2, j], Q[3, j]), DT[j],
-                            (B[0, j], B[0, j], B[2, j], B[3, j]))
+                w, q = fast(
+                    (W[0, j], W[1, j], W[2, j]),
+                    (Q[0, j], Q[1, j], Q[2, j], Q[3, j]),
+                    DT[j],
+                    (B[0, j], B[0, j], B[2, j], B[3, j]),
+                )
                 W[0, j], W[1, j], W[2, j] = w
                 Q[0, j], Q[1, j], Q[2, j], Q[3, j] = q
 
@@ -100,10 +111,18 @@ def main():
     W, Q, B, DT, S, BAD = block(n)
 
     shipped = make_block_steps(step)
-    rows = [(f"shipped steps(): {m} steps, then the non-finite check (symmetric pass)",
-             timed(lambda k: shipped(W, Q, B, DT, S, BAD, n, k, True, 0), n, m, args.repeat))]
-    rows.append(("  same, general pass (I2 read from B)",
-                 timed(lambda k: shipped(W, Q, B, DT, S, BAD, n, k, False, 0), n, m, args.repeat)))
+    rows = [
+        (
+            f"shipped steps(): {m} steps, then the non-finite check (symmetric pass)",
+            timed(lambda k: shipped(W, Q, B, DT, S, BAD, n, k, True, 0), n, m, args.repeat),
+        )
+    ]
+    rows.append(
+        (
+            "  same, general pass (I2 read from B)",
+            timed(lambda k: shipped(W, Q, B, DT, S, BAD, n, k, False, 0), n, m, args.repeat),
+        )
+    )
     for label, variant in [
         ("bare lane loop (as shipped, without checkpoint and check)", step),
         ("bare; divisions -> reciprocal multiplications (other bits)", _step_reciprocal),
@@ -124,9 +143,11 @@ def main():
     counts = {}
     for op in ops:
         counts[op] = counts.get(op, 0) + 1
-    print("\nzmm instructions in the compiled steps() (its four lane passes: lane_step and libm, symmetric and "
-          "general; the scalar fix-up has none): " + ", ".join(
-        f"{op} {c}" for op, c in sorted(counts.items(), key=lambda kv: -kv[1])[:14]))
+    print(
+        "\nzmm instructions in the compiled steps() (its four lane passes: lane_step and libm, symmetric and "
+        "general; the scalar fix-up has none): "
+        + ", ".join(f"{op} {c}" for op, c in sorted(counts.items(), key=lambda kv: -kv[1])[:14])
+    )
 
 
 if __name__ == "__main__":

@@ -31,6 +31,7 @@ The table's σ is the wander left about the fitted drift (from the detrended
 increments of the window means, 1/√s) and σ√T its size at the end of the
 run: a drift whose rate·T is below σ√T no longer dominates the error.
 """
+
 import argparse
 import math
 import time
@@ -184,28 +185,35 @@ def main(argv=None):
     run_variants(variants, np.array(sc.omega0), np.array(sc.q0), body, args.dt, stride, n, out, final)
     wall = time.perf_counter() - t0
     t = np.arange(n) * every
-    print(f"lie_poisson4 variants, heavy top f = {args.f:g} Hz, θ0 = 45° released, dt = {args.dt:g} s, "
-          f"{args.t_end:g} s ({n - 1} samples of {stride} steps); {wall:.1f} s")
+    print(
+        f"lie_poisson4 variants, heavy top f = {args.f:g} Hz, θ0 = 45° released, dt = {args.dt:g} s, "
+        f"{args.t_end:g} s ({n - 1} samples of {stride} steps); {wall:.1f} s"
+    )
     if 0 in variants:
-        ref, status, _ = integrate("lie_poisson4", np.array([sc.body]), np.array([sc.omega0]), np.array([sc.q0]),
-                                   args.dt, stride, n, 1e9)
+        ref, status, _ = integrate(
+            "lie_poisson4", np.array([sc.body]), np.array([sc.omega0]), np.array([sc.q0]), args.dt, stride, n, 1e9
+        )
         i0 = int(np.nonzero(variants == 0)[0][0])
         same = np.array_equal(ref[0, :, 6], out[i0])
         print(f"variant 0 bit-identical to the registered lie_poisson4's energy samples: {same}")
     marks = [T for T in (10.0, 50.0, 100.0, 200.0, 400.0, 1000.0) if T <= t[-1] + 1e-9]
-    print(f"\n{'variant':<32} {'class':>11} {'rate':>11} {'unit':>10} {'±':>8} "
-          + " ".join(f"{'<e> ' + format(T, 'g') + ' s':>11}" for T in marks) + f" {'z':>8} {'σ 1/√s':>9} {'σ√T':>9}")
+    print(
+        f"\n{'variant':<32} {'class':>11} {'rate':>11} {'unit':>10} {'±':>8} "
+        + " ".join(f"{'<e> ' + format(T, 'g') + ' s':>11}" for T in marks)
+        + f" {'z':>8} {'σ 1/√s':>9} {'σ√T':>9}"
+    )
     for i, v in enumerate(variants):
         e = out[i] / out[i, 0] - 1
         d = classify_drift(t, e)
         means = " ".join(f"{np.mean(e[(t > T - 5) & (t <= T + 1e-9)]):11.3e}" for T in marks)
         # the wander about the drift: σ of the window means' increments, detrended (1/√s)
-        tw = t[-(t.size // d.n_windows) * d.n_windows:].reshape(d.n_windows, -1).mean(axis=1)
-        m = e[-(t.size // d.n_windows) * d.n_windows:].reshape(d.n_windows, -1).mean(axis=1)
+        m = e[-(t.size // d.n_windows) * d.n_windows :].reshape(d.n_windows, -1).mean(axis=1)
         inc = np.diff(m)
         sigma = math.sqrt(1.5 * np.var(inc) / d.window)
-        print(f"{v:<2} {LABELS[v]:<30} {d.drift_class:>11} {d.rate:11.3e} {d.rate_unit:>10} {d.rate_stderr:8.1e} "
-              f"{means} {d.z_trend:8.1f} {sigma:9.2e} {sigma * math.sqrt(t[-1]):9.2e}")
+        print(
+            f"{v:<2} {LABELS[v]:<30} {d.drift_class:>11} {d.rate:11.3e} {d.rate_unit:>10} {d.rate_stderr:8.1e} "
+            f"{means} {d.z_trend:8.1f} {sigma:9.2e} {sigma * math.sqrt(t[-1]):9.2e}"
+        )
 
 
 if __name__ == "__main__":

@@ -23,6 +23,7 @@ Rates are the classifier's (analysis/classify.py): least-squares slope of the
 windowed means of E/E0 − 1, in 1/s.  The issue's reference numbers: mean of the
 last 5 s of 400 s = −1.30e-3 at 50 Hz, dt = 1e-3 s (−3.2e-6 /s).
 """
+
 import argparse
 import math
 import time
@@ -69,7 +70,7 @@ def run(variant, w, q, dt, body, stride, n):
                 continue
             c = (1.0 - I3 / I1) * w[2]
             th = c * dt
-            g = 1.0 - th ** 6 / 72.0 + th ** 8 / 576.0
+            g = 1.0 - th**6 / 72.0 + th**8 / 576.0
             if c != 0.0:
                 y1, y2 = w[0] - tau[1] / (I1 * c), w[1] + tau[0] / (I1 * c)
                 loss += 0.5 * I1 * (g - 1.0) * (y1 * y1 + y2 * y2)
@@ -115,8 +116,10 @@ def main(argv=None):
     t0 = time.perf_counter()
     section = None
     print(f"t_end = {T:g} s, θ0 = 45° released (free disc: θ0 = 30°), E sampled every 1e-2 s")
-    hdr = (f"{'scheme':<20} {'f Hz':>5} {'dt s':>8} {'class':>11} {'rate 1/s':>11} {'±':>8} "
-           f"{'predicted':>11} {'last 5 s':>10} {'max|e|':>9}")
+    hdr = (
+        f"{'scheme':<20} {'f Hz':>5} {'dt s':>8} {'class':>11} {'rate 1/s':>11} {'±':>8} "
+        f"{'predicted':>11} {'last 5 s':>10} {'max|e|':>9}"
+    )
     fits = {"B": [], "C": []}
     for label, scene, f, dt, variant in rows:
         if label != section:
@@ -126,8 +129,10 @@ def main(argv=None):
         pred = f"{predicted:11.3e}" if variant == 0 else f"{'—':>11}"
         rate = f"{d.rate:11.3e}" if d.rate_unit == "1/s" else f"{'—':>11}"
         se = f"{d.rate_stderr:8.1e}" if d.rate_unit == "1/s" else f"{'':>8}"
-        print(f"{NAMES[variant]:<20} {f:5g} {dt:8.2e} {d.drift_class:>11} {rate} {se} {pred} {last5:10.3e} "
-              f"{d.amplitude:9.2e}")
+        print(
+            f"{NAMES[variant]:<20} {f:5g} {dt:8.2e} {d.drift_class:>11} {rate} {se} {pred} {last5:10.3e} "
+            f"{d.amplitude:9.2e}"
+        )
         if label[0] in fits and d.drift_class == "linear":
             fits[label[0]].append((dt if label[0] == "B" else f, abs(d.rate)))
     for key, what in (("B", "dt"), ("C", "f")):

@@ -16,6 +16,7 @@ separatrix) and eps = 0.1:
 The axis rotation is free_flow._axis_rotation's formula (copied here so that the benchmark does not depend
 on a private helper).
 """
+
 import argparse
 import itertools
 import math
@@ -77,8 +78,10 @@ def main():
     body = I + (0.0,)
     omega3 = 2 * math.pi * 10.0
     q0 = (1.0, 0.0, 0.0, 0.0)
-    print(f"# subsplit_order: box I = {I}, f = 10 Hz, t_end = {args.t_end} s; load average "
-          f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    print(
+        f"# subsplit_order: box I = {I}, f = 10 Hz, t_end = {args.t_end} s; load average "
+        f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}"
+    )
     print("# axes named by body index: e1 (I=1e-4, smallest), e2 (3e-4, largest), e3 (2e-4, intermediate)\n")
     for eps in (1e-3, 0.1):
         w0 = (eps * omega3, 0.0, omega3)
@@ -96,15 +99,18 @@ def main():
                 cells.append((dE, np.abs(ck_matrix(q) - ck_matrix(tuple(q_exact[0]))).max()))
             rows.append((name, cells))
             shipped = " (shipped)" if (a, b, c) == (0, 1, 2) else ""
-            print(f"| {name}{shipped} | " + " | ".join(f"{dE:.2e} | {dR:.2e}" for dE, dR in cells) + " |",
-                  flush=True)
+            print(f"| {name}{shipped} | " + " | ".join(f"{dE:.2e} | {dR:.2e}" for dE, dR in cells) + " |", flush=True)
         best = min(rows, key=lambda r: r[1][-1][0])
         print(f"\nsmallest energy error at dt = {dts[-1]:g}: {best[0]}\n")
     # Is the best ordering a property of the body or of the state?  Two published test bodies.
     print("## other bodies: max dE/E over 20 s at dt = 1e-3\n")
-    others = {"I = (1, 2, 3), w0 = (0.7, -1.1, 0.4)": ((1.0, 2.0, 3.0), (0.7, -1.1, 0.4)),
-              "HLW I = (2, 1, 2/3), L0 = (cos 1.1, 0, sin 1.1)": ((2.0, 1.0, 2.0 / 3.0),
-                                                                 (math.cos(1.1) / 2.0, 0.0, 1.5 * math.sin(1.1)))}
+    others = {
+        "I = (1, 2, 3), w0 = (0.7, -1.1, 0.4)": ((1.0, 2.0, 3.0), (0.7, -1.1, 0.4)),
+        "HLW I = (2, 1, 2/3), L0 = (cos 1.1, 0, sin 1.1)": (
+            (2.0, 1.0, 2.0 / 3.0),
+            (math.cos(1.1) / 2.0, 0.0, 1.5 * math.sin(1.1)),
+        ),
+    }
     for label, (I_o, w_o) in others.items():
         cells = []
         for a, b, c in itertools.permutations((0, 1, 2)):

@@ -13,13 +13,17 @@ checkout first on sys.path), the checkout's top level joins the package's
 path, so ``gyrolab.kernels`` is the checkout's kernels/ and the checkout's
 code runs, whole and consistent, instead of an ImportError.
 """
+
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 _HERE = Path(__file__).resolve().parent
 _CHECKOUT = _HERE.parent
-if not (_HERE / "kernels").is_dir() and (_CHECKOUT / "pyproject.toml").is_file() and (
-        _CHECKOUT / "kernels" / "registry.py").is_file():
+if (
+    not (_HERE / "kernels").is_dir()
+    and (_CHECKOUT / "pyproject.toml").is_file()
+    and (_CHECKOUT / "kernels" / "registry.py").is_file()
+):
     __path__.append(str(_CHECKOUT))  # noqa: F821 (the package's own __path__)
 
 from .kernels.euler_poinsot import free_body  # noqa: E402

@@ -22,6 +22,7 @@ Adding a per-sample variable: a field in kernels/driver.py (``FIELDS`` and
 ``_record``) if the kernels must compute it, and one entry in
 ``SAMPLE_VARIABLES`` here; every writer, reader and size estimate follows.
 """
+
 from dataclasses import dataclass
 from typing import Callable
 
@@ -64,30 +65,49 @@ def _phi(raw):
 
 
 SAMPLE_VARIABLES = {
-    "axis": SampleVariable("1", "symmetry axis R e3 in the lab frame",
-                           lambda r: r[..., _raw("axis_x", "axis_y", "axis_z")], vector=True),
+    "axis": SampleVariable(
+        "1", "symmetry axis R e3 in the lab frame", lambda r: r[..., _raw("axis_x", "axis_y", "axis_z")], vector=True
+    ),
     "theta": SampleVariable("rad", "tilt: angle between e3 and lab z", _theta),
     "phi": SampleVariable("rad", "azimuth of the axis tip, unwrapped", _phi),
-    "energy": SampleVariable("J", "total energy 1/2 w.Iw + M g l cos(theta)",
-                             lambda r: r[..., RAW_FIELDS.index("energy")]),
-    "L": SampleVariable("kg m2 s-1", "angular momentum about the pivot in the lab frame, R I w",
-                        lambda r: r[..., _raw("L_x", "L_y", "L_z")], vector=True),
-    "Lz": SampleVariable("kg m2 s-1", "lab vertical angular momentum (R I w).z",
-                         lambda r: r[..., RAW_FIELDS.index("L_z")]),
-    "L3": SampleVariable("kg m2 s-1", "angular momentum along the symmetry axis I3 w3",
-                         lambda r: r[..., RAW_FIELDS.index("L3")]),
-    "omega": SampleVariable("rad s-1", "body angular velocity (body-frame components)",
-                            lambda r: r[..., _raw("omega_1", "omega_2", "omega_3")], vector=True),
+    "energy": SampleVariable(
+        "J", "total energy 1/2 w.Iw + M g l cos(theta)", lambda r: r[..., RAW_FIELDS.index("energy")]
+    ),
+    "L": SampleVariable(
+        "kg m2 s-1",
+        "angular momentum about the pivot in the lab frame, R I w",
+        lambda r: r[..., _raw("L_x", "L_y", "L_z")],
+        vector=True,
+    ),
+    "Lz": SampleVariable(
+        "kg m2 s-1", "lab vertical angular momentum (R I w).z", lambda r: r[..., RAW_FIELDS.index("L_z")]
+    ),
+    "L3": SampleVariable(
+        "kg m2 s-1", "angular momentum along the symmetry axis I3 w3", lambda r: r[..., RAW_FIELDS.index("L3")]
+    ),
+    "omega": SampleVariable(
+        "rad s-1",
+        "body angular velocity (body-frame components)",
+        lambda r: r[..., _raw("omega_1", "omega_2", "omega_3")],
+        vector=True,
+    ),
 }
 RUN_VARIABLES = {
-    "status": (np.int8, {"units": "1", "long_name": "run status",
-                         "legend": "; ".join(f"{k}: {v}" for k, v in STATUS_LEGEND.items())}),
+    "status": (
+        np.int8,
+        {"units": "1", "long_name": "run status", "legend": "; ".join(f"{k}: {v}" for k, v in STATUS_LEGEND.items())},
+    ),
     "n_steps": (np.int64, {"units": "1", "long_name": "time steps taken"}),
     "wall_time": (np.float64, {"units": "s", "long_name": "wall-clock time of the run"}),
 }
 INPUT_VARIABLES = {
-    "body": ("body_param", {"units": ", ".join(f"{k}: {BODY_UNITS[k]}" for k in BODY_FIELDS),
-                            "long_name": "body parameters (kernels/body.py), one value per body_param"}),
+    "body": (
+        "body_param",
+        {
+            "units": ", ".join(f"{k}: {BODY_UNITS[k]}" for k in BODY_FIELDS),
+            "long_name": "body parameters (kernels/body.py), one value per body_param",
+        },
+    ),
     "omega0": ("xyz", {"units": "rad s-1", "long_name": "initial body angular velocity"}),
     "q0": ("quat", {"units": "1", "long_name": "initial orientation quaternion (a, b, c, d), body to lab"}),
 }
@@ -112,9 +132,19 @@ WALL_TIME_NOTE = (
     "(runs of one chunk run in parallel; JIT compilation excluded)"
 )
 # Config keys that change how a sweep is run, not its data: left out of the data hash and of comparisons.
-RUN_ONLY = {"output": ("path", "overwrite", "figures"),
-            "runner": ("resume", "dry_run", "threads", "chunk_seconds", "backend", "address", "scheduler_file",
-                       "connect_timeout")}
+RUN_ONLY = {
+    "output": ("path", "overwrite", "figures"),
+    "runner": (
+        "resume",
+        "dry_run",
+        "threads",
+        "chunk_seconds",
+        "backend",
+        "address",
+        "scheduler_file",
+        "connect_timeout",
+    ),
+}
 
 
 # Files written before layout_version existed (gyrolab at c0ed527 and earlier) are layout 0: the same
@@ -159,8 +189,12 @@ def unwrap_nan(phase):
 
 def scene_attrs(scene, options, conserved, closed_form):
     """File attrs naming the scene, its options and its declarations (space-separated invariant names)."""
-    attrs = {"scene": scene, "conserved": " ".join(conserved), "closed_form": closed_form or "",
-             "layout_version": LAYOUT_VERSION}
+    attrs = {
+        "scene": scene,
+        "conserved": " ".join(conserved),
+        "closed_form": closed_form or "",
+        "layout_version": LAYOUT_VERSION,
+    }
     for key, value in options.items():
         attrs[f"scene_{key}"] = int(value) if isinstance(value, bool) else value
     return attrs
@@ -214,8 +248,11 @@ def to_dataset(raw, per_run, coords, inputs=None, attrs=None):
         data[name] = (grid, np.asarray(values, dtype=RUN_VARIABLES[name][0]), VARIABLE_ATTRS[name])
     for name, values in (inputs or {}).items():
         own = INPUT_VARIABLES[name][0]
-        data[name] = (tuple(d for d in INPUT_DIMS if d in coords) + (own,), np.asarray(values, dtype=float),
-                      VARIABLE_ATTRS[name])
+        data[name] = (
+            tuple(d for d in INPUT_DIMS if d in coords) + (own,),
+            np.asarray(values, dtype=float),
+            VARIABLE_ATTRS[name],
+        )
     all_coords = {d: (d, np.asarray(v), COORD_ATTRS[d]) for d, v in coords.items()}
     for d, v in FIXED_COORDS.items():
         if any(d in spec[0] for spec in data.values()):

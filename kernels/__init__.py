@@ -21,6 +21,7 @@ methods silently ran the first one's step for both.  With random starting
 ids, names from different processes differ (tests/test_provenance.py
 reproduces the collision with the counter reset).
 """
+
 import hashlib
 import itertools
 import os
@@ -47,7 +48,8 @@ def _source_hash():
 
 def _cache_root():
     base = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "gyrolab", "numba")
+        os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "gyrolab", "numba"
+    )
     for candidate in (base, os.path.join(tempfile.gettempdir(), f"gyrolab-numba-{os.getuid()}")):
         path = os.path.join(candidate, SOURCE_HASH)
         try:

@@ -8,6 +8,7 @@ its ``run_batch`` (driver.py: one run after another, one prange over runs).
 Both give bit-identical results, independent of the thread count and of the
 blocking.
 """
+
 import math
 
 import numba
@@ -49,8 +50,9 @@ def sample_schedule(dt, every, t_end):
     return stride, n_samples
 
 
-def integrate(method, bodies, omega0, q0, dt, stride, n_samples, threshold=DEFAULT_DIVERGENCE_THRESHOLD, *,
-              path="auto"):
+def integrate(
+    method, bodies, omega0, q0, dt, stride, n_samples, threshold=DEFAULT_DIVERGENCE_THRESHOLD, *, path="auto"
+):
     """Integrate a batch of runs with one method, in parallel over runs.
 
     bodies (n, body.N_FIELDS): rows of body.Body (I1, I2, I3 in kg m², M g l in N m); omega0 (n, 3) body rates

@@ -24,6 +24,7 @@ cached parallel ``run_blocks``, one prange iteration per thread, each running
 its queue of blocks planned by ``plan_blocks`` (entry.py: as for ``run_batch``, the
 step is bound as a global so that the kernel can be cached).
 """
+
 import numpy as np
 from numba import njit
 
@@ -134,8 +135,12 @@ def _make_pass(fast, symmetric):
                 I2 = I1
             else:
                 I2 = B[1, j]
-            w, q = fast((W[0, j], W[1, j], W[2, j]), (Q[0, j], Q[1, j], Q[2, j], Q[3, j]), DT[j],
-                        body_lane_with_moments(B, j, I1, I2))
+            w, q = fast(
+                (W[0, j], W[1, j], W[2, j]),
+                (Q[0, j], Q[1, j], Q[2, j], Q[3, j]),
+                DT[j],
+                body_lane_with_moments(B, j, I1, I2),
+            )
             W[0, j], W[1, j], W[2, j] = w
             Q[0, j], Q[1, j], Q[2, j], Q[3, j] = q
 
@@ -192,8 +197,7 @@ def make_advance_block(step):
                     j += 1
                     continue
                 i, k = RUN[j], K[j]
-                _record(out, i, k, (W[0, j], W[1, j], W[2, j]), (Q[0, j], Q[1, j], Q[2, j], Q[3, j]),
-                        body_lane(B, j))
+                _record(out, i, k, (W[0, j], W[1, j], W[2, j]), (Q[0, j], Q[1, j], Q[2, j], Q[3, j]), body_lane(B, j))
                 n_steps[i] += strides[i]
                 if _diverged(out, i, k, TOL[j], status) or k == out.shape[1] - 1:
                     active -= 1
@@ -215,8 +219,9 @@ def make_advance_queue(step):
     @njit(error_model="numpy")
     def advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
         for b in range(queues[t], queues[t + 1]):
-            advance_block(runs[starts[b]:starts[b + 1]], w0, q0, bodies, dts, strides, threshold, out, status,
-                          n_steps)
+            advance_block(
+                runs[starts[b] : starts[b + 1]], w0, q0, bodies, dts, strides, threshold, out, status, n_steps
+            )
 
     return advance_queue
 
@@ -265,8 +270,10 @@ def plan_blocks(strides, threads, max_lanes):
         group = np.flatnonzero(strides == s)
         n_blocks = max(-(-group.size // max_lanes), min(2 * threads, -(-group.size // VECTOR)))
         lanes = -(-group.size // (n_blocks * VECTOR)) * VECTOR
-        blocks.extend((max(int(s), 1) * -(-b.size // VECTOR) * VECTOR, b)
-                      for b in np.split(group, range(lanes, group.size, lanes)))
+        blocks.extend(
+            (max(int(s), 1) * -(-b.size // VECTOR) * VECTOR, b)
+            for b in np.split(group, range(lanes, group.size, lanes))
+        )
     blocks.sort(key=lambda wb: -wb[0])
     load, queue = np.zeros(max(threads, 1)), [[] for _ in range(max(threads, 1))]
     for work, b in blocks:

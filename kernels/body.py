@@ -10,6 +10,7 @@ machine code, same bits) while kernels may read fields by name.
 The runner stores bodies as float64 arrays whose last axis is ``FIELDS``;
 results files carry that axis as the ``body_param`` coordinate.
 """
+
 from collections import namedtuple
 
 from numba import njit

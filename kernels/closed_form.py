@@ -11,6 +11,7 @@ its roots are u1 ≤ u2 in [−1, 1] and u3 > 1; θ nutates between arccos u2
 and arccos u1 with period T = 4 K(m) / √(β (u3 − u1)),
 m = (u2 − u1)/(u3 − u1).
 """
+
 import math
 from dataclasses import dataclass
 
@@ -108,8 +109,10 @@ def nutation_roots(scene):
             u_c -= _df(u_c, *coeffs) / d2
         fc = _f(u_c, *coeffs)
         # Rounding error of f(u_c): below it, the two roots are one double root.
-        rounding = 16 * np.finfo(float).eps * (
-            (abs(alpha) + beta * abs(u_c)) * (1.0 - u_c * u_c) + 2.0 * abs(b - a * u_c) * (abs(b) + abs(a * u_c))
+        rounding = (
+            16
+            * np.finfo(float).eps
+            * ((abs(alpha) + beta * abs(u_c)) * (1.0 - u_c * u_c) + 2.0 * abs(b - a * u_c) * (abs(b) + abs(a * u_c)))
         )
         if fc <= rounding:
             return u_c, u_c, u3
@@ -141,7 +144,7 @@ def heavy_top_nutation(scene):
     one θ minimum to the next; precession_rate (rad/s): the azimuth gained per
     nutation period divided by the period, i.e. the long-run mean φ̇.
     """
-    alpha, beta, a, b = coeffs = _cubic(scene)
+    alpha, beta, a, b = _cubic(scene)
     u1, u2, u3 = nutation_roots(scene)
     m = (u2 - u1) / (u3 - u1)
     period = 4.0 * ellipk(m) / math.sqrt(beta * (u3 - u1))
@@ -178,11 +181,7 @@ def free_symmetric_solution(scene, times):
     Lb0 = np.array([I1, I2, I3]) * w0
     c = (1.0 / I3 - 1.0 / I1) * Lb0[2]
     e3 = np.array([0.0, 0.0, 1.0])
-    R = (
-        scene_rotation(scene)
-        * Rotation.from_rotvec(np.outer(t, Lb0 / I1))
-        * Rotation.from_rotvec(np.outer(c * t, e3))
-    )
+    R = scene_rotation(scene) * Rotation.from_rotvec(np.outer(t, Lb0 / I1)) * Rotation.from_rotvec(np.outer(c * t, e3))
     axis = R.as_matrix()[:, :, 2]
     ct, st = np.cos(c * t), np.sin(c * t)
     omega = np.column_stack([ct * w0[0] + st * w0[1], -st * w0[0] + ct * w0[1], np.full_like(t, w0[2])])

@@ -19,6 +19,7 @@ energy (J), L_x, L_y, L_z (lab angular momentum, kg m²/s), L3 (kg m²/s).
 A new per-sample quantity is one more field here and in ``_record``, and one
 entry in the results layout (gyrolab/layout.py).
 """
+
 import math
 
 import numpy as np

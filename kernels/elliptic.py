@@ -26,6 +26,7 @@ in mc, which the caller computes without cancellation.  For 0 ≤ m ≤ 1:
   F(φ) + 2jK, Π likewise with the complete Π), and ``ellippi_complete(n, mc)``.
   n < 1 (the rigid body only needs n ≤ 0).
 """
+
 import math
 
 from numba import njit
@@ -218,8 +219,15 @@ def rj(x, y, z, p):
     E3 = X * Y * Z + 2.0 * E2 * P + 4.0 * P * P * P
     E4 = (2.0 * X * Y * Z + E2 * P + 3.0 * P * P * P) * P
     E5 = X * Y * Z * P * P
-    series = (1.0 - 3.0 * E2 / 14.0 + E3 / 6.0 + 9.0 * E2 * E2 / 88.0 - 3.0 * E4 / 22.0
-              - 9.0 * E2 * E3 / 52.0 + 3.0 * E5 / 26.0)
+    series = (
+        1.0
+        - 3.0 * E2 / 14.0
+        + E3 / 6.0
+        + 9.0 * E2 * E2 / 88.0
+        - 3.0 * E4 / 22.0
+        - 9.0 * E2 * E3 / 52.0
+        + 3.0 * E5 / 26.0
+    )
     return f * series / (A * math.sqrt(A)) + 6.0 * total
 
 

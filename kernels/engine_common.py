@@ -24,6 +24,7 @@ R(q) body → lab; ω body frame; a body is (I1, I2, I3, mgl), indexed only):
 - ``exp_rotate``: q ⊗ Rot(ω h) with libm sin/cos (the engines' exponential
   map), optionally skipped below a threshold angle (Jolt's 1e-6).
 """
+
 import math
 
 from numba import njit

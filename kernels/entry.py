@@ -20,11 +20,12 @@ other functions, with the method's ``step`` bound as a global, exactly as a
 hand-written copy would be.  Staleness is handled by the cache directory,
 which is keyed by the hash of every kernel source file (kernels/__init__.py).
 """
+
 from .block import make_advance_queue
 from .driver import make_advance
 
 # The line numbers of these defs become part of the cache file names: keep them fixed.
-_TEMPLATE = '''
+_TEMPLATE = """
 @_njit(cache=True, parallel=True, error_model="numpy")
 def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
     for i in _prange(w0.shape[0]):
@@ -35,7 +36,7 @@ def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
 def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts, queues):
     for t in _prange(queues.size - 1):
         _advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
-'''
+"""
 
 
 def add_entry_points(module):

@@ -63,6 +63,7 @@ Elliptic functions: kernels/elliptic.py (our own AGM/Landen sn, cn, dn and
 Carlson R_F, R_J).  Conventions: q scalar first, R(q) body → lab, ω body
 frame (rad/s), body = (I1, I2, I3, mgl).
 """
+
 import math
 
 import numpy as np
@@ -166,9 +167,11 @@ def _add_sncndn(s0, c0, d0, s2, c2, d2, m):
         den = 1.0 - x
     else:
         den = c0 * c0 + s0 * s0 * d2 * d2  # = 1 − m s0² s2² without cancellation
-    return ((s0 * c2 * d2 + s2 * c0 * d0) / den,
-            (c0 * c2 - s0 * s2 * d0 * d2) / den,
-            (d0 * d2 - m * s0 * s2 * c0 * c2) / den)
+    return (
+        (s0 * c2 * d2 + s2 * c0 * d0) / den,
+        (c0 * c2 - s0 * s2 * d0 * d2) / den,
+        (d0 * d2 - m * s0 * s2 * c0 * c2) / den,
+    )
 
 
 @njit(cache=True, error_model="numpy")
@@ -299,8 +302,9 @@ def _sorted_flow(x, y, z, J1, J2, J3, par, h):
         d0 = x / B13
         n = -J1 * J32 / (J3 * J21)
         cpi = -G * J31 / (lam * J1 * J3)
-        s1, c1, d1, p_pi, d_th = _elliptic_case(s0, c0, d0, lam, h, mc, n, math.sqrt(J2 * J31),
-                                                math.sqrt(J3 * J21), cpi)
+        s1, c1, d1, p_pi, d_th = _elliptic_case(
+            s0, c0, d0, lam, h, mc, n, math.sqrt(J2 * J31), math.sqrt(J3 * J21), cpi
+        )
         psi = G / J3 * h + p_pi - d_th
         return (B13 * d0, -B21 * s0, B31 * c0, B13 * d1, -B21 * s1, B31 * c1, psi, 0, 1.0, sx, sy, sz)
     if D2 > 0.0:
@@ -318,8 +322,9 @@ def _sorted_flow(x, y, z, J1, J2, J3, par, h):
         d0 = z / B31
         n = -J3 * J21 / (J1 * J32)
         cpi = G * J31 / (lam * J1 * J3)
-        s1, c1, d1, p_pi, d_th = _elliptic_case(s0, c0, d0, lam, h, mc, n, math.sqrt(J2 * J31),
-                                                math.sqrt(J1 * J32), cpi)
+        s1, c1, d1, p_pi, d_th = _elliptic_case(
+            s0, c0, d0, lam, h, mc, n, math.sqrt(J2 * J31), math.sqrt(J1 * J32), cpi
+        )
         psi = G / J1 * h + p_pi + d_th
         return (B13 * c0, -B23 * s0, B31 * d0, B13 * c1, -B23 * s1, B31 * d1, psi, 2, 1.0, sx, sy, sz)
     # (iii): on the separatrix, m = (B13 sech, G tanh, B31 sech)(λ2 t − ν)
@@ -473,8 +478,7 @@ def _free_body(I, w0, q0, t, w_out, q_out):
         b = k // nt
         i = k - b * nt
         body = (I[b, 0], I[b, 1], I[b, 2], 0.0)
-        w, q = free_flow_exact((w0[b, 0], w0[b, 1], w0[b, 2]), (q0[b, 0], q0[b, 1], q0[b, 2], q0[b, 3]),
-                               t[i], body)
+        w, q = free_flow_exact((w0[b, 0], w0[b, 1], w0[b, 2]), (q0[b, 0], q0[b, 1], q0[b, 2], q0[b, 3]), t[i], body)
         w_out[b, i, 0] = w[0]
         w_out[b, i, 1] = w[1]
         w_out[b, i, 2] = w[2]

@@ -10,6 +10,7 @@ body it is the symmetric sub-splitting into rotations about single body axes
 (McLachlan 1993; Touma & Wisdom 1994): e1(h/2) e2(h/2) e3(h) e2(h/2) e1(h/2),
 each exact, second order and Poisson, conserving |L| exactly.
 """
+
 from numba import njit
 
 from .rigid_body import gravity_torque

@@ -29,6 +29,7 @@ back half-written with status "ok".  Inlined into the loop over lanes it
 vectorises too, the libm calls done one lane at a time: ~3x the cost of
 ``lane_step`` at small angles, but no lane needs redoing at large ones.
 """
+
 import math
 import types
 
@@ -88,7 +89,8 @@ def _recompile(dispatcher, done, replaced, options):
         if cells:
             cells = tuple(
                 types.CellType(_recompile(c.cell_contents, done, replaced, options))
-                if isinstance(c.cell_contents, Dispatcher) else c
+                if isinstance(c.cell_contents, Dispatcher)
+                else c
                 for c in cells
             )
         copy = types.FunctionType(func.__code__, names, func.__name__, func.__defaults__, cells)

@@ -4,6 +4,7 @@ A different formulation from every registered method (no quaternions, no
 splitting, adaptive 8th-order steps): state y = (ω body (3), R row-major (9)),
 I ω̇ = τ_b − ω × Iω, Ṙ = R [ω]×, τ_b = M g l (γ × e3), γ = Rᵀ ẑ.
 """
+
 import math
 
 import numpy as np
@@ -57,7 +58,13 @@ def dop853(scene, t_end, every, rtol=1e-12, atol=1e-12):
     times = np.arange(n_samples) * every
     y0 = np.concatenate((np.asarray(scene.omega0, dtype=float), scene_rotation(scene).as_matrix().ravel()))
     sol = solve_ivp(
-        rhs, (0.0, times[-1]), y0, method="DOP853", t_eval=times, rtol=rtol, atol=atol,
+        rhs,
+        (0.0, times[-1]),
+        y0,
+        method="DOP853",
+        t_eval=times,
+        rtol=rtol,
+        atol=atol,
         args=tuple(float(v) for v in scene.body),
     )
     if not sol.success:

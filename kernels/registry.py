@@ -5,6 +5,7 @@ kernels/methods/README.md (``step`` and its declarations); ``register``
 checks that contract and gives the module its batch entry points
 (entry.py), so nothing else needs to change for a new method.
 """
+
 import importlib
 
 from numba.core.dispatcher import Dispatcher

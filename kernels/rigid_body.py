@@ -5,6 +5,7 @@ A body is the tuple (I1, I2, I3, mgl): principal moments about the pivot
 velocity (rad/s, components on the current body axes), q the orientation
 quaternion (see rotation.py).
 """
+
 from numba import njit
 
 from .rotation import body_to_lab, lab_up_in_body

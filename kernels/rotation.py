@@ -9,6 +9,7 @@ without building any 3×3 matrix in the hot loop.
 All functions take and return tuples of floats so numba keeps them in
 registers.
 """
+
 import math
 
 import numpy as np

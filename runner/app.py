@@ -24,6 +24,7 @@ intact.  A resume verifies the journal's chunks and recomputes bad ones.
 Test hook: the environment variable GYROLAB_TEST_CHUNK_DELAY (seconds)
 sleeps after each stored chunk.
 """
+
 import errno
 import os
 import re
@@ -66,6 +67,7 @@ def fail(message):
 
 # --------------------------------------------------------------------------- signals
 
+
 class Interrupted(KeyboardInterrupt):
     """SIGTERM or SIGHUP, raised in the main thread like Ctrl-C's KeyboardInterrupt."""
 
@@ -100,6 +102,7 @@ def signal_name(interrupt):
 
 
 # --------------------------------------------------------------------------- output checks
+
 
 def check_run_dir(key, value):
     """ConfigError unless ``hydra.run.dir``/``hydra.sweep.dir`` is, or can be made, a writable directory."""
@@ -190,8 +193,10 @@ def output_state(out, chash, overwrite, resume):
     elif partial_dir(out).exists() and not overwrite:
         raise ConfigError(f"output.path={out}: {partial_dir(out)} exists and is not a gyrolab journal")
     elif resume and not overwrite:
-        raise ConfigError(f"runner.resume=true: nothing to resume at {out} (no results file, no journal "
-                          f"{journal.dir}); leave out runner.resume=true to start this sweep")
+        raise ConfigError(
+            f"runner.resume=true: nothing to resume at {out} (no results file, no journal "
+            f"{journal.dir}); leave out runner.resume=true to start this sweep"
+        )
     return "fresh"
 
 
@@ -248,6 +253,7 @@ def _size(n):
 
 # --------------------------------------------------------------------------- the sweep
 
+
 def resolve_threads(requested):
     """numba threads to use (runner.threads, else all of NUMBA_NUM_THREADS)."""
     import numba
@@ -264,8 +270,10 @@ def resolve_threads(requested):
 
 def describe(grid):
     m, f, t, d = grid.shape
-    return (f"{grid.scene}: {m} method x {f} f x {t} theta0 x {d} dt = {grid.n_runs} runs, "
-            f"{grid.total_steps:.3g} steps, {grid.n_samples} samples each")
+    return (
+        f"{grid.scene}: {m} method x {f} f x {t} theta0 x {d} dt = {grid.n_runs} runs, "
+        f"{grid.total_steps:.3g} steps, {grid.n_samples} samples each"
+    )
 
 
 def dry_run(grid, out, chunks, threads, peak, state, cluster=None):
@@ -276,18 +284,20 @@ def dry_run(grid, out, chunks, threads, peak, state, cluster=None):
         seconds, where = estimate_seconds(grid, chunks, threads), f"{threads} threads"
     print(f"gyrolab dry run: {describe(grid)}")
     print(f"  steps per run: {steps.min():.3g} to {steps.max():.3g}; {len(chunks)} chunks on {where}")
-    print(f"  estimated time: {seconds:.3g} s of integration "
-          f"(+ up to ~{COMPILE_SECONDS * len(grid.methods):.0f} s of JIT on a cold numba cache)")
+    print(
+        f"  estimated time: {seconds:.3g} s of integration "
+        f"(+ up to ~{COMPILE_SECONDS * len(grid.methods):.0f} s of JIT on a cold numba cache)"
+    )
     print(f"  peak memory: ~{_size(peak)} of samples per chunk (+ ~0.3 GB for Python, numba, xarray)")
-    print(f"  output: {out} ~ {_size(grid.bytes_stored())} "
-          f"(peak disk {_size(disk_needed(grid))} with the partial chunks)")
+    print(
+        f"  output: {out} ~ {_size(grid.bytes_stored())} (peak disk {_size(disk_needed(grid))} with the partial chunks)"
+    )
     if state != "fresh":
         print(f"  note: runner.resume=true would {'skip: the file is complete' if state == 'done' else 'resume it'}")
 
 
 def resume_command(run_dir):
-    overrides = [o for o in HydraConfig.get().overrides.task
-                 if not o.startswith(("runner.resume=", "hydra.run.dir="))]
+    overrides = [o for o in HydraConfig.get().overrides.task if not o.startswith(("runner.resume=", "hydra.run.dir="))]
     words = ["gyrolab", *overrides, "runner.resume=true", f"hydra.run.dir={run_dir}"]
     return " ".join(shlex.quote(w) for w in words)
 
@@ -358,8 +368,9 @@ def sweep(cfg, run_dir, stack):
         state = output_state(out, chash, overwrite, resume)  # again, now that we hold the lock
         remove_stale_temporaries(out)  # a killed assembly's half-written results file
         try:
-            computing = execute(cfg, grid, out, threads, chash, resume=state == "resume", run_dir=run_dir,
-                                cluster=cluster)
+            computing = execute(
+                cfg, grid, out, threads, chash, resume=state == "resume", run_dir=run_dir, cluster=cluster
+            )
         except KeyboardInterrupt as err:
             ignore_signals()
             sys.exit(exit_status(err))
@@ -369,8 +380,10 @@ def sweep(cfg, run_dir, stack):
     elapsed = time.perf_counter() - started
     with h5py.File(out, "r") as fh:
         failed = int((fh["status"][...] != 0).sum())
-    print(f"gyrolab: results: {out} ({_size(out.stat().st_size)}, {grid.n_runs} runs, "
-          f"{failed} diverged) in {elapsed:.1f} s ({computing:.1f} s integrating)")
+    print(
+        f"gyrolab: results: {out} ({_size(out.stat().st_size)}, {grid.n_runs} runs, "
+        f"{failed} diverged) in {elapsed:.1f} s ({computing:.1f} s integrating)"
+    )
     figures = cfg.output.figures
     if figures:
         make_figures(out, OmegaConf.to_container(figures) if OmegaConf.is_list(figures) else figures)
@@ -390,13 +403,17 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
     if resume:
         journal.clean_temporaries()
         for name, reason in journal.verify(grid.n_runs, grid.n_samples):
-            print(f"gyrolab: journal: {name} moved aside to {journal.rejected_dir}: {reason}; "
-                  "its runs are computed again", file=sys.stderr)
+            print(
+                f"gyrolab: journal: {name} moved aside to {journal.rejected_dir}: {reason}; "
+                "its runs are computed again",
+                file=sys.stderr,
+            )
         done, number = journal.done_runs()
     else:
         try:
-            journal.create({"config_hash": chash, "n_runs": grid.n_runs, "shape": list(grid.shape),
-                            "n_samples": grid.n_samples})
+            journal.create(
+                {"config_hash": chash, "n_runs": grid.n_runs, "shape": list(grid.shape), "n_samples": grid.n_samples}
+            )
         except OSError as err:
             print(f"gyrolab: error: {io_error(err, journal.dir)}; nothing was computed", file=sys.stderr)
             raise
@@ -409,8 +426,15 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
         print(f"gyrolab: running on {cluster.describe()}")
     print(f"gyrolab: writing {out}", flush=True)
     counter = {"runs": int(done.size)}
-    bar = tqdm(total=int(grid.steps(todo).sum()) if todo.size else 0, unit="step", unit_scale=True,
-               disable=None, dynamic_ncols=True, desc="gyrolab", postfix=f"runs {done.size}/{grid.n_runs}")
+    bar = tqdm(
+        total=int(grid.steps(todo).sum()) if todo.size else 0,
+        unit="step",
+        unit_scale=True,
+        disable=None,
+        dynamic_ncols=True,
+        desc="gyrolab",
+        postfix=f"runs {done.size}/{grid.n_runs}",
+    )
 
     def progress(runs, steps):
         counter["runs"] += runs
@@ -432,20 +456,29 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
         ignore_signals()
         bar.close()
         why = "interrupted" if type(err) is KeyboardInterrupt else f"interrupted by {signal_name(err)}"
-        print(f"\ngyrolab: {why}; {counter['runs']} of {grid.n_runs} runs are saved in {journal.dir}.\n"
-              f"Finish with: {resume_command(run_dir)}", file=sys.stderr)
+        print(
+            f"\ngyrolab: {why}; {counter['runs']} of {grid.n_runs} runs are saved in {journal.dir}.\n"
+            f"Finish with: {resume_command(run_dir)}",
+            file=sys.stderr,
+        )
         raise
     except BackendError as err:
         ignore_signals()
         bar.close()
-        print(f"\ngyrolab: error: {' '.join(str(err).split())}; {counter['runs']} of {grid.n_runs} runs are "
-              f"saved in {journal.dir}.\nFinish with: {resume_command(run_dir)}", file=sys.stderr)
+        print(
+            f"\ngyrolab: error: {' '.join(str(err).split())}; {counter['runs']} of {grid.n_runs} runs are "
+            f"saved in {journal.dir}.\nFinish with: {resume_command(run_dir)}",
+            file=sys.stderr,
+        )
         raise
     except OSError as err:  # a full disk, a lost mount, a read-only file system ...
         ignore_signals()
         bar.close()
-        print(f"gyrolab: error: {io_error(err, out)}; {counter['runs']} of {grid.n_runs} runs are saved in "
-              f"{journal.dir}; fix that, then finish with: {resume_command(run_dir)}", file=sys.stderr)
+        print(
+            f"gyrolab: error: {io_error(err, out)}; {counter['runs']} of {grid.n_runs} runs are saved in "
+            f"{journal.dir}; fix that, then finish with: {resume_command(run_dir)}",
+            file=sys.stderr,
+        )
         raise
     journal.discard()
     return computing
@@ -503,6 +536,7 @@ def hydra_main(cfg):
 
 # --------------------------------------------------------------------------- errors from Hydra itself
 
+
 def describe_hydra_error(err, argv):
     """One line naming the key and value of a composition error from Hydra/OmegaConf."""
     cause = err.__cause__ if isinstance(err.__cause__, OmegaConfBaseException) else None
@@ -528,8 +562,9 @@ def describe_hydra_error(err, argv):
         lines = lines[1:]  # Hydra's heading; the reason is on the next line
     reason = lines[0] if lines else type(err).__name__
     if key is None:
-        key = next((line.split(":", 1)[1].strip() for line in text.splitlines()
-                    if line.strip().startswith("full_key:")), None)
+        key = next(
+            (line.split(":", 1)[1].strip() for line in text.splitlines() if line.strip().startswith("full_key:")), None
+        )
         if key and token is None:
             token = next((a for a in argv if a.lstrip("+~").startswith(f"{key}=")), None)
             in_file = re.search(r"In '([^']+)'", text)

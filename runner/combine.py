@@ -24,6 +24,7 @@ path) is kept in variables along a ``source`` dimension.  The inputs are
 loaded into memory; the output is written through a temporary file, fsync
 and rename (store.atomic_replace).
 """
+
 import argparse
 import sys
 from pathlib import Path
@@ -76,17 +77,21 @@ def find_results(paths, exclude=None, skip_unfinished=False):
                     what = "a leftover journal next to its results file"
                 message = f"{marker.parent}: unfinished job: {what} {marker.name}"
                 if not skip_unfinished:
-                    raise CombineError(f"{message}; finish it with runner.resume=true, "
-                                       "or pass --skip-unfinished to leave it out")
+                    raise CombineError(
+                        f"{message}; finish it with runner.resume=true, or pass --skip-unfinished to leave it out"
+                    )
                 sys.stderr.write(f"gyrolab-combine: warning: {message}; left out\n")
                 candidates = [c for c in candidates if c != target]
         elif path.is_file():
             candidates = [path]
         else:
             raise CombineError(f"{path}: no such file or directory")
-        mine = [c for c in candidates
-                if not (c.name.startswith(".") or any(p.name.endswith(".partial") for p in c.parents))
-                and not (exclude is not None and c.resolve() == Path(exclude).resolve())]
+        mine = [
+            c
+            for c in candidates
+            if not (c.name.startswith(".") or any(p.name.endswith(".partial") for p in c.parents))
+            and not (exclude is not None and c.resolve() == Path(exclude).resolve())
+        ]
         if not mine and path.is_dir():
             raise CombineError(f"{path}: a directory without results files (*.h5)")
         found.extend(mine)
@@ -148,8 +153,9 @@ def layout_problem(ds):
 
 def identity(ds):
     """The attrs that must agree for two files to share one grid."""
-    return tuple(sorted((k, _plain(v)) for k, v in ds.attrs.items()
-                        if k.startswith(IDENTITY_PREFIXES) or k in IDENTITY_KEYS))
+    return tuple(
+        sorted((k, _plain(v)) for k, v in ds.attrs.items() if k.startswith(IDENTITY_PREFIXES) or k in IDENTITY_KEYS)
+    )
 
 
 def _plain(value):
@@ -164,8 +170,9 @@ def combine(paths, allow_identical_overlap=False):
     groups = {}
     for ds, path in zip(datasets, paths):
         groups.setdefault(identity(ds), []).append((_strip(ds), path))
-    merged = [join_tiles(group, allow_identical_overlap) if len(group) > 1 else group[0][0]
-              for group in groups.values()]
+    merged = [
+        join_tiles(group, allow_identical_overlap) if len(group) > 1 else group[0][0] for group in groups.values()
+    ]
     if len(merged) == 1:
         out = merged[0]
     else:
@@ -193,10 +200,12 @@ def join_tiles(group, allow_identical_overlap=False):
     axes = {d: _union([ds[d].values for ds, _ in group], d) for d in GRID_DIMS}
     shape = tuple(len(axes[d]) for d in GRID_DIMS)
     owner = np.full(shape, -1, dtype=np.int64)
-    data = {name: np.zeros(shape + first[name].shape[len(GRID_DIMS):], dtype=first[name].dtype)
-            for name in (*SAMPLE_VARIABLES, *RUN_VARIABLES)}
+    data = {
+        name: np.zeros(shape + first[name].shape[len(GRID_DIMS) :], dtype=first[name].dtype)
+        for name in (*SAMPLE_VARIABLES, *RUN_VARIABLES)
+    }
     inputs_shape = tuple(len(axes[d]) for d in INPUT_DIMS)
-    inputs = {name: np.full(inputs_shape + first[name].shape[len(INPUT_DIMS):], np.nan) for name in INPUT_VARIABLES}
+    inputs = {name: np.full(inputs_shape + first[name].shape[len(INPUT_DIMS) :], np.nan) for name in INPUT_VARIABLES}
     input_owner = np.full(inputs_shape, -1, dtype=np.int64)
     for t, (ds, path) in enumerate(group):
         at = np.ix_(*[[axes[d].index(v) for v in ds[d].values.tolist()] for d in GRID_DIMS])
@@ -204,12 +213,16 @@ def join_tiles(group, allow_identical_overlap=False):
         if taken.any():
             other = group[int(owner[at][taken][0])][1]
             if not allow_identical_overlap:
-                raise CombineError(f"{path}: its grid overlaps {other}'s ({int(taken.sum())} runs in both); "
-                                   "tiles must not overlap (--allow-identical-overlap accepts bit-identical runs)")
+                raise CombineError(
+                    f"{path}: its grid overlaps {other}'s ({int(taken.sum())} runs in both); "
+                    "tiles must not overlap (--allow-identical-overlap accepts bit-identical runs)"
+                )
             for name in data:
                 if name != "wall_time" and not _same_bits(data[name][at][taken], ds[name].values[taken]):
-                    raise CombineError(f"{path}: {name} of the runs it shares with {other} differs; "
-                                       "overlapping runs must be bit-identical")
+                    raise CombineError(
+                        f"{path}: {name} of the runs it shares with {other} differs; "
+                        "overlapping runs must be bit-identical"
+                    )
         for name in data:
             block = data[name][at]
             block[~taken] = ds[name].values[~taken]
@@ -226,8 +239,10 @@ def join_tiles(group, allow_identical_overlap=False):
     if (owner < 0).any():
         hole = dict(zip(GRID_DIMS, (axes[d][int(i)] for d, i in zip(GRID_DIMS, np.argwhere(owner < 0)[0]))))
         point = ", ".join(f"{k}={v}" for k, v in hole.items())
-        raise CombineError(f"files of {first.attrs.get('scene', '?')} do not tile one grid: run ({point}) is "
-                           f"in none of them ({int((owner < 0).sum())} of {owner.size} runs missing)")
+        raise CombineError(
+            f"files of {first.attrs.get('scene', '?')} do not tile one grid: run ({point}) is "
+            f"in none of them ({int((owner < 0).sum())} of {owner.size} runs missing)"
+        )
     coords = {d: (d, np.array(axes[d], dtype=object if d == "method" else float), first[d].attrs) for d in GRID_DIMS}
     coords.update({d: (d, first[d].values, first[d].attrs) for d in first.coords if d not in GRID_DIMS})
     variables = {name: (first[name].dims, values, first[name].attrs) for name, values in data.items()}
@@ -252,7 +267,8 @@ def _equal(a, b):
 
 def _strip(ds):
     return ds.drop_attrs(deep=False).assign_attrs(
-        {k: v for k, v in ds.attrs.items() if k not in VOLATILE_ATTRS and k != "config_hash"})
+        {k: v for k, v in ds.attrs.items() if k not in VOLATILE_ATTRS and k != "config_hash"}
+    )
 
 
 def _sources(datasets, paths):
@@ -264,13 +280,20 @@ def _sources(datasets, paths):
 
 
 def _stack(merged, identities):
-    differing = sorted({k for ident in identities for k in ident
-                        if len({_plain(i.get(k)) for i in identities}) > 1})
+    differing = sorted({k for ident in identities for k in ident if len({_plain(i.get(k)) for i in identities}) > 1})
     scenes = [i.get("scene") for i in identities]
     dim = "scene" if len(set(scenes)) == len(scenes) else "job"
     fill = {"status": STATUS_ABSENT, "n_steps": 0}
-    out = xr.concat(merged, dim=dim, join="outer", fill_value=fill, combine_attrs="drop_conflicts",
-                    data_vars="all", coords="different", compat="equals")
+    out = xr.concat(
+        merged,
+        dim=dim,
+        join="outer",
+        fill_value=fill,
+        combine_attrs="drop_conflicts",
+        data_vars="all",
+        coords="different",
+        compat="equals",
+    )
     labels = {k: (dim, _label([i.get(k) for i in identities])) for k in differing}
     out = out.assign_coords(labels)
     for k in differing:
@@ -303,10 +326,16 @@ def main(argv=None):
     parser.add_argument("paths", nargs="+", help="results files or directories (searched recursively)")
     parser.add_argument("-o", "--output", help="combined file (default: <dir>/combined.h5 for one directory)")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing output file")
-    parser.add_argument("--allow-identical-overlap", action="store_true",
-                        help="accept runs present in several files when they are bit-identical")
-    parser.add_argument("--skip-unfinished", action="store_true",
-                        help="leave out unfinished jobs (a journal or lock, no results file) with a warning")
+    parser.add_argument(
+        "--allow-identical-overlap",
+        action="store_true",
+        help="accept runs present in several files when they are bit-identical",
+    )
+    parser.add_argument(
+        "--skip-unfinished",
+        action="store_true",
+        help="leave out unfinished jobs (a journal or lock, no results file) with a warning",
+    )
     args = parser.parse_args(argv)
     try:
         for path in args.paths:

@@ -9,6 +9,7 @@ the physics (scene builds, dt dividing output.every) live in ``grid.py``.
 Units: sweep.f in Hz, sweep.theta0 in degrees, sweep.dt, sweep.t_end and
 output.every in seconds.
 """
+
 import dataclasses
 import hashlib
 import math
@@ -170,17 +171,22 @@ def check_sizes(sweep, output):
     t_end/dt too large), or a spin frequency overflows the energy."""
     samples = sweep.t_end / output.every
     if not samples < MAX_SAMPLES:
-        raise ConfigError(f"sweep.t_end={sweep.t_end}: {samples:.3g} samples of output.every={output.every} "
-                          f"per run; at most {MAX_SAMPLES:.3g} (raise output.every or lower sweep.t_end)")
+        raise ConfigError(
+            f"sweep.t_end={sweep.t_end}: {samples:.3g} samples of output.every={output.every} "
+            f"per run; at most {MAX_SAMPLES:.3g} (raise output.every or lower sweep.t_end)"
+        )
     for dt in sweep.dt:
         steps = sweep.t_end / dt
         if not steps < MAX_STEPS or not output.every / dt < MAX_STEPS:
-            raise ConfigError(f"sweep.dt={dt}: {steps:.3g} steps per run over sweep.t_end={sweep.t_end}; "
-                              f"at most {MAX_STEPS:.3g}")
+            raise ConfigError(
+                f"sweep.dt={dt}: {steps:.3g} steps per run over sweep.t_end={sweep.t_end}; at most {MAX_STEPS:.3g}"
+            )
     for f in sweep.f:
         if f > MAX_F:
-            raise ConfigError(f"sweep.f={f}: too fast: the spin energy overflows float64 "
-                              f"(every run is infinite from t = 0); at most {MAX_F:g} Hz")
+            raise ConfigError(
+                f"sweep.f={f}: too fast: the spin energy overflows float64 "
+                f"(every run is infinite from t = 0); at most {MAX_F:g} Hz"
+            )
 
 
 def check_scene_options(scene):
@@ -193,8 +199,7 @@ def check_scene_options(scene):
     if "phidot0" in module.OPTIONS and "init" in module.OPTIONS:
         phidot0, init = options.get("phidot0"), options.get("init")
         if phidot0 != module.OPTIONS["phidot0"] and init != "precession":
-            raise ConfigError(f"scene.phidot0={phidot0}: only used with scene.init=precession "
-                              f"(here scene.init={init})")
+            raise ConfigError(f"scene.phidot0={phidot0}: only used with scene.init=precession (here scene.init={init})")
 
 
 def check_cluster(runner):
@@ -203,11 +208,14 @@ def check_cluster(runner):
     if runner.backend == "local" and given:
         raise ConfigError(f"runner.{given[0]}={runner[given[0]]}: only used with runner.backend=dask")
     if runner.backend == "dask" and not given:
-        raise ConfigError("runner.backend=dask: needs runner.address=tcp://host:port (or local) "
-                          "or runner.scheduler_file=<path>")
+        raise ConfigError(
+            "runner.backend=dask: needs runner.address=tcp://host:port (or local) or runner.scheduler_file=<path>"
+        )
     if len(given) == 2:
-        raise ConfigError(f"runner.scheduler_file={runner.scheduler_file}: give runner.address "
-                          f"(here {runner.address}) or runner.scheduler_file, not both")
+        raise ConfigError(
+            f"runner.scheduler_file={runner.scheduler_file}: give runner.address "
+            f"(here {runner.address}) or runner.scheduler_file, not both"
+        )
     if not runner.connect_timeout > 0:
         raise ConfigError(f"runner.connect_timeout={runner.connect_timeout}: must be > 0 s")
 

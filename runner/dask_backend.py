@@ -20,6 +20,7 @@ allowed-failures`` worker deaths per chunk); task errors are retried
 ``runner.address=local`` starts a LocalCluster inside the process
 (``runner.threads`` or all cores as one-thread worker processes).
 """
+
 import asyncio
 import json
 import logging
@@ -104,11 +105,17 @@ class WarmUp(WorkerPlugin):
 
 def worker_info(dask_worker):
     """What the driver needs to know of a worker (run through ``Client.run``)."""
-    return {"nthreads": dask_worker.state.nthreads, "threads": numba_threads(dask_worker.state.nthreads),
-            "gyrolab": __version__, "numba": numba.__version__, "pid": os.getpid()}
+    return {
+        "nthreads": dask_worker.state.nthreads,
+        "threads": numba_threads(dask_worker.state.nthreads),
+        "gyrolab": __version__,
+        "numba": numba.__version__,
+        "pid": os.getpid(),
+    }
 
 
 # --------------------------------------------------------------------------- connecting
+
 
 def read_scheduler_file(path):
     """The scheduler address in a Dask scheduler file (JSON); ConfigError naming the key."""
@@ -172,8 +179,10 @@ def open_cluster(runner):
     if runner.address == LOCAL:
         return DaskCluster.start_local(runner.threads)
     if runner.threads is not None:
-        raise ConfigError(f"runner.threads={runner.threads}: with a Dask cluster the workers' threads decide "
-                          "(dask worker --nthreads); leave it unset")
+        raise ConfigError(
+            f"runner.threads={runner.threads}: with a Dask cluster the workers' threads decide "
+            "(dask worker --nthreads); leave it unset"
+        )
     if runner.scheduler_file is not None:
         key = f"runner.scheduler_file={runner.scheduler_file}"
         address = read_scheduler_file(runner.scheduler_file)
@@ -209,9 +218,14 @@ class DaskCluster:
         # driver (which stops them), not each worker with a traceback of its own.
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
         try:
-            local = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                                 scheduler_kwargs={"dashboard_address": ":0"},  # its HTTP port: any free one
-                                 silence_logs=logging.ERROR)
+            local = LocalCluster(
+                n_workers=n,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                scheduler_kwargs={"dashboard_address": ":0"},  # its HTTP port: any free one
+                silence_logs=logging.ERROR,
+            )
         finally:
             signal.signal(signal.SIGINT, previous)
         cluster = cls(Client(local, set_as_default=False), local, LOCAL)
@@ -276,8 +290,9 @@ class DaskCluster:
         try:
             self.client.register_plugin(WarmUp(grid.methods, inputs, grid.threshold), name=self.plugin)
         except Exception as err:
-            raise BackendError(f"the warm-up of the kernels failed on the Dask workers at {self.address}: "
-                               f"{type(err).__name__}: {err}") from None
+            raise BackendError(
+                f"the warm-up of the kernels failed on the Dask workers at {self.address}: {type(err).__name__}: {err}"
+            ) from None
 
     def run_missing(self, grid, journal, todo, chunk_seconds, first_number, progress=None):
         """Run the runs in ``todo`` (flat numbers) on the cluster, storing each finished chunk
@@ -289,9 +304,16 @@ class DaskCluster:
         method = [grid.methods[int(grid.index(c[:1])[0][0])] for c in chunks]
         n = len(chunks)
         futures = self.client.map(
-            run_chunk_task, method, chunks, [grid.inputs(c) for c in chunks], [grid.n_samples] * n,
-            [grid.threshold] * n, [chunk_delay()] * n, key=[f"gyrolab-chunk-{token}-{i}" for i in range(n)],
-            retries=RETRIES, pure=False,
+            run_chunk_task,
+            method,
+            chunks,
+            [grid.inputs(c) for c in chunks],
+            [grid.n_samples] * n,
+            [grid.threshold] * n,
+            [chunk_delay()] * n,
+            key=[f"gyrolab-chunk-{token}-{i}" for i in range(n)],
+            retries=RETRIES,
+            pure=False,
         )
         pending = set(futures)
         number = first_number
@@ -303,8 +325,9 @@ class DaskCluster:
                 try:
                     result = future.result()
                 except Exception as error:  # the task raised on every retry, or Dask gave up on it
-                    raise BackendError(f"the Dask cluster at {self.address} failed on a chunk: "
-                                       f"{type(error).__name__}: {error}") from None
+                    raise BackendError(
+                        f"the Dask cluster at {self.address} failed on a chunk: {type(error).__name__}: {error}"
+                    ) from None
                 journal.write_chunk(number, **result)
                 number += 1
                 future.release()

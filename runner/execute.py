@@ -13,6 +13,7 @@ of POLL_SECONDS, so an interrupt is answered at once: the worker is killed and
 the journal keeps every chunk stored before.  Same kernels, same inputs: the
 worker's results are the same bits.
 """
+
 import multiprocessing
 import os
 import signal
@@ -76,8 +77,13 @@ def integrate_chunk(method, runs, inputs, n_samples, threshold, threads):
     wall = time.perf_counter() - start
     share = n_steps / max(int(n_steps.sum()), 1)
     wall_time = wall * min(threads, len(runs)) * share
-    return {"runs": np.asarray(runs, dtype=np.int64), "samples": samples, "status": status,
-            "n_steps": n_steps, "wall_time": wall_time}
+    return {
+        "runs": np.asarray(runs, dtype=np.int64),
+        "samples": samples,
+        "status": status,
+        "n_steps": n_steps,
+        "wall_time": wall_time,
+    }
 
 
 def isolate_seconds():
@@ -115,8 +121,7 @@ class ChunkWorker:
             self.conn.send(np.asarray(runs, dtype=np.int64))
             while not self.conn.poll(POLL_SECONDS):
                 if not self.process.is_alive():
-                    raise RuntimeError(f"the chunk worker (pid {self.process.pid}) died "
-                                       f"(exit {self.process.exitcode})")
+                    raise RuntimeError(f"the chunk worker (pid {self.process.pid}) died (exit {self.process.exitcode})")
             return self.conn.recv()
         except BaseException:
             self.kill()

@@ -6,6 +6,7 @@ every scene and every sample schedule before any work, so bad input fails
 first.  A chunk is a set of runs of ONE method and ONE step count, so the
 batch kernel's prange hands every thread the same amount of work.
 """
+
 import math
 from dataclasses import dataclass, field
 
@@ -118,10 +119,20 @@ def build_grid(cfg):
                 raise ConfigError(_prefix_sweep(str(err))) from None
             bodies[j, k], omega0[j, k], q0[j, k] = sc.body, sc.omega0, sc.q0
     return Grid(
-        scene=name, options=scene_cfg, methods=tuple(sweep.method), f=tuple(map(float, sweep.f)),
-        theta0=tuple(map(float, sweep.theta0)), dt=tuple(map(float, sweep.dt)), t_end=t_end, every=every,
-        threshold=float(cfg.runner.divergence_threshold), strides=tuple(strides), n_samples=n_samples,
-        bodies=bodies, omega0=omega0, q0=q0,
+        scene=name,
+        options=scene_cfg,
+        methods=tuple(sweep.method),
+        f=tuple(map(float, sweep.f)),
+        theta0=tuple(map(float, sweep.theta0)),
+        dt=tuple(map(float, sweep.dt)),
+        t_end=t_end,
+        every=every,
+        threshold=float(cfg.runner.divergence_threshold),
+        strides=tuple(strides),
+        n_samples=n_samples,
+        bodies=bodies,
+        omega0=omega0,
+        q0=q0,
     )
 
 
@@ -173,10 +184,11 @@ def plan_chunks(grid, runs, threads, chunk_seconds, rates=None, max_bytes=MAX_CH
             steps = int(grid.steps(group[:1])[0])
             k = chunk_size(steps, rate, threads, chunk_seconds, grid.bytes_per_run(), max_bytes)
             full = group.size // k * k
-            chunks.extend(group[i:i + k] for i in range(0, full, k))
+            chunks.extend(group[i : i + k] for i in range(0, full, k))
             leftovers.append(group[full:])
-        chunks.extend(_pool(grid, np.concatenate(leftovers) if leftovers else runs[:0], rate, threads,
-                            chunk_seconds, max_bytes))
+        chunks.extend(
+            _pool(grid, np.concatenate(leftovers) if leftovers else runs[:0], rate, threads, chunk_seconds, max_bytes)
+        )
     return chunks
 
 

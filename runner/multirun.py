@@ -7,6 +7,7 @@ as Hydra's basic sweeper does, composes each job's config and builds its
 grid; bad input exits with status 2 and one line naming the job, the key and
 the value, before any directory is made.
 """
+
 from hydra.core.global_hydra import GlobalHydra
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.errors import HydraException
@@ -30,8 +31,9 @@ class PrecheckCallback(Callback):
         jobs = BasicSweeper.split_arguments(parser.parse_overrides(list(config.hydra.overrides.task)), None)[0]
         for overrides in jobs:
             try:
-                cfg = loader.load_configuration(config_name=kwargs.get("config_name"), overrides=overrides,
-                                                run_mode=RunMode.RUN)
+                cfg = loader.load_configuration(
+                    config_name=kwargs.get("config_name"), overrides=overrides, run_mode=RunMode.RUN
+                )
             except (HydraException, OmegaConfBaseException) as err:
                 fail(f"{describe_hydra_error(err, overrides)} (in job {' '.join(overrides)})")
             with open_dict(cfg):

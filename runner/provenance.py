@@ -9,6 +9,7 @@ read when the file is written: that tree is then the code that runs.  The
 kernel-source hash (kernels/__init__.py) names the kernel code exactly, in
 either case.
 """
+
 import datetime
 import subprocess
 import sys
@@ -21,9 +22,11 @@ LIBRARIES = ("numpy", "numba", "scipy", "h5py", "h5netcdf", "xarray")
 
 def _work_tree_state(directory):
     try:
+
         def git(*args):
-            return subprocess.run(["git", "-C", str(directory), *args], capture_output=True, text=True,
-                                  timeout=10, check=True).stdout.strip()
+            return subprocess.run(
+                ["git", "-C", str(directory), *args], capture_output=True, text=True, timeout=10, check=True
+            ).stdout.strip()
 
         if Path(git("rev-parse", "--show-toplevel")).resolve() != Path(directory).resolve():
             return "unknown", -1  # some other repository that merely contains the installation
@@ -78,5 +81,15 @@ def provenance(config_yaml, threads):
 
 
 # Attrs that differ between two runs of the same config (tests compare files without them).
-VOLATILE_ATTRS = ("config", "created", "threads", "git_commit", "git_dirty", "git_source", "gyrolab_version",
-                  "kernel_source_hash", "python_version", *(f"{name}_version" for name in LIBRARIES))
+VOLATILE_ATTRS = (
+    "config",
+    "created",
+    "threads",
+    "git_commit",
+    "git_dirty",
+    "git_source",
+    "gyrolab_version",
+    "kernel_source_hash",
+    "python_version",
+    *(f"{name}_version" for name in LIBRARIES),
+)

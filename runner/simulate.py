@@ -1,4 +1,5 @@
 """gyrolab.simulate: one run through the same batch engine, as an xarray Dataset."""
+
 import time
 
 import numpy as np
@@ -34,7 +35,13 @@ def simulate(
     stride, n_samples = sample_schedule(dt, every, t_end)
     start = time.perf_counter()
     samples, status, n_steps = integrate(
-        method, np.array([sc.body]), np.array([sc.omega0]), np.array([sc.q0]), dt, stride, n_samples,
+        method,
+        np.array([sc.body]),
+        np.array([sc.omega0]),
+        np.array([sc.q0]),
+        dt,
+        stride,
+        n_samples,
         divergence_threshold,
     )
     wall = time.perf_counter() - start
@@ -42,7 +49,9 @@ def simulate(
     attrs = scene_attrs(scene, scene_options, declared.CONSERVED, declared.CLOSED_FORM)
     attrs.update(method=method, f=f, theta0=theta0, dt=dt)
     return to_dataset(
-        samples[0], {"status": status[0], "n_steps": n_steps[0], "wall_time": wall},
+        samples[0],
+        {"status": status[0], "n_steps": n_steps[0], "wall_time": wall},
         {"time": np.arange(n_samples) * every},
-        inputs={"body": sc.body, "omega0": sc.omega0, "q0": sc.q0}, attrs=attrs,
+        inputs={"body": sc.body, "omega0": sc.omega0, "q0": sc.q0},
+        attrs=attrs,
     )

@@ -15,6 +15,7 @@ process left (``.<out>.tmp<pid>``) are removed by the next writer
 
 The results layout (dims, variables, units, attrs) is gyrolab/layout.py's.
 """
+
 import errno
 import fcntl
 import hashlib
@@ -73,7 +74,7 @@ def remove_stale_temporaries(path):
     if not path.parent.is_dir():
         return removed
     for tmp in path.parent.glob(f".{path.name}.tmp*"):
-        if tmp.name[len(f".{path.name}.tmp"):].isdigit():
+        if tmp.name[len(f".{path.name}.tmp") :].isdigit():
             try:
                 tmp.unlink()
                 removed.append(tmp)
@@ -209,12 +210,15 @@ class Journal:
             with open(self.manifest_path, "rb") as fh:
                 manifest = json.loads(fh.read().decode())
         except (OSError, UnicodeDecodeError, ValueError) as err:
-            raise JournalError(f"{self.manifest_path}: damaged journal manifest ({_reason(err)}); "
-                               "start over with output.overwrite=true") from None
+            raise JournalError(
+                f"{self.manifest_path}: damaged journal manifest ({_reason(err)}); "
+                "start over with output.overwrite=true"
+            ) from None
         problem = _manifest_problem(manifest)
         if problem:
-            raise JournalError(f"{self.manifest_path}: damaged journal manifest ({problem}); "
-                               "start over with output.overwrite=true")
+            raise JournalError(
+                f"{self.manifest_path}: damaged journal manifest ({problem}); start over with output.overwrite=true"
+            )
         return manifest
 
     def create(self, manifest):
@@ -306,8 +310,11 @@ class Journal:
                 runs.append(data["runs"])
         done = np.concatenate(runs) if runs else np.empty(0, dtype=np.int64)
         numbers = [int(p.stem.split("-")[1]) for p in files]
-        numbers += [int(p.stem.split("-")[1].split(".")[0]) for p in self.rejected_dir.glob("chunk-*.npz")
-                    if p.stem.split("-")[1].split(".")[0].isdigit()]
+        numbers += [
+            int(p.stem.split("-")[1].split(".")[0])
+            for p in self.rejected_dir.glob("chunk-*.npz")
+            if p.stem.split("-")[1].split(".")[0].isdigit()
+        ]
         return done, max(numbers) + 1 if numbers else 0
 
 
@@ -329,8 +336,9 @@ def _manifest_problem(manifest):
         if not isinstance(chunks, dict):
             return "chunks is not a JSON object"
         for name, entry in chunks.items():
-            if not (isinstance(entry, dict) and isinstance(entry.get("sha256"), str)
-                    and isinstance(entry.get("runs"), int)):
+            if not (
+                isinstance(entry, dict) and isinstance(entry.get("sha256"), str) and isinstance(entry.get("runs"), int)
+            ):
                 return f"bad entry for {name}"
     return None
 
@@ -382,8 +390,11 @@ def assemble(out, grid, journal, attrs):
     need = grid.bytes_stored() * 1.05 + 2**20  # samples plus HDF5 metadata, coordinates and inputs
     free = shutil.disk_usage(Path(out).parent).free
     if free < need:  # HDF5 can crash (not raise) when the disk fills while it closes a file
-        raise OSError(errno.ENOSPC, f"No space left on device: the results need ~{need / 1e6:.3g} MB, "
-                                    f"{free / 1e6:.3g} MB free", str(out))
+        raise OSError(
+            errno.ENOSPC,
+            f"No space left on device: the results need ~{need / 1e6:.3g} MB, {free / 1e6:.3g} MB free",
+            str(out),
+        )
     delay = float(os.environ.get(ASSEMBLY_DELAY_ENV, "0") or 0)
     chunks = journal.chunks() if not delay else _slowly(journal.chunks(), delay)
     atomic_replace(out, lambda tmp: write_results(tmp, grid, chunks, attrs))

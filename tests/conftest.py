@@ -5,6 +5,7 @@ Helpers that are not fixtures live in helpers.py.
 Tests that sweep methods parametrise over ``registry.METHODS``, so a newly
 registered method inherits every one of them.
 """
+
 import numpy as np
 import pytest
 from numba import njit
@@ -21,7 +22,13 @@ def _run_scene(method, scene, dt, t_end, every, threshold=1e9):
     """
     stride, n_samples = sample_schedule(dt, every, t_end)
     samples, status, _ = integrate(
-        method, np.array([scene.body]), np.array([scene.omega0]), np.array([scene.q0]), dt, stride, n_samples,
+        method,
+        np.array([scene.body]),
+        np.array([scene.omega0]),
+        np.array([scene.q0]),
+        dt,
+        stride,
+        n_samples,
         threshold,
     )
     assert status[0] == 0, f"{method}: run status {status[0]}"

@@ -10,6 +10,7 @@
 - ``small_disk(root)``: a tmpfs of a few MB when this process may mount one
   (root in a container), else None; ``fill(dir)`` fills its file system.
 """
+
 import contextlib
 import errno
 import json
@@ -30,10 +31,12 @@ from helpers import start
 
 # --------------------------------------------------------------------------- bad results files
 
+
 def _strip_variable(name):
     def make(path, good):
         with xr.open_dataset(good, engine="h5netcdf") as ds:
             ds.load().drop_vars(name).to_netcdf(path, engine="h5netcdf")
+
     return make
 
 
@@ -83,6 +86,7 @@ BAD_FILES = {
 
 
 # --------------------------------------------------------------------------- damaged journal chunks
+
 
 def _rewrite(journal, path, **changes):
     """Rewrite a chunk with some arrays changed and reseal its manifest checksum."""
@@ -179,6 +183,7 @@ def damage_chunk(run_dir, fault, index=0):
 
 # --------------------------------------------------------------------------- signals
 
+
 def stray_files(run_dir):
     """Everything in ``run_dir`` but the results file (journal, lock, temporaries)."""
     return sorted(p.name for p in Path(run_dir).iterdir() if p.name != "results.h5")
@@ -190,8 +195,7 @@ def interrupt(args, run_dir, cwd, sig, phase, rng, chunks=(1, 4)):
     fraction of a chunk delay) or "assembly" (while the results temporary is written).
     Returns (returncode, stderr)."""
     run_dir = Path(run_dir)
-    delay = {"integration": {"GYROLAB_TEST_CHUNK_DELAY": 0.2},
-             "assembly": {"GYROLAB_TEST_ASSEMBLY_DELAY": 0.05}}[phase]
+    delay = {"integration": {"GYROLAB_TEST_CHUNK_DELAY": 0.2}, "assembly": {"GYROLAB_TEST_ASSEMBLY_DELAY": 0.05}}[phase]
     proc = start(*args, f"hydra.run.dir={run_dir}", cwd=cwd, **delay)
     partial = run_dir / "results.h5.partial"
     if phase == "integration":
@@ -215,14 +219,20 @@ def interrupt(args, run_dir, cwd, sig, phase, rng, chunks=(1, 4)):
 
 # --------------------------------------------------------------------------- a full disk
 
+
 @contextlib.contextmanager
 def small_disk(root, megabytes=8):
     """A tmpfs of ``megabytes`` at ``root/disk`` if we may mount one, else yields None."""
     mount = Path(root) / "disk"
     mount.mkdir()
-    ok = os.geteuid() == 0 and shutil.which("mount") and subprocess.run(
-        ["mount", "-t", "tmpfs", "-o", f"size={megabytes}m", "tmpfs", str(mount)],
-        capture_output=True, timeout=10).returncode == 0
+    ok = (
+        os.geteuid() == 0
+        and shutil.which("mount")
+        and subprocess.run(
+            ["mount", "-t", "tmpfs", "-o", f"size={megabytes}m", "tmpfs", str(mount)], capture_output=True, timeout=10
+        ).returncode
+        == 0
+    )
     try:
         yield mount if ok else None
     finally:

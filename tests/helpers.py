@@ -6,6 +6,7 @@
 - ``build_dataset(path, grid, scene, ...)``: a small results file made
   through the batch kernels and gyrolab/layout.py, without the runner.
 """
+
 import os
 import subprocess
 import sys
@@ -21,8 +22,15 @@ from gyrolab.layout import GRID_DIMS, scene_attrs, to_dataset
 from gyrolab.runner.provenance import VOLATILE_ATTRS
 
 BIN = Path(sys.executable).parent
-TINY = ["sweep.method=[seed_next,lie_poisson]", "sweep.f=[10,50]", "sweep.theta0=[30,45]", "sweep.dt=[1e-3,1e-4]",
-        "sweep.t_end=0.1", "output.every=1e-3", "output.figures=false"]
+TINY = [
+    "sweep.method=[seed_next,lie_poisson]",
+    "sweep.f=[10,50]",
+    "sweep.theta0=[30,45]",
+    "sweep.dt=[1e-3,1e-4]",
+    "sweep.t_end=0.1",
+    "output.every=1e-3",
+    "output.figures=false",
+]
 SLOW = ["runner.chunk_seconds=1e-6"]  # chunks of `threads` runs: many chunks to interrupt
 
 
@@ -38,13 +46,25 @@ def environment(**extra):
 
 
 def gyrolab(*args, cwd, env=None, timeout=300):
-    return subprocess.run(command("gyrolab", "gyrolab.runner.app") + list(args), cwd=cwd, capture_output=True,
-                          text=True, env=env or environment(), timeout=timeout)
+    return subprocess.run(
+        command("gyrolab", "gyrolab.runner.app") + list(args),
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        env=env or environment(),
+        timeout=timeout,
+    )
 
 
 def start(*args, cwd, **env):
-    return subprocess.Popen(command("gyrolab", "gyrolab.runner.app") + list(args), cwd=cwd, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=environment(**env))
+    return subprocess.Popen(
+        command("gyrolab", "gyrolab.runner.app") + list(args),
+        cwd=cwd,
+        text=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=environment(**env),
+    )
 
 
 def wait_for(predicate, proc, timeout=120):
@@ -63,8 +83,11 @@ def data(path):
     """The file's data without what legitimately differs between runs (timings, provenance)."""
     with xr.open_dataset(path, engine="h5netcdf") as ds:
         ds = ds.load()
-    return ds.drop_vars("wall_time").drop_attrs(deep=False).assign_attrs(
-        {k: v for k, v in ds.attrs.items() if k not in VOLATILE_ATTRS})
+    return (
+        ds.drop_vars("wall_time")
+        .drop_attrs(deep=False)
+        .assign_attrs({k: v for k, v in ds.attrs.items() if k not in VOLATILE_ATTRS})
+    )
 
 
 def assert_ok(result):
@@ -88,8 +111,10 @@ def method_params(known_failures=None):
     from gyrolab.kernels.registry import METHODS
 
     known_failures = {**CONTROL_FAILURES, **(known_failures or {})}
-    return [pytest.param(m, marks=pytest.mark.xfail(strict=True, reason=known_failures[m]))
-            if m in known_failures else m for m in METHODS]
+    return [
+        pytest.param(m, marks=pytest.mark.xfail(strict=True, reason=known_failures[m])) if m in known_failures else m
+        for m in METHODS
+    ]
 
 
 def own_methods(known_failures=None):
@@ -97,8 +122,11 @@ def own_methods(known_failures=None):
     engine updates (``REPRODUCES``), which test_engines.py judges by conformance with the engine."""
     from gyrolab.kernels.registry import METHODS
 
-    return [p for p in method_params(known_failures)
-            if not getattr(METHODS[p if isinstance(p, str) else p.values[0]], "REPRODUCES", "")]
+    return [
+        p
+        for p in method_params(known_failures)
+        if not getattr(METHODS[p if isinstance(p, str) else p.values[0]], "REPRODUCES", "")
+    ]
 
 
 # The explicit Euler control is in the registry to give the verdicts a known "growing" answer; every
@@ -128,16 +156,26 @@ def make_dataset(grid=None, scene="heavy_top", t_end=1.0, every=1e-3, threshold=
         m, jf, kt, ld = index
         sc, dt = scenes[jf][kt], grid["dt"][ld]
         stride = sample_schedule(dt, every, t_end)[0]
-        samples, st, ns = integrate(grid["method"][m], np.array([sc.body]), np.array([sc.omega0]),
-                                    np.array([sc.q0]), dt, stride, n_samples, threshold)
+        samples, st, ns = integrate(
+            grid["method"][m],
+            np.array([sc.body]),
+            np.array([sc.omega0]),
+            np.array([sc.q0]),
+            dt,
+            stride,
+            n_samples,
+            threshold,
+        )
         if raw is None:
             raw = np.empty(shape + list(samples.shape[1:]))
         raw[index], status[index], n_steps[index] = samples[0], st[0], ns[0]
     declared = get_scene(scene)
     attrs = scene_attrs(scene, {**declared.OPTIONS, **options}, declared.CONSERVED, declared.CLOSED_FORM)
     attrs.update(t_end=t_end, every=every, divergence_threshold=threshold, config="built by tests/helpers.py")
-    inputs = {"body": [[s.body for s in row] for row in scenes], "omega0": [[s.omega0 for s in row] for row in scenes],
-              "q0": [[s.q0 for s in row] for row in scenes]}
+    inputs = {
+        "body": [[s.body for s in row] for row in scenes],
+        "omega0": [[s.omega0 for s in row] for row in scenes],
+        "q0": [[s.q0 for s in row] for row in scenes],
+    }
     coords = {k: np.array(grid[k]) for k in GRID_DIMS} | {"time": np.arange(n_samples) * every}
-    return to_dataset(raw, {"status": status, "n_steps": n_steps, "wall_time": np.zeros(shape)}, coords, inputs,
-                      attrs)
+    return to_dataset(raw, {"status": status, "n_steps": n_steps, "wall_time": np.zeros(shape)}, coords, inputs, attrs)

@@ -1,4 +1,5 @@
 """Analysis figures: content checks (lines per method, units, log scales, reference lines), CLI behaviour."""
+
 import math
 
 import matplotlib
@@ -21,8 +22,9 @@ from gyrolab.kernels.scenes import build_scene  # noqa: E402
 def lines_of(ax, method):
     """Data lines (more than 2 points) drawn in ``method``'s colour."""
     want = matplotlib.colors.to_rgba(METHOD_COLORS[method])
-    return [ln for ln in ax.get_lines()
-            if len(ln.get_xdata()) > 2 and matplotlib.colors.to_rgba(ln.get_color()) == want]
+    return [
+        ln for ln in ax.get_lines() if len(ln.get_xdata()) > 2 and matplotlib.colors.to_rgba(ln.get_color()) == want
+    ]
 
 
 @pytest.fixture(autouse=True)
@@ -80,8 +82,9 @@ def test_tip_locus_is_the_stored_axis(results_file):
     assert ax.get_aspect() == 1.0
     # the closed-form annulus: two dashed circles of radius sin θ_min, sin θ_max
     nut = closed_form_nutation(ds, 50.0, 45.0)
-    radii = sorted(np.hypot(ln.get_xdata(), ln.get_ydata()).mean() for ln in ax.get_lines()
-                   if len(ln.get_xdata()) == 361)
+    radii = sorted(
+        np.hypot(ln.get_xdata(), ln.get_ydata()).mean() for ln in ax.get_lines() if len(ln.get_xdata()) == 361
+    )
     assert radii == pytest.approx(sorted([math.sin(nut.theta_min), math.sin(nut.theta_max)]), rel=1e-6)
     assert "rk4" in fig._suptitle.get_text() and "f = 50 Hz" in ax.get_title()
 
@@ -152,8 +155,9 @@ def test_cli_writes_and_refuses(results_file, tmp_path, capsys):
     assert exc.value.code == 2
 
 
-@pytest.mark.parametrize("kind", ["nutation", "tip", "energy", "invariants", "work-precision", "stability",
-                                  "animation", "seed", "standard"])
+@pytest.mark.parametrize(
+    "kind", ["nutation", "tip", "energy", "invariants", "work-precision", "stability", "animation", "seed", "standard"]
+)
 def test_cli_help(kind, capsys):
     with pytest.raises(SystemExit) as exc:
         cli.main([kind, "--help"])

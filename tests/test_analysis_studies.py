@@ -27,8 +27,13 @@ def test_stability_map_cells_and_diverged_marks(tmp_path):
     # With a tight divergence threshold (|E − E0| > 0.2 (T0 + Mgl)) seed_prev's energy gain at the 10 Hz
     # top stops its runs within 3 s; rk4 stays far below it.
     path = tmp_path / "stability.h5"
-    ds = build_dataset(path, {"method": ["rk4", "seed_prev"], "f": [2.0, 10.0], "dt": [1e-3, 2e-3]}, t_end=3.0,
-                       every=1e-2, threshold=0.2)
+    ds = build_dataset(
+        path,
+        {"method": ["rk4", "seed_prev"], "f": [2.0, 10.0], "dt": [1e-3, 2e-3]},
+        t_end=3.0,
+        every=1e-2,
+        threshold=0.2,
+    )
     assert int(ds.status.sel({"method": "rk4"}).max()) == 0
     assert int(ds.status.sel({"method": "seed_prev", "f": 10.0}).max()) != 0
     fig = stability_figure(open_results(path))
@@ -51,15 +56,18 @@ def test_stability_map_cells_and_diverged_marks(tmp_path):
     names = [p.name for p in standard_figures(other, tmp_path / "figs")]
     assert names == ["stability_map.png", "energy_drift.png"]
     assert [p.name for p in standard_figures(path, tmp_path / "default")] == [
-        "nutation_theta.png", "tip_locus.png", "energy_drift.png", "invariants.png"]
+        "nutation_theta.png",
+        "tip_locus.png",
+        "energy_drift.png",
+        "invariants.png",
+    ]
 
 
 @pytest.fixture(scope="module")
 def seed_dir(tmp_path_factory):
     """Four short jobs like experiment=seed_figures (cusp, loop, wave, steady at 22.1 Hz)."""
     root = tmp_path_factory.mktemp("seed")
-    grid = {"method": ["seed_next", "seed_prev", "lie_poisson4"], "f": [1.0, 10.0, 20.0, 22.1, 50.0],
-            "dt": [1e-3]}
+    grid = {"method": ["seed_next", "seed_prev", "lie_poisson4"], "f": [1.0, 10.0, 20.0, 22.1, 50.0], "dt": [1e-3]}
     for i, phidot0 in enumerate((0.0, -3.0, 3.0, 10.973050677702307)):
         (root / str(i)).mkdir()
         build_dataset(root / str(i) / "seed.h5", grid, t_end=0.6, init="precession", phidot0=phidot0)
@@ -91,8 +99,9 @@ def test_seed_figures_content(seed_dir, tmp_path):
 
 def test_work_precision_lines_and_peers(tmp_path):
     path = tmp_path / "work_precision.h5"
-    build_dataset(path, {"method": ["rk4", "lie_poisson"], "f": [10.0], "dt": [1e-3, 5e-4, 2.5e-4]}, t_end=0.2,
-                  every=1e-2)
+    build_dataset(
+        path, {"method": ["rk4", "lie_poisson"], "f": [10.0], "dt": [1e-3, 5e-4, 2.5e-4]}, t_end=0.2, every=1e-2
+    )
     ds = open_results(path)
     data = work_precision_data(ds, retime=False)
     pts = data[(10.0, 45.0)]["methods"]
@@ -116,7 +125,13 @@ def test_work_precision_lines_and_peers(tmp_path):
 def test_animation_writes_gif_frames(results_file, tmp_path):
     from PIL import Image
 
-    out = animate(open_results(results_file), tmp_path / "top.gif", {"method": ["rk4"], "f": [50.0]},
-                  seconds=0.2, fps=10, max_frames=12)
+    out = animate(
+        open_results(results_file),
+        tmp_path / "top.gif",
+        {"method": ["rk4"], "f": [50.0]},
+        seconds=0.2,
+        fps=10,
+        max_frames=12,
+    )
     with Image.open(out) as im:
         assert 5 <= im.n_frames <= 12

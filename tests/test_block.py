@@ -4,6 +4,7 @@ Every method × scene, on batches that mix spins (rotation angles per step on
 both sides of SMALL_ANGLE, so the libm fix-up runs), tilts and dt (several
 strides, so step counts differ), with runs that diverge mid-block and drop out.
 """
+
 import itertools
 
 import numba
@@ -44,9 +45,20 @@ def run_blocks(method, inputs, n_samples, runs, starts, threshold=10.0):
     n = len(bodies)
     out, status, n_steps = np.empty((n, n_samples, N_FIELDS)), np.zeros(n, np.int8), np.zeros(n, np.int64)
     n_blocks = len(starts) - 1
-    METHODS[method].run_blocks(omega0, q0, bodies, dt, stride, threshold, out, status, n_steps,
-                               np.asarray(runs, np.int64), np.asarray(starts, np.int64),
-                               np.array([0, n_blocks // 2, n_blocks], np.int64))
+    METHODS[method].run_blocks(
+        omega0,
+        q0,
+        bodies,
+        dt,
+        stride,
+        threshold,
+        out,
+        status,
+        n_steps,
+        np.asarray(runs, np.int64),
+        np.asarray(starts, np.int64),
+        np.array([0, n_blocks // 2, n_blocks], np.int64),
+    )
     return out, status, n_steps
 
 
@@ -77,8 +89,9 @@ def test_blocks_mixing_symmetric_and_asymmetric_bodies(method):
     top, n_samples = mixed_batch("heavy_top", thetas=(60.0,))
     box, _ = mixed_batch("free_asymmetric", thetas=(60.0,))
     inputs = tuple(np.concatenate([a, b]) for a, b in zip(top, box))
-    assert_same(integrate(method, *inputs, n_samples, path="blocks"),
-                integrate(method, *inputs, n_samples, path="runs"))
+    assert_same(
+        integrate(method, *inputs, n_samples, path="blocks"), integrate(method, *inputs, n_samples, path="runs")
+    )
 
 
 def test_blocks_do_not_depend_on_threads():
@@ -117,7 +130,7 @@ def test_overflowing_run_ends_nonfinite_and_leaves_its_block_alone():
     for i in np.flatnonzero(bad):
         k = blocks[2][i] // inputs[4][i]
         assert 1 <= k < n_samples - 1 and np.isfinite(blocks[0][i, :k]).all()
-        assert not np.isfinite(blocks[0][i, k]).all() and np.isnan(blocks[0][i, k + 1:]).all()
+        assert not np.isfinite(blocks[0][i, k]).all() and np.isnan(blocks[0][i, k + 1 :]).all()
     good = tuple(x[~bad] for x in inputs)
     assert_same(tuple(x[~bad] for x in blocks), integrate("rk4", *good, n_samples, 1e300, path="runs"))
 
@@ -212,7 +225,7 @@ def test_plan_blocks():
         assert all(len(set(strides[runs[a:b]])) == 1 for a, b in zip(starts, starts[1:]))
         assert sizes.max() <= 64 and sum(size % VECTOR != 0 for size in sizes) <= len(set(strides))
         work = np.array([strides[runs[a]] * -(-(b - a) // VECTOR) * VECTOR for a, b in zip(starts, starts[1:])])
-        load = [work[queues[t]:queues[t + 1]].sum() for t in range(threads)]
+        load = [work[queues[t] : queues[t + 1]].sum() for t in range(threads)]
         assert len(queues) == threads + 1 and max(load) - min(load) <= work.max()
     assert list(np.diff(plan_blocks(np.full(256, 7), 2, 64)[1])) == [64] * 4
     assert list(np.diff(plan_blocks(np.full(12, 7), 2, 64)[1])) == [8, 4]
@@ -220,4 +233,4 @@ def test_plan_blocks():
     strides = np.resize([200, 1], 256)
     runs, starts, queues = plan_blocks(strides, 2, 64)
     long_blocks = strides[runs[starts[:-1]]] == 200
-    assert long_blocks[queues[0]:queues[1]].sum() == long_blocks[queues[1]:queues[2]].sum() == 2
+    assert long_blocks[queues[0] : queues[1]].sum() == long_blocks[queues[1] : queues[2]].sum() == 2

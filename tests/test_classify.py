@@ -12,6 +12,7 @@ linear, explicit Euler growing with the e-folding rate c² dt) on heavy_top, fre
 free_asymmetric.  Every method's ``step`` runs in a bare njit loop here (``_sampler``), so the
 controls are tested whether or not they are registered.
 """
+
 import importlib
 import math
 
@@ -31,8 +32,15 @@ from gyrolab.kernels.reference import dop853
 from gyrolab.kernels.rigid_body import axis_lab, energy, lab_momentum
 from gyrolab.kernels.scenes import build_scene
 
-TRUE_ORDER = {"seed_next": 1, "seed_prev": 1, "rk4": 4, "lie_poisson": 2, "lie_poisson4": 4,
-              "explicit_euler": 1, "lie_trotter": 1}
+TRUE_ORDER = {
+    "seed_next": 1,
+    "seed_prev": 1,
+    "rk4": 4,
+    "lie_poisson": 2,
+    "lie_poisson4": 4,
+    "explicit_euler": 1,
+    "lie_trotter": 1,
+}
 
 
 def _method(name):
@@ -43,6 +51,7 @@ def _method(name):
         except ModuleNotFoundError:
             continue
     from gyrolab.kernels.registry import get_method
+
     return get_method(name)
 
 
@@ -91,8 +100,12 @@ T = np.linspace(0.0, 400.0, 40001)  # 400 s sampled every 10 ms, as a long verdi
 
 def test_bounded_sine_with_noise():
     rng = np.random.default_rng(0)
-    e = 1e-5 * np.sin(2 * np.pi * 5.9 * T) + 3e-6 * np.sin(2 * np.pi * 0.37 * T) - 2e-6 \
+    e = (
+        1e-5 * np.sin(2 * np.pi * 5.9 * T)
+        + 3e-6 * np.sin(2 * np.pi * 0.37 * T)
+        - 2e-6
         + 1e-7 * rng.standard_normal(T.size)
+    )
     d = classify_drift(T, e)
     assert d.drift_class == "bounded" and math.isnan(d.rate)
     assert d.amplitude == pytest.approx(np.max(np.abs(e)))
@@ -103,8 +116,11 @@ def test_bounded_sine_with_noise():
 def test_bounded_modulated_oscillations(seed):
     """Amplitude-modulated sines and slow beats (periods 10..200 s) are bounded, not a random walk."""
     rng = np.random.default_rng(seed)
-    e = 1e-6 * np.sin(2 * np.pi * 5.9 * T) * (1 + 0.3 * np.sin(2 * np.pi * T / rng.uniform(20, 200))) \
-        + 2e-7 * np.sin(2 * np.pi * T / rng.uniform(10, 100)) + 1e-8 * rng.standard_normal(T.size)
+    e = (
+        1e-6 * np.sin(2 * np.pi * 5.9 * T) * (1 + 0.3 * np.sin(2 * np.pi * T / rng.uniform(20, 200)))
+        + 2e-7 * np.sin(2 * np.pi * T / rng.uniform(10, 100))
+        + 1e-8 * rng.standard_normal(T.size)
+    )
     assert classify_drift(T, e).drift_class == "bounded"
 
 
@@ -148,7 +164,7 @@ def test_exponential_growth():
 
 
 def test_power_law_growth():
-    e = 1e-9 * T ** 2 + 1e-7 * np.sin(T)
+    e = 1e-9 * T**2 + 1e-7 * np.sin(T)
     d = classify_drift(T, e)
     assert d.drift_class == "growing" and d.rate_unit == "power"
     assert d.rate == pytest.approx(2.0, abs=0.1)
@@ -194,7 +210,7 @@ def test_fit_order_excludes_floor_and_pre_asymptotic(p):
     3e-14 .. 6e-14 at the fine end."""
     rng = np.random.default_rng(p)
     C = {1: 2.0, 2: 2.0, 4: 1e4}[p]
-    err = C * DTS ** p * (1 + (DTS / 2e-3) ** 2) + 3e-14 * (1 + rng.random(DTS.size))
+    err = C * DTS**p * (1 + (DTS / 2e-3) ** 2) + 3e-14 * (1 + rng.random(DTS.size))
     fit = fit_order(DTS, err)
     assert not fit.reason
     assert fit.order == pytest.approx(p, abs=0.1)

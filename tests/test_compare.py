@@ -5,6 +5,7 @@ The files here are built by helpers.make_dataset in the results layout
 so these tests do not depend on the runner; tests/test_regression.py runs
 the same code on files the ``gyrolab`` command wrote.
 """
+
 import subprocess
 import sys
 from pathlib import Path
@@ -26,22 +27,41 @@ DT = (1e-3, 5e-4)
 
 def config_text(scene="heavy_top", t_end=0.1, path="results.h5", **scene_options):
     """A resolved config like the runner stores in the ``config`` attr."""
-    return yaml.safe_dump({
-        "scene": {"name": scene, **scene_options},
-        "sweep": {"method": list(METHODS), "f": list(F), "theta0": [45.0], "dt": list(DT), "t_end": t_end},
-        "output": {"every": 0.01, "path": path, "overwrite": False, "figures": False},
-        "runner": {"resume": False, "dry_run": False, "threads": None, "chunk_seconds": 1.0,
-                   "divergence_threshold": 10.0, "backend": "local"},
-    }, sort_keys=False)
+    return yaml.safe_dump(
+        {
+            "scene": {"name": scene, **scene_options},
+            "sweep": {"method": list(METHODS), "f": list(F), "theta0": [45.0], "dt": list(DT), "t_end": t_end},
+            "output": {"every": 0.01, "path": path, "overwrite": False, "figures": False},
+            "runner": {
+                "resume": False,
+                "dry_run": False,
+                "threads": None,
+                "chunk_seconds": 1.0,
+                "divergence_threshold": 10.0,
+                "backend": "local",
+            },
+        },
+        sort_keys=False,
+    )
 
 
 def assemble(scene="heavy_top", t_end=0.1, every=0.01, **scene_options):
     """Results Dataset (gyrolab/layout.py) of METHODS x F x [45 deg] x DT, built by helpers.make_dataset."""
-    ds = make_dataset({"method": list(METHODS), "f": list(F), "theta0": [45.0], "dt": list(DT)}, scene, t_end,
-                      every, **scene_options)
-    ds.attrs.update({"config": config_text(scene, t_end, **scene_options), "gyrolab_version": "0.1.0",
-                     "git_commit": "0" * 40, "git_dirty": 0, "numba_version": "0.68.1", "numpy_version": "2.4.6",
-                     "threads": 2, "created": "2026-01-01T00:00:00+00:00"})
+    ds = make_dataset(
+        {"method": list(METHODS), "f": list(F), "theta0": [45.0], "dt": list(DT)}, scene, t_end, every, **scene_options
+    )
+    ds.attrs.update(
+        {
+            "config": config_text(scene, t_end, **scene_options),
+            "gyrolab_version": "0.1.0",
+            "git_commit": "0" * 40,
+            "git_dirty": 0,
+            "numba_version": "0.68.1",
+            "numpy_version": "2.4.6",
+            "threads": 2,
+            "created": "2026-01-01T00:00:00+00:00",
+        }
+    )
     return ds
 
 
@@ -199,14 +219,14 @@ def test_provenance_differences_come_first(pair):
     a, variant = pair
 
     def newer(ds):
-        ds.attrs.update(gyrolab_version="0.2.0", numba_version="0.70.0",
-                        config=config_text(path="/elsewhere/x.h5", M=2.0))
+        ds.attrs.update(
+            gyrolab_version="0.2.0", numba_version="0.70.0", config=config_text(path="/elsewhere/x.h5", M=2.0)
+        )
         return ds
 
     report = compare_files(a, variant(newer))
     assert report.ok  # provenance is reported, the numbers decide the verdict
-    assert report.versions == ["gyrolab_version differs: A 0.1.0, B 0.2.0",
-                               "numba_version differs: A 0.68.1, B 0.70.0"]
+    assert report.versions == ["gyrolab_version differs: A 0.1.0, B 0.2.0", "numba_version differs: A 0.68.1, B 0.70.0"]
     assert report.configs == ["config differs: scene.M: A (absent), B 2.0"]  # output.path is not data
     lines = report.text().splitlines()
     assert lines[2].startswith("PROVENANCE: gyrolab_version differs") and lines[4].startswith("PROVENANCE: config")
@@ -253,6 +273,8 @@ def test_console_script(pair):
     a, variant = pair
     exe = Path(sys.executable).parent / "gyrolab-compare"
     b = variant(_bump_energy)
-    codes = [subprocess.run([str(exe), str(a), str(x)], capture_output=True, text=True).returncode
-             for x in (a, b, Path(a).with_name("nothing.h5"))]
+    codes = [
+        subprocess.run([str(exe), str(a), str(x)], capture_output=True, text=True).returncode
+        for x in (a, b, Path(a).with_name("nothing.h5"))
+    ]
     assert codes == [0, 1, 2]

@@ -1,4 +1,5 @@
 """Every config group composes under the schema; wrong types and unknown keys fail at composition."""
+
 from pathlib import Path
 
 import pytest
@@ -89,8 +90,18 @@ def test_scene_options_are_typed_per_scene():
 
 def test_hash_ignores_how_a_sweep_is_run_but_not_what_it_computes():
     base = config_hash(composed())
-    assert config_hash(composed("runner.threads=1", "runner.chunk_seconds=0.1", "output.overwrite=true",
-                                "runner.resume=true", "output.figures=false")) == base
+    assert (
+        config_hash(
+            composed(
+                "runner.threads=1",
+                "runner.chunk_seconds=0.1",
+                "output.overwrite=true",
+                "runner.resume=true",
+                "output.figures=false",
+            )
+        )
+        == base
+    )
     assert config_hash(composed("output.every=2e-3")) != base
     assert config_hash(composed("scene.M=2")) != base
     assert config_hash(composed("runner.divergence_threshold=5")) != base

@@ -1,6 +1,7 @@
 """runner.backend=dask end to end: a real Dask LocalCluster (2 worker processes, 1 thread each)
 started here, the ``gyrolab`` command in a subprocess pointed at it, files compared with the
 local backend's (wall_time and provenance aside: ``test_runner_cli.data``)."""
+
 import json
 import os
 import re
@@ -36,8 +37,14 @@ TIMEOUT = ["runner.connect_timeout=5"]
 
 
 def local_cluster(n_workers, **kwargs):
-    return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                        scheduler_kwargs={"dashboard_address": ":0"}, **kwargs)
+    return LocalCluster(
+        n_workers=n_workers,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        scheduler_kwargs={"dashboard_address": ":0"},
+        **kwargs,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -78,15 +85,18 @@ def test_cluster_sweep_file_equals_the_local_one(client, reference, tmp_path):
     for w in after:
         assert after[w]["warm_ups"] - before[w]["warm_ups"] == 1
         assert after[w]["jit_in_chunks"] == before[w]["jit_in_chunks"]
-    assert all(not plugins for plugins in client.run(
-        lambda dask_worker: [p for p in dask_worker.plugins if p.startswith("gyrolab")]).values())
+    assert all(
+        not plugins
+        for plugins in client.run(
+            lambda dask_worker: [p for p in dask_worker.plugins if p.startswith("gyrolab")]
+        ).values()
+    )
 
 
 def test_a_worker_killed_mid_sweep_loses_nothing(client, reference, tmp_path):
     run = tmp_path / "run"
     pids = client.run(os.getpid)
-    proc = start(*TINY, *SLOW, *on_cluster(client), f"hydra.run.dir={run}", cwd=tmp_path,
-                 GYROLAB_TEST_CHUNK_DELAY=0.5)
+    proc = start(*TINY, *SLOW, *on_cluster(client), f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=0.5)
     wait_for(lambda: chunk_count(run) >= 2, proc)
     busy = [w for w, keys in client.processing().items() if any(str(k).startswith("gyrolab-chunk") for k in keys)]
     assert busy, "no worker holds a chunk: the sweep finished too soon for this test"
@@ -102,8 +112,7 @@ def test_a_worker_killed_mid_sweep_loses_nothing(client, reference, tmp_path):
 
 def test_interrupted_cluster_sweep_resumes_on_the_local_backend(client, reference, tmp_path):
     run = tmp_path / "run"
-    proc = start(*TINY, *SLOW, *on_cluster(client), f"hydra.run.dir={run}", cwd=tmp_path,
-                 GYROLAB_TEST_CHUNK_DELAY=0.3)
+    proc = start(*TINY, *SLOW, *on_cluster(client), f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=0.3)
     wait_for(lambda: chunk_count(run) >= 2, proc)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
@@ -156,25 +165,34 @@ def free_port():
 
 @pytest.fixture(scope="module")
 def no_workers():
-    with LocalCluster(n_workers=0, processes=True, dashboard_address=None,
-                      scheduler_kwargs={"dashboard_address": ":0"}) as cluster:
+    with LocalCluster(
+        n_workers=0, processes=True, dashboard_address=None, scheduler_kwargs={"dashboard_address": ":0"}
+    ) as cluster:
         yield cluster.scheduler_address
 
 
 DASK = "runner.backend=dask"
 BAD = [
     ([DASK], "runner.backend=dask: needs runner.address"),
-    (["runner.address=tcp://127.0.0.1:8786"],
-     "runner.address=tcp://127.0.0.1:8786: only used with runner.backend=dask"),
-    ([DASK, "runner.address=tcp://127.0.0.1:{port}"],
-     "runner.address=tcp://127.0.0.1:{port}: nothing listens at 127.0.0.1:{port}"),
+    (
+        ["runner.address=tcp://127.0.0.1:8786"],
+        "runner.address=tcp://127.0.0.1:8786: only used with runner.backend=dask",
+    ),
+    (
+        [DASK, "runner.address=tcp://127.0.0.1:{port}"],
+        "runner.address=tcp://127.0.0.1:{port}: nothing listens at 127.0.0.1:{port}",
+    ),
     ([DASK, "runner.address=scheduler:8786"], "runner.address=scheduler:8786: expected tcp://host:port"),
-    ([DASK, "runner.address={no_workers}", "runner.connect_timeout=1"],
-     "runner.address={no_workers}: the scheduler has no workers"),
+    (
+        [DASK, "runner.address={no_workers}", "runner.connect_timeout=1"],
+        "runner.address={no_workers}: the scheduler has no workers",
+    ),
     ([DASK, "runner.scheduler_file={tmp}/none.json"], "runner.scheduler_file={tmp}/none.json: no such file"),
     ([DASK, "runner.scheduler_file={tmp}/old.h5"], "runner.scheduler_file={tmp}/old.h5: not a Dask scheduler"),
-    ([DASK, "runner.scheduler_file={tmp}/stale.json"],
-     "runner.scheduler_file={tmp}/stale.json (scheduler tcp://127.0.0.1:{port}): nothing listens"),
+    (
+        [DASK, "runner.scheduler_file={tmp}/stale.json"],
+        "runner.scheduler_file={tmp}/stale.json (scheduler tcp://127.0.0.1:{port}): nothing listens",
+    ),
     ([DASK, "runner.address={cluster}", "runner.threads=4"], "runner.threads=4: with a Dask cluster"),
     ([DASK, "runner.address=local", "runner.connect_timeout=0"], "runner.connect_timeout=0.0"),
 ]

@@ -4,6 +4,7 @@ Parameter convention of kernels/elliptic.py: the complementary parameter mc = 1 
 Errors are in units of eps = 2^-52: absolute for sn, cn, dn (|values| ≤ 1), relative otherwise.
 Measured (python -m pytest tests/test_elliptic.py -s): printed by each test.
 """
+
 import math
 
 import numpy as np
@@ -92,11 +93,12 @@ def test_sncndn_identities_and_limits():
     assert np.max(np.abs(d * d + m * s * s - 1)) <= 16 * EPS
     for x in (1e-12, 0.3, 2.0, -7.0):
         np.testing.assert_allclose(E.sncndn(x, 1.0), (math.sin(x), math.cos(x), 1.0), rtol=0, atol=2 * EPS)
-        np.testing.assert_allclose(E.sncndn(x, 0.0), (math.tanh(x), 1 / math.cosh(x), 1 / math.cosh(x)),
-                                   rtol=0, atol=2 * EPS)
+        np.testing.assert_allclose(
+            E.sncndn(x, 0.0), (math.tanh(x), 1 / math.cosh(x), 1 / math.cosh(x)), rtol=0, atol=2 * EPS
+        )
     # near m = 1 against scipy's own separatrix-side values (m = 1 − 1e-12 is exact enough in scipy)
-    ref = sp.ellipj(3.0, 1.0 - 2.0 ** -40)[:3]
-    np.testing.assert_allclose(E.sncndn(3.0, 2.0 ** -40), ref, rtol=0, atol=1e-14)
+    ref = sp.ellipj(3.0, 1.0 - 2.0**-40)[:3]
+    np.testing.assert_allclose(E.sncndn(3.0, 2.0**-40), ref, rtol=0, atol=1e-14)
 
 
 def test_ellipk():
@@ -156,17 +158,26 @@ def test_incomplete_integrals():
     r = phi - j * np.pi
     s, c2 = np.sin(r), np.cos(r) ** 2
     d2 = 1 - m * s * s
-    pi_red = s * sp.elliprf(c2, d2, 1) + n / 3 * s ** 3 * sp.elliprj(c2, d2, 1, 1 - n * s * s)
+    pi_red = s * sp.elliprf(c2, d2, 1) + n / 3 * s**3 * sp.elliprj(c2, d2, 1, 1 - n * s * s)
     pi_c = sp.elliprf(0, 1 - m, 1) + n / 3 * sp.elliprj(0, 1 - m, 1, 1 - n)
     ref_pi = pi_red + 2 * j * pi_c
-    scale = (np.abs(s * sp.elliprf(c2, d2, 1)) + np.abs(n / 3 * s ** 3 * sp.elliprj(c2, d2, 1, 1 - n * s * s))
-             + 2 * np.abs(j) * (sp.elliprf(0, 1 - m, 1) + np.abs(n / 3 * sp.elliprj(0, 1 - m, 1, 1 - n))))
+    scale = (
+        np.abs(s * sp.elliprf(c2, d2, 1))
+        + np.abs(n / 3 * s**3 * sp.elliprj(c2, d2, 1, 1 - n * s * s))
+        + 2 * np.abs(j) * (sp.elliprf(0, 1 - m, 1) + np.abs(n / 3 * sp.elliprj(0, 1 - m, 1, 1 - n)))
+    )
     err_pi = np.max(np.abs(ours[:, 1] - ref_pi) / scale) / EPS
     err_rel = np.max(np.abs(ours[:, 1] - ref_pi) / np.abs(ref_pi)) / EPS
     print(f"F: {err_f:.1f} eps, Pi: {err_pi:.1f} eps of the terms ({err_rel:.0f} eps relative)")
     assert err_f <= 8
     assert err_pi <= 8
     for ph, nn, mm in ((0.7, -0.5, 0.3), (1.5, -30.0, 0.9), (4.0, -2.0, 0.99), (-2.5, 0.5, 0.2)):
-        val = quad(lambda t: 1 / ((1 - nn * math.sin(t) ** 2) * math.sqrt(1 - mm * math.sin(t) ** 2)), 0, ph,
-                   epsabs=0, epsrel=5e-14, limit=200)[0]
+        val = quad(
+            lambda t: 1 / ((1 - nn * math.sin(t) ** 2) * math.sqrt(1 - mm * math.sin(t) ** 2)),
+            0,
+            ph,
+            epsabs=0,
+            epsrel=5e-14,
+            limit=200,
+        )[0]
         assert abs(E.ellippi(ph, nn, 1 - mm) / val - 1) <= 1e-13

@@ -16,6 +16,7 @@ Three kinds of test:
 The methods are not registered yet, so each is driven by its ``step`` in a
 small njit loop defined here.
 """
+
 import importlib
 import math
 
@@ -25,21 +26,31 @@ from numba import njit
 from scipy.integrate import solve_ivp
 
 ENGINE_METHODS = (
-    "mujoco_euler", "mujoco_implicitfast", "mujoco_implicit", "mujoco_rk4",
-    "bullet_explicit", "bullet_implicit_body",
-    "jolt_rescale", "jolt_rescale_bare", "rapier_rescale",
+    "mujoco_euler",
+    "mujoco_implicitfast",
+    "mujoco_implicit",
+    "mujoco_rk4",
+    "bullet_explicit",
+    "bullet_implicit_body",
+    "jolt_rescale",
+    "jolt_rescale_bare",
+    "rapier_rescale",
     "no_gyro",
 )
 MODULES = {name: importlib.import_module(f"gyrolab.kernels.methods.{name}") for name in ENGINE_METHODS}
 INVARIANT_NAMES = ("energy", "L", "L_norm", "Lz", "L3")
-MJ_INTEGRATOR = {"Euler": "mujoco_euler", "implicit": "mujoco_implicit",
-                 "implicitfast": "mujoco_implicitfast", "RK4": "mujoco_rk4"}
+MJ_INTEGRATOR = {
+    "Euler": "mujoco_euler",
+    "implicit": "mujoco_implicit",
+    "implicitfast": "mujoco_implicitfast",
+    "RK4": "mujoco_rk4",
+}
 
 # ---------------------------------------------------------------- scenes (SI units)
 
 M, R_DISC, ARM, G = 1.0, 0.05, 0.1, 10.0
-I1_TOP = M * (R_DISC ** 2 / 4 + ARM ** 2)
-TOP = (I1_TOP, I1_TOP, M * R_DISC ** 2 / 2, M * G * ARM)  # moments about the pivot, M g l
+I1_TOP = M * (R_DISC**2 / 4 + ARM**2)
+TOP = (I1_TOP, I1_TOP, M * R_DISC**2 / 2, M * G * ARM)  # moments about the pivot, M g l
 
 
 def tilt(theta_deg):
@@ -108,11 +119,13 @@ def axis_of(Q):
 
 def quat_to_matrix(q):
     a, b, c, d = q
-    return np.array([
-        [a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c)],
-        [2 * (b * c + a * d), a * a + c * c - b * b - d * d, 2 * (c * d - a * b)],
-        [2 * (b * d - a * c), 2 * (c * d + a * b), a * a + d * d - b * b - c * c],
-    ])
+    return np.array(
+        [
+            [a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c)],
+            [2 * (b * c + a * d), a * a + c * c - b * b - d * d, 2 * (c * d - a * b)],
+            [2 * (b * d - a * c), 2 * (c * d + a * b), a * a + d * d - b * b - c * c],
+        ]
+    )
 
 
 def fit_slope(x, y):
@@ -147,15 +160,23 @@ def invariants(W, Q, body):
     Lb = I * W
     L = np.einsum("nij,nj->ni", np.array([quat_to_matrix(q) for q in Q]), Lb)
     gamma3 = Q[:, 0] ** 2 + Q[:, 3] ** 2 - Q[:, 1] ** 2 - Q[:, 2] ** 2
-    return {"energy": 0.5 * np.sum(Lb * W, axis=1) + body[3] * gamma3, "L": L,
-            "L_norm": np.linalg.norm(Lb, axis=1), "Lz": L[:, 2], "L3": Lb[:, 2]}
+    return {
+        "energy": 0.5 * np.sum(Lb * W, axis=1) + body[3] * gamma3,
+        "L": L,
+        "L_norm": np.linalg.norm(Lb, axis=1),
+        "Lz": L[:, 2],
+        "L3": Lb[:, 2],
+    }
 
 
 PRESERVE_SCENES = {
     # scene: (body, (ω0, q0), invariants the exact motion conserves)
     "heavy_top_10Hz": (TOP, top_state(10.0), ("energy", "Lz", "L3")),
-    "free_symmetric": ((1e-4, 1e-4, 2e-4, 0.0), ((0.1 * W3_FREE, 0.0, W3_FREE), tilt(30.0)),
-                       ("energy", "L", "L_norm", "Lz", "L3")),
+    "free_symmetric": (
+        (1e-4, 1e-4, 2e-4, 0.0),
+        ((0.1 * W3_FREE, 0.0, W3_FREE), tilt(30.0)),
+        ("energy", "L", "L_norm", "Lz", "L3"),
+    ),
     "free_tumbling": (FREE, TUMBLE, ("energy", "L", "L_norm", "Lz")),
 }
 
@@ -169,8 +190,11 @@ def test_declared_invariants_are_kept(name, scene):
     W, Q = trajectory(name, w0, q0, 2e-4, body, 5000, 50)
     W, Q = np.vstack((w0, W)), np.vstack((q0, Q))
     values = invariants(W, Q, body)
-    scale = {"energy": 0.5 * np.sum(np.asarray(body[:3]) * np.square(w0)) + abs(body[3]),
-             "Lz": np.linalg.norm(np.asarray(body[:3]) * w0), "L3": np.linalg.norm(np.asarray(body[:3]) * w0)}
+    scale = {
+        "energy": 0.5 * np.sum(np.asarray(body[:3]) * np.square(w0)) + abs(body[3]),
+        "Lz": np.linalg.norm(np.asarray(body[:3]) * w0),
+        "L3": np.linalg.norm(np.asarray(body[:3]) * w0),
+    }
     for inv in set(MODULES[name].PRESERVES) & set(conserved):
         v = values[inv]
         drift = np.max(np.abs(v - v[0])) / scale.get(inv, np.max(np.abs(v[0])))
@@ -189,7 +213,7 @@ def mujoco():
 
 def top_xml(dt, integrator):
     """Ball joint at the pivot; the disc's inertia about its centre, the centre at l e3; only rigid-body dynamics."""
-    ixx, izz = M * R_DISC ** 2 / 4, M * R_DISC ** 2 / 2
+    ixx, izz = M * R_DISC**2 / 4, M * R_DISC**2 / 2
     return f"""<mujoco>
   <option timestep="{dt!r}" gravity="0 0 {-G!r}" integrator="{integrator}">
     <flag contact="disable" constraint="disable" spring="disable" damper="disable" actuation="disable"/>
@@ -224,8 +248,8 @@ def mj_run(mujoco, xml, w0, q0, n, free):
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)
     o = 3 if free else 0
-    data.qpos[o:o + 4] = q0
-    data.qvel[o:o + 3] = w0
+    data.qpos[o : o + 4] = q0
+    data.qvel[o : o + 3] = w0
     W = np.empty((n, 3))
     Q = np.empty((n, 4))
     bad = mujoco.mjtWarning.mjWARN_BADQACC
@@ -233,8 +257,8 @@ def mj_run(mujoco, xml, w0, q0, n, free):
         mujoco.mj_step(model, data)
         if data.warning[bad].number:
             return W[:i], Q[:i], i
-        W[i] = data.qvel[o:o + 3]
-        Q[i] = data.qpos[o:o + 4]
+        W[i] = data.qvel[o : o + 3]
+        Q[i] = data.qpos[o : o + 4]
     return W, Q, n
 
 
@@ -248,7 +272,10 @@ def agreement(W, Q, Wg, Qg):
 
 CONFORMANCE = [
     # (scene, dt): heavy top f = 50 Hz, θ0 = 45°, and the fast tumbling free body
-    ("top", 1e-3), ("top", 1e-4), ("tumble", 1e-3), ("tumble", 1e-4),
+    ("top", 1e-3),
+    ("top", 1e-4),
+    ("tumble", 1e-3),
+    ("tumble", 1e-4),
 ]
 
 
@@ -468,8 +495,13 @@ def test_rescale_energy_drifts_to_intermediate_axis(name):
     for direction, C_expected in (((1.0, 0.2, 0.2), 6.6), ((0.2, 1.0, 0.2), 4.45)):
         d = np.array(direction) / np.linalg.norm(direction)
         x, y = [], []
-        for W, dt in ((2 * math.pi * 10, 1e-3), (2 * math.pi * 10, 5e-4), (2 * math.pi * 10, 2.5e-4),
-                      (2 * math.pi * 20, 1e-3), (2 * math.pi * 20, 5e-4)):
+        for W, dt in (
+            (2 * math.pi * 10, 1e-3),
+            (2 * math.pi * 10, 5e-4),
+            (2 * math.pi * 10, 2.5e-4),
+            (2 * math.pi * 20, 1e-3),
+            (2 * math.pi * 20, 5e-4),
+        ):
             hw = W * dt
             tau, y_end, dL = _relaxation_time(name, tuple(W * d), dt, 40.0 / (hw * W))
             assert dL < 1e-11
@@ -493,8 +525,15 @@ def test_no_gyro_keeps_omega_constant(w0):
     W, _ = trajectory("no_gyro", w0, (1.0, 0.0, 0.0, 0.0), 1e-4, FREE, 10_000, 1000)
     assert np.all(W == np.asarray(w0))
     if w0 == TUMBLE[0]:
-        ref = solve_ivp(rhs, (0, 0.3), np.concatenate((w0, np.eye(3).ravel())), method="DOP853",
-                        rtol=1e-10, atol=1e-12, args=(FREE, 0.0, True)).y[:3, -1]
+        ref = solve_ivp(
+            rhs,
+            (0, 0.3),
+            np.concatenate((w0, np.eye(3).ravel())),
+            method="DOP853",
+            rtol=1e-10,
+            atol=1e-12,
+            args=(FREE, 0.0, True),
+        ).y[:3, -1]
         assert np.linalg.norm(ref - np.asarray(w0)) / np.linalg.norm(w0) > 0.3
 
 

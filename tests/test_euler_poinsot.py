@@ -4,6 +4,7 @@ ULP convention: an error of a vector x against x0 is max_i |x_i − x0_i| / spac
 units of the last place of its largest component (for q, a unit quaternion, 1 ULP ≤ 1.1e-16).
 Run with ``-s`` to see the measured numbers; the docstrings quote them.
 """
+
 import math
 
 import numpy as np
@@ -58,18 +59,28 @@ def near_separatrix_states(rng, n):
 
 def rotation_matrices(q):
     a, b, c, d = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c)], -1),
-        np.stack([2 * (b * c + a * d), a * a + c * c - b * b - d * d, 2 * (c * d - a * b)], -1),
-        np.stack([2 * (b * d - a * c), 2 * (c * d + a * b), a * a + d * d - b * b - c * c], -1),
-    ], -2)
+    return np.stack(
+        [
+            np.stack([a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c)], -1),
+            np.stack([2 * (b * c + a * d), a * a + c * c - b * b - d * d, 2 * (c * d - a * b)], -1),
+            np.stack([2 * (b * d - a * c), 2 * (c * d + a * b), a * a + d * d - b * b - c * c], -1),
+        ],
+        -2,
+    )
 
 
 def dop853(I, w0, q0, t_end, mgl=0.0, rtol=1e-13, atol=1e-13):
     """(ω, R) at t_end from scipy's DOP853 on (ω, R) (kernels/reference.py's rhs)."""
     y0 = np.concatenate((w0, ck_matrix(tuple(q0)).ravel()))
-    sol = solve_ivp(rhs, (0.0, t_end), y0, method="DOP853", rtol=rtol, atol=atol,
-                    args=(float(I[0]), float(I[1]), float(I[2]), float(mgl)))
+    sol = solve_ivp(
+        rhs,
+        (0.0, t_end),
+        y0,
+        method="DOP853",
+        rtol=rtol,
+        atol=atol,
+        args=(float(I[0]), float(I[1]), float(I[2]), float(mgl)),
+    )
     assert sol.success
     return sol.y[:3, -1], sol.y[3:, -1].reshape(3, 3)
 
@@ -130,9 +141,11 @@ def test_forward_then_back():
     _forward_back(I, w0, q0, t, w, q)
     ok = np.abs(separatrix_distance(I, w0)) >= 1e-3
     ew, eq = ulps(w, w0), ulps(q, q0)
-    print(f"forward-back ({ok.sum()} states with |delta| >= 1e-3): omega {ew[ok].max():.0f} ULP, q {eq[ok].max():.0f}"
-          f" ULP (99.9 %: {np.percentile(ew[ok], 99.9):.0f} / {np.percentile(eq[ok], 99.9):.0f}); all states: "
-          f"{ew.max():.3g} / {eq.max():.3g}")
+    print(
+        f"forward-back ({ok.sum()} states with |delta| >= 1e-3): omega {ew[ok].max():.0f} ULP, q {eq[ok].max():.0f}"
+        f" ULP (99.9 %: {np.percentile(ew[ok], 99.9):.0f} / {np.percentile(eq[ok], 99.9):.0f}); all states: "
+        f"{ew.max():.3g} / {eq.max():.3g}"
+    )
     assert ew[ok].max() <= 1e3 and eq[ok].max() <= 1e3
 
 
@@ -151,9 +164,14 @@ def test_invariants_over_1e4_periods():
         E0, G0 = 0.5 * m0 @ w0, np.linalg.norm(m0)
         L = np.einsum("nij,nj->ni", rotation_matrices(q), m)
         L0 = ck_matrix(tuple(q0)) @ m0
-        worst = np.maximum(worst, [np.abs(0.5 * np.sum(m * w, 1) - E0).max() / np.spacing(E0),
-                                   np.abs(np.linalg.norm(m, axis=1) - G0).max() / np.spacing(G0),
-                                   np.abs(L - L0).max() / np.spacing(G0)])
+        worst = np.maximum(
+            worst,
+            [
+                np.abs(0.5 * np.sum(m * w, 1) - E0).max() / np.spacing(E0),
+                np.abs(np.linalg.norm(m, axis=1) - G0).max() / np.spacing(G0),
+                np.abs(L - L0).max() / np.spacing(G0),
+            ],
+        )
     print(f"over 1e4 periods: E {worst[0]:.0f} ULP, |L| {worst[1]:.0f} ULP, lab L {worst[2]:.0f} ULP of |L|")
     assert np.all(worst <= 32)
 
@@ -174,8 +192,9 @@ def test_dzhanibekov_flip_times():
     t = np.linspace(0, 101.5 * T, 20_000)
     m2 = free_body(I, w0, q0, t)[0][:, 1]
     brackets = np.nonzero(np.sign(m2[1:]) != np.sign(m2[:-1]))[0]
-    roots = np.array([brentq(lambda s: free_body(I, w0, q0, [s])[0][0, 1], t[i], t[i + 1], xtol=1e-15, rtol=1e-15)
-                      for i in brackets])[:101]
+    roots = np.array(
+        [brentq(lambda s: free_body(I, w0, q0, [s])[0][0, 1], t[i], t[i + 1], xtol=1e-15, rtol=1e-15) for i in brackets]
+    )[:101]
     assert len(roots) == 101
     rel = np.abs(np.diff(roots) / T - 1).max()
     total = abs((roots[-1] - roots[0]) / (100 * T) - 1)
@@ -201,9 +220,11 @@ def test_any_axis_order_against_dop853(order):
     """The same bodies with their axes in all six orders, on both sides of the separatrix and on it
     (I = (2, 3, 6), m1 = m3 makes G² − 2T I2 exactly 0): ω and R within 1e-11 of DOP853 at t = 7."""
     rng = np.random.default_rng(14)
-    cases = [(np.array([1.0, 2.0, 3.0]), np.array([0.9, 0.4, 0.1])),   # around the smallest axis
-             (np.array([1.0, 2.0, 3.0]), np.array([0.1, 0.4, 0.9])),   # around the largest axis
-             (np.array([2.0, 3.0, 6.0]), np.array([0.5, 0.3, 0.5]) / np.array([2.0, 3.0, 6.0]))]  # separatrix
+    cases = [
+        (np.array([1.0, 2.0, 3.0]), np.array([0.9, 0.4, 0.1])),  # around the smallest axis
+        (np.array([1.0, 2.0, 3.0]), np.array([0.1, 0.4, 0.9])),  # around the largest axis
+        (np.array([2.0, 3.0, 6.0]), np.array([0.5, 0.3, 0.5]) / np.array([2.0, 3.0, 6.0])),
+    ]  # separatrix
     for I, w in cases:
         Ip, wp = I[list(order)], w[list(order)]
         q0 = rng.normal(size=4)
@@ -285,6 +306,7 @@ def _loop(step):
         for _ in range(n):
             w, q = step(w, q, dt, body)
         return w, q
+
     return loop
 
 
@@ -314,8 +336,7 @@ def test_splitting_declared_order_on_heavy_asymmetric_body(name):
     for dt in dts:
         n = int(round(1.0 / dt))
         w, q = loop(w0, q0, 1.0 / n, body, n)
-        errors.append(max(np.abs(np.array(w) - w_ref).max() / np.abs(w_ref).max(),
-                          np.abs(ck_matrix(q) - R_ref).max()))
+        errors.append(max(np.abs(np.array(w) - w_ref).max() / np.abs(w_ref).max(), np.abs(ck_matrix(q) - R_ref).max()))
     errors = np.array(errors)
     usable = np.nonzero(errors > 1e-11)[0][-4:]
     assert len(usable) == 4, errors
@@ -335,9 +356,11 @@ def test_splitting_exact_on_free_asymmetric_body(name):
     amplified ~1/δ: I = (1, 2, 3), ω0 = (0.7, −1.1, 0.4) (δ = 1.5e-3) gives 7e-11 .. 1.5e-10 over 1000 periods."""
     loop = _loop(SPLITTINGS[name].step)
     q0 = np.array([0.9, 0.1, -0.3, 0.3]) / np.linalg.norm([0.9, 0.1, -0.3, 0.3])
-    cases = [((1e-4, 3e-4, 2e-4), (0.3 * 20 * math.pi, 0.0, 20 * math.pi)),
-             ((2.0, 1.0, 2 / 3), (math.cos(1.1) / 2, 0.0, 1.5 * math.sin(1.1))),
-             ((1.0, 2.0, 3.0), (1.0, 0.3, 0.2))]
+    cases = [
+        ((1e-4, 3e-4, 2e-4), (0.3 * 20 * math.pi, 0.0, 20 * math.pi)),
+        ((2.0, 1.0, 2 / 3), (math.cos(1.1) / 2, 0.0, 1.5 * math.sin(1.1))),
+        ((1.0, 2.0, 3.0), (1.0, 0.3, 0.2)),
+    ]
     for I, w0 in cases:
         assert abs(separatrix_distance(np.array(I), np.array(w0))) > 0.02
         T = flip_period(I, w0)
@@ -408,8 +431,10 @@ def test_splitting_invariants_do_not_drift(name):
             dG = max(dG, abs(G / G0 - 1.0))
         return dE, dG
 
-    for body, w0 in (((1e-4, 3e-4, 2e-4, 0.0), (0.02 * math.pi, 0.0, 20 * math.pi)),
-                     ((1.0, 2.0, 3.0, 0.0), (0.7, -1.1, 0.4))):
+    for body, w0 in (
+        ((1e-4, 3e-4, 2e-4, 0.0), (0.02 * math.pi, 0.0, 20 * math.pi)),
+        ((1.0, 2.0, 3.0, 0.0), (0.7, -1.1, 0.4)),
+    ):
         dE, dG = drift(w0, (1.0, 0.0, 0.0, 0.0), 1e-4, body, 200_000)
         print(f"{name} {body[:3]}: 2e5 steps, max |dE/E| {dE:.2g}, |d|L|/|L|| {dG:.2g}")
         assert dE <= 3e-13 * N_FLOWS[name] and dG <= 3e-13 * N_FLOWS[name]

@@ -5,6 +5,7 @@ Each case must end with one line and a non-zero status, no traceback, nothing wr
 must give the same data as an uninterrupted sweep.  The signal matrix is slow (subprocesses); the
 damaged-file and journal matrices run in-process.
 """
+
 import contextlib
 import io
 import random
@@ -14,6 +15,16 @@ import time
 import numpy as np
 import pytest
 import xarray as xr
+from hydra import compose, initialize_config_module
+
+from gyrolab.analysis.figures import FIGURES
+from gyrolab.runner.app import file_attrs, output_state
+from gyrolab.runner.combine import main as combine_main
+from gyrolab.runner.config import ConfigError, config_hash, register_configs
+from gyrolab.runner.execute import run_chunk
+from gyrolab.runner.grid import build_grid
+from gyrolab.runner.store import Journal, write_results
+
 from faults import (
     BAD_FILES,
     CHUNK_FAULTS,
@@ -25,16 +36,6 @@ from faults import (
     small_disk,
     stray_files,
 )
-from hydra import compose, initialize_config_module
-
-from gyrolab.analysis.figures import FIGURES
-from gyrolab.runner.app import file_attrs, output_state
-from gyrolab.runner.combine import main as combine_main
-from gyrolab.runner.config import ConfigError, config_hash, register_configs
-from gyrolab.runner.execute import run_chunk
-from gyrolab.runner.grid import build_grid
-from gyrolab.runner.store import Journal, write_results
-
 from helpers import SLOW, TINY, assert_ok, data, environment, gyrolab, start, tiny_reference
 
 register_configs()
@@ -57,8 +58,11 @@ def assert_one_line(text, prefix):
 
 # --------------------------------------------------------------------------- signals and kill -9
 
-SIGNAL_CASES = [(sig, phase) for sig in (signal.SIGKILL, signal.SIGTERM, signal.SIGHUP, signal.SIGINT)
-                for phase in ("integration", "assembly")]
+SIGNAL_CASES = [
+    (sig, phase)
+    for sig in (signal.SIGKILL, signal.SIGTERM, signal.SIGHUP, signal.SIGINT)
+    for phase in ("integration", "assembly")
+]
 
 
 def check_interrupted(tmp_path, reference, sig, phase, seed):
@@ -77,8 +81,11 @@ def check_interrupted(tmp_path, reference, sig, phase, seed):
     assert stray_files(run) == [], "no journal, lock or temporary left"
 
 
-@pytest.mark.parametrize("sig, phase", [(signal.SIGTERM, "integration"), (signal.SIGKILL, "assembly")],
-                         ids=["SIGTERM-integration", "SIGKILL-assembly"])
+@pytest.mark.parametrize(
+    "sig, phase",
+    [(signal.SIGTERM, "integration"), (signal.SIGKILL, "assembly")],
+    ids=["SIGTERM-integration", "SIGKILL-assembly"],
+)
 def test_signal_then_resume_gives_identical_file_and_no_stray_files(tmp_path, reference, sig, phase):
     check_interrupted(tmp_path, reference, sig, phase, seed=0)
 
@@ -106,8 +113,16 @@ def test_repeated_signals_print_no_traceback(tmp_path):
 
 def test_ctrl_c_is_answered_within_seconds_in_a_long_single_run(tmp_path):
     run = tmp_path / "run"
-    args = ["sweep.method=[seed_next]", "sweep.f=[10]", "sweep.theta0=[45]", "sweep.dt=[1e-5]",
-            "sweep.t_end=3000", "output.every=0.1", "output.figures=false", f"hydra.run.dir={run}"]
+    args = [
+        "sweep.method=[seed_next]",
+        "sweep.f=[10]",
+        "sweep.theta0=[45]",
+        "sweep.dt=[1e-5]",
+        "sweep.t_end=3000",
+        "output.every=0.1",
+        "output.figures=false",
+        f"hydra.run.dir={run}",
+    ]
     proc = start(*args, cwd=tmp_path)
     deadline = time.monotonic() + 60
     while not (run / "results.h5.partial" / "manifest.json").exists():  # the sweep has started
@@ -124,19 +139,30 @@ def test_ctrl_c_is_answered_within_seconds_in_a_long_single_run(tmp_path):
 
 def test_chunks_in_the_worker_process_give_the_same_bits(tmp_path, reference):
     run = tmp_path / "run"
-    result = gyrolab(*TINY, f"hydra.run.dir={run}", cwd=tmp_path,
-                     env=environment(GYROLAB_TEST_ISOLATE_SECONDS=0))  # every chunk in the worker
+    result = gyrolab(
+        *TINY, f"hydra.run.dir={run}", cwd=tmp_path, env=environment(GYROLAB_TEST_ISOLATE_SECONDS=0)
+    )  # every chunk in the worker
     assert_ok(result)
     xr.testing.assert_identical(data(run / "results.h5"), data(reference))
 
 
 # --------------------------------------------------------------------------- damaged journals
 
+
 @pytest.fixture(scope="module")
 def small_grid():
     with initialize_config_module(config_module="gyrolab.conf", version_base=None):
-        cfg = compose("config", overrides=["sweep.method=[seed_next]", "sweep.f=[10,50]", "sweep.theta0=[30,45]",
-                                           "sweep.dt=[1e-3]", "sweep.t_end=0.02", "output.every=1e-3"])
+        cfg = compose(
+            "config",
+            overrides=[
+                "sweep.method=[seed_next]",
+                "sweep.f=[10,50]",
+                "sweep.theta0=[30,45]",
+                "sweep.dt=[1e-3]",
+                "sweep.t_end=0.02",
+                "output.every=1e-3",
+            ],
+        )
     return build_grid(cfg)
 
 
@@ -196,6 +222,7 @@ def test_resume_over_a_damaged_chunk_finishes_with_identical_data(tmp_path, refe
 
 # --------------------------------------------------------------------------- a full disk
 
+
 @pytest.mark.parametrize("phase", ["integration", "assembly"])
 def test_full_disk_is_one_line_and_the_resume_works(tmp_path, reference, phase):
     with small_disk(tmp_path) as disk:
@@ -205,8 +232,11 @@ def test_full_disk_is_one_line_and_the_resume_works(tmp_path, reference, phase):
         proc = start(*TINY, *SLOW, f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=0.3)
         chunks = lambda: list((run / "results.h5.partial").glob("chunk-*.npz"))  # noqa: E731
         # integration: after 2 chunks; assembly: once every run is stored (the sleep after the last chunk)
-        ready = ((lambda: len(chunks()) >= 2) if phase == "integration"
-                 else (lambda: sum(len(np.load(p)["runs"]) for p in chunks()) == 16))
+        ready = (
+            (lambda: len(chunks()) >= 2)
+            if phase == "integration"
+            else (lambda: sum(len(np.load(p)["runs"]) for p in chunks()) == 16)
+        )
         while not ready():
             assert proc.poll() is None, proc.communicate()
             time.sleep(0.01)
@@ -290,6 +320,7 @@ def test_bad_file_in_every_analysis_command_is_one_line_and_exit_2(tmp_path, goo
 
 # --------------------------------------------------------------------------- combine faults
 
+
 def combine_case(tmp_path, good, case):
     """Inputs for one combine fault; returns (argv, expected text in the error)."""
     d = tmp_path / "in"
@@ -341,8 +372,16 @@ def combine_case(tmp_path, good, case):
     raise KeyError(case)
 
 
-COMBINE_FAULTS = [*BAD_FILES, "overlap", "overlap_differs", "hole", "wrong_units", "unknown_layout",
-                  "foreign_variable", "unfinished_job"]
+COMBINE_FAULTS = [
+    *BAD_FILES,
+    "overlap",
+    "overlap_differs",
+    "hole",
+    "wrong_units",
+    "unknown_layout",
+    "foreign_variable",
+    "unfinished_job",
+]
 
 
 @pytest.mark.parametrize("case", COMBINE_FAULTS)
@@ -362,11 +401,11 @@ def test_identical_overlap_is_accepted_with_the_flag_and_tiles_method_splits(tmp
     a = make_file(tmp_path / "a.h5", "sweep.f=[10,50]")
     b = make_file(tmp_path / "b.h5", "sweep.f=[50]")
     c = make_file(tmp_path / "c.h5", "sweep.f=[10,50]", "sweep.method=[rk4]")
-    status, err = call(combine_main, [str(a), str(b), str(c), "-o", str(tmp_path / "o.h5"),
-                                      "--allow-identical-overlap"])
+    status, err = call(
+        combine_main, [str(a), str(b), str(c), "-o", str(tmp_path / "o.h5"), "--allow-identical-overlap"]
+    )
     assert status == 0, err
-    with xr.open_dataset(tmp_path / "o.h5", engine="h5netcdf") as ds, \
-            xr.open_dataset(a, engine="h5netcdf") as one:
+    with xr.open_dataset(tmp_path / "o.h5", engine="h5netcdf") as ds, xr.open_dataset(a, engine="h5netcdf") as one:
         assert list(ds["f"].values) == [10, 50] and list(ds["method"].values) == ["seed_next", "rk4"]
         assert ds["body"].dims == ("f", "theta0", "body_param")  # run inputs keep their dims
         np.testing.assert_array_equal(ds["body"].values, one["body"].values)

@@ -1,6 +1,7 @@
 """Every figure kind (analysis/figures.py FIGURES) on every scene and a few grid shapes, checked without eyes:
 the figure's size is bounded, no two text boxes overlap (matplotlib's tight bounding boxes), every swept value
 is drawn or named in the figure's note, and no closed form or invariant is drawn that the scene lacks."""
+
 import re
 
 import matplotlib
@@ -20,8 +21,12 @@ from helpers import build_dataset  # noqa: E402
 SHAPES = {  # name: grid (method, f, theta0, dt)
     "1x1": {"method": ["rk4"], "f": [10.0], "theta0": [45.0], "dt": [1e-3]},
     "theta0x3": {"method": ["seed_next", "rk4"], "f": [10.0], "theta0": [30.0, 45.0, 60.0], "dt": [1e-3]},
-    "fx6": {"method": ["seed_next", "lie_poisson"], "f": [2.0, 5.0, 10.0, 20.0, 50.0, 80.0], "theta0": [45.0],
-            "dt": [1e-3, 5e-4]},
+    "fx6": {
+        "method": ["seed_next", "lie_poisson"],
+        "f": [2.0, 5.0, 10.0, 20.0, 50.0, 80.0],
+        "theta0": [45.0],
+        "dt": [1e-3, 5e-4],
+    },
 }
 MAX_PX = 2400  # pixels per side at the PNG's 110 dpi
 OPTIONS = {"work-precision": {"no_retime": True, "no_peers": True}}
@@ -81,7 +86,7 @@ def overlaps(fig):
     found = []
     boxes = texts(fig)
     for i, (a, ba, oa) in enumerate(boxes):
-        for b, bb, ob in boxes[i + 1:]:
+        for b, bb, ob in boxes[i + 1 :]:
             if oa and ob and oa[1] is ob[1] and oa[0] != ob[0]:
                 continue
             w = min(ba.x1, bb.x1) - max(ba.x0, bb.x0)
@@ -99,8 +104,10 @@ def drawn_or_listed(fig, key, value):
     """``value`` of grid axis ``key`` appears in the figure: in a title/label as 'f = 10 Hz', or in a note."""
     text = all_text(fig)
     v = f"{value:g}"
-    pattern = {"f": rf"f = {v} Hz|f=[\d.,]*\b{v}\b|f = [\d., ]*\b{v}\b",
-               "theta0": rf"θ0 = {v}°|theta0=[\d.,]*\b{v}\b|θ0 = [\d., ]*\b{v}\b"}[key]
+    pattern = {
+        "f": rf"f = {v} Hz|f=[\d.,]*\b{v}\b|f = [\d., ]*\b{v}\b",
+        "theta0": rf"θ0 = {v}°|theta0=[\d.,]*\b{v}\b|θ0 = [\d., ]*\b{v}\b",
+    }[key]
     return re.search(pattern, text) is not None
 
 
@@ -132,8 +139,9 @@ def test_animation_renders_for_every_scene(files, tmp_path):
     from PIL import Image
 
     for scene in SCENES:
-        out = FIGURES["animation"].write(open_results(files[(scene, "1x1")]), tmp_path / f"{scene}.gif",
-                                         seconds=0.2, fps=5)
+        out = FIGURES["animation"].write(
+            open_results(files[(scene, "1x1")]), tmp_path / f"{scene}.gif", seconds=0.2, fps=5
+        )
         with Image.open(out) as im:
             assert im.n_frames >= 2 and max(im.size) <= MAX_PX
 

@@ -6,6 +6,7 @@ nutation to a relative error of (ω3 dt)^p, the step's spin phase raised to the
 order (f = 50 Hz, dt = 1e-4 s: 9.7e-7 for p = 4, 9.9e-4 for p = 2, 3.1e-2 for
 p = 1).
 """
+
 import math
 
 import numpy as np
@@ -101,8 +102,16 @@ def test_period_quadrature_matches_ellipk():
     sc = build_scene("heavy_top", 10.0, 30.0)
     u1, u2, u3 = nutation_roots(sc)
     beta = 2 * sc.body[3] / sc.body[0]
-    T_quad = 4 * quad(lambda s: 1 / math.sqrt(beta * (u3 - u1 - (u2 - u1) * math.sin(s) ** 2)), 0, math.pi / 2,
-                      epsabs=0, epsrel=2e-14)[0]
+    T_quad = (
+        4
+        * quad(
+            lambda s: 1 / math.sqrt(beta * (u3 - u1 - (u2 - u1) * math.sin(s) ** 2)),
+            0,
+            math.pi / 2,
+            epsabs=0,
+            epsrel=2e-14,
+        )[0]
+    )
     T = heavy_top_nutation(sc).period
     assert T == pytest.approx(T_quad, rel=1e-13)
     assert T == pytest.approx(4 * ellipk((u2 - u1) / (u3 - u1)) / math.sqrt(beta * (u3 - u1)), rel=1e-15)
@@ -156,12 +165,14 @@ def measure_nutation(samples, h):
 def nutation_errors(samples, h, nut):
     """Worst relative errors (θ_min, θ_max, period, precession rate) against the closed form."""
     theta_min, theta_max, period, rate = measure_nutation(samples, h)
-    return np.array([
-        np.max(np.abs(theta_min / nut.theta_min - 1)),
-        np.max(np.abs(theta_max / nut.theta_max - 1)),
-        abs(period / nut.period - 1),
-        abs(rate / nut.precession_rate - 1),
-    ])
+    return np.array(
+        [
+            np.max(np.abs(theta_min / nut.theta_min - 1)),
+            np.max(np.abs(theta_max / nut.theta_max - 1)),
+            abs(period / nut.period - 1),
+            abs(rate / nut.precession_rate - 1),
+        ]
+    )
 
 
 # (f Hz, θ0 deg, scene options, t_end s): cusps, loops, waves, slow tops, a sleeping top nudged by 0.5°.
@@ -271,7 +282,12 @@ def test_slow_sleeping_top_falls(name, run_scene):
 def energy_prediction(samples, body, dt, every, scheme):
     I1, _, I3, mgl = body
     t = np.arange(len(samples)) * every
-    cos_theta, w3, Lz, L3 = samples[:, 2], samples[:, 5], samples[:, FIELDS.index("L_z")], samples[:, FIELDS.index("L3")]
+    cos_theta, w3, Lz, L3 = (
+        samples[:, 2],
+        samples[:, 5],
+        samples[:, FIELDS.index("L_z")],
+        samples[:, FIELDS.index("L3")],
+    )
     tau_dot_omega = -mgl * np.gradient(cos_theta, every)
     if scheme == "seed_next":
         return -0.5 * dt * tau_dot_omega
@@ -298,8 +314,16 @@ def test_seed_prev_gains_energy_over_100s():
     """f = 10 Hz, θ0 = 45° release, dt = 1e-3, 100 s. Measured: E grows from 3.17 J by +45 400 % (×455),
     never dropping below E0 at a sample; the top ends tumbling with |ω| ≈ 525 rad/s. The write-up says it
     loses energy: it does not."""
-    ds = gyrolab.simulate(scene="heavy_top", method="seed_prev", f=10.0, theta0=45.0, dt=1e-3, t_end=100.0,
-                          every=1e-2, divergence_threshold=1e9)
+    ds = gyrolab.simulate(
+        scene="heavy_top",
+        method="seed_prev",
+        f=10.0,
+        theta0=45.0,
+        dt=1e-3,
+        t_end=100.0,
+        every=1e-2,
+        divergence_threshold=1e9,
+    )
     E = ds.energy.values
     assert int(ds.status) == 0
     assert (E[-1] - E[0]) / E[0] > 100.0

@@ -1,5 +1,6 @@
 """The results layout: files of the current layout and of layout 0 (before layout_version) open with
 every reader; foreign files are refused."""
+
 import subprocess
 
 import pytest
@@ -41,8 +42,11 @@ def test_compare_across_layouts_compares_the_shared_variables(files):
 
 def test_every_figure_of_a_layout_0_file(files, tmp_path):
     """The standard figures draw from a layout-0 file (invariants it lacks are left out)."""
-    done = subprocess.run([str(BIN / "gyrolab-plot"), "standard", str(files[1]), "-o", str(tmp_path / "figs")],
-                          capture_output=True, text=True)
+    done = subprocess.run(
+        [str(BIN / "gyrolab-plot"), "standard", str(files[1]), "-o", str(tmp_path / "figs")],
+        capture_output=True,
+        text=True,
+    )
     assert done.returncode == 0, done.stderr
     assert len(list((tmp_path / "figs").glob("*.png"))) == 4
 

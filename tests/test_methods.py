@@ -5,6 +5,7 @@ Each test is parametrised over ``registry.METHODS``; a new method inherits all o
 Accuracy bounds use the same convention as test_heavy_top: relative error
 (ω3 dt)^ORDER, the step's spin phase raised to the declared order.
 """
+
 import importlib
 import math
 import types
@@ -54,12 +55,23 @@ def test_registry_contract(name):
         assert isinstance(kernel, Dispatcher), entry
         assert kernel.targetoptions["error_model"] == "numpy" and kernel.targetoptions["parallel"], entry
         assert kernel._cache.__class__.__name__ == "FunctionCache", f"{entry} is not cached"
-    assert listed[name] == {"order": module.ORDER, "symplectic": module.SYMPLECTIC,
-                            "preserves": module.PRESERVES, "doc": module.__doc__.strip().splitlines()[0]}
+    assert listed[name] == {
+        "order": module.ORDER,
+        "symplectic": module.SYMPLECTIC,
+        "preserves": module.PRESERVES,
+        "doc": module.__doc__.strip().splitlines()[0],
+    }
     sc = build_scene("heavy_top", 10.0, 45.0)
     n = MIN_BLOCK_RUNS
-    args = (np.tile(sc.body, (n, 1)), np.tile(sc.omega0, (n, 1)) * np.linspace(0.5, 1.5, n)[:, None],
-            np.tile(sc.q0, (n, 1)), 1e-3, 5, 11, 10.0)
+    args = (
+        np.tile(sc.body, (n, 1)),
+        np.tile(sc.omega0, (n, 1)) * np.linspace(0.5, 1.5, n)[:, None],
+        np.tile(sc.q0, (n, 1)),
+        1e-3,
+        5,
+        11,
+        10.0,
+    )
     runs, blocks = integrate(name, *args, path="runs"), integrate(name, *args, path="blocks")
     for a, b in zip(runs, blocks):
         np.testing.assert_array_equal(a, b)
@@ -75,8 +87,13 @@ def test_registry_refuses_a_broken_method_in_one_line():
         register("broken", broken)
     message = str(err.value)
     assert "\n" not in message
-    for part in ('docstring must start with "broken:', "ORDER must be an int", "SYMPLECTIC must be a bool",
-                 "'momentum' is not an invariant", "numba @njit function"):
+    for part in (
+        'docstring must start with "broken:',
+        "ORDER must be an int",
+        "SYMPLECTIC must be a bool",
+        "'momentum' is not an invariant",
+        "numba @njit function",
+    ):
         assert part in message
 
 
@@ -84,8 +101,12 @@ def test_a_method_written_to_the_contract_runs_on_every_path(tmp_path, monkeypat
     """A new method file with only step and its declarations (a copy of lie_poisson under another
     name, in a package of its own) gets run_batch and run_blocks from the registry and gives
     lie_poisson's bits on a sweep of 64 runs (blocks) and of 2 (one by one)."""
-    source = (Path(METHODS["lie_poisson"].__file__).read_text()
-              .replace("lie_poisson:", "scratch_method:").replace("from ..", "from gyrolab.kernels."))
+    source = (
+        Path(METHODS["lie_poisson"].__file__)
+        .read_text()
+        .replace("lie_poisson:", "scratch_method:")
+        .replace("from ..", "from gyrolab.kernels.")
+    )
     (tmp_path / "scratch_method.py").write_text(source)
     monkeypatch.syspath_prepend(str(tmp_path))
     module = register("scratch_method", importlib.import_module("scratch_method"))
@@ -134,14 +155,21 @@ def test_free_top_matches_closed_form(name, run_scene):
             assert fine <= 1.3 * coarse / 2 ** METHODS[name].ORDER
 
 
-@pytest.mark.parametrize("scene, f, options, name", [
-    pytest.param(scene, f, options, *p.values, marks=p.marks) if scene == "free_asymmetric" else (scene, f, options, m)
-    for scene, f, options in (("free_symmetric", 10.0, {}), ("free_asymmetric", 5.0, {"eps": 0.1}))
-    # explicit Euler keeps L of the symmetric top (ω3 fixed, ω⊥ turning slowly) within the bound,
-    # not that of the asymmetric box
-    for m, p in ((q.values[0] if hasattr(q, "values") else q, q if hasattr(q, "values") else pytest.param(q))
-                 for q in own_methods())
-])
+@pytest.mark.parametrize(
+    "scene, f, options, name",
+    [
+        pytest.param(scene, f, options, *p.values, marks=p.marks)
+        if scene == "free_asymmetric"
+        else (scene, f, options, m)
+        for scene, f, options in (("free_symmetric", 10.0, {}), ("free_asymmetric", 5.0, {"eps": 0.1}))
+        # explicit Euler keeps L of the symmetric top (ω3 fixed, ω⊥ turning slowly) within the bound,
+        # not that of the asymmetric box
+        for m, p in (
+            (q.values[0] if hasattr(q, "values") else q, q if hasattr(q, "values") else pytest.param(q))
+            for q in own_methods()
+        )
+    ],
+)
 def test_free_body_conserves_lab_angular_momentum(name, scene, f, options, step_loop):
     """1 s at dt = 2.5e-4: the lab vector L = R I ω is conserved to (ω3 dt)^ORDER + 1e-11 relative
     (measured: seeds 6e-5 / 2.4e-3, rk4 4.5e-12 / 4.2e-11).  Symplectic methods turn the body by exact
@@ -172,12 +200,20 @@ def final_state_errors(name, scene, reference, dts, t_end):
     n = len(dts)
     strides = np.rint(t_end / np.asarray(dts)).astype(np.int64)
     samples, status, _ = integrate(
-        name, np.tile(scene.body, (n, 1)), np.tile(scene.omega0, (n, 1)), np.tile(scene.q0, (n, 1)),
-        np.asarray(dts), strides, 2, 1e9,
+        name,
+        np.tile(scene.body, (n, 1)),
+        np.tile(scene.omega0, (n, 1)),
+        np.tile(scene.q0, (n, 1)),
+        np.asarray(dts),
+        strides,
+        2,
+        1e9,
     )
     final = samples[:, -1, :]
-    errors = np.maximum(np.max(np.abs(final[:, :3] - reference[:3]), axis=1),
-                        np.max(np.abs(final[:, 3:6] - reference[3:6]), axis=1) / scene.omega0[2])
+    errors = np.maximum(
+        np.max(np.abs(final[:, :3] - reference[:3]), axis=1),
+        np.max(np.abs(final[:, 3:6] - reference[3:6]), axis=1) / scene.omega0[2],
+    )
     return np.where(status == 0, errors, np.nan)  # a step too coarse to stay bounded has no error to fit
 
 
@@ -192,7 +228,7 @@ ORDER_CASES = {
 NOT_CONVERGENT = {
     "no_gyro": "no_gyro drops ω × Iω: it converges to another equation, not to the rigid body",
     "jolt_rescale": "Jolt's shipped 47 rad/s cap clips the 50 Hz top and the 5 Hz box's rates (~31-47 rad/s "
-                    "and above) and its angular damping changes the equation; jolt_rescale_bare is the scheme",
+    "and above) and its angular damping changes the equation; jolt_rescale_bare is the scheme",
 }
 
 

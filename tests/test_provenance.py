@@ -1,5 +1,6 @@
 """What ran, recorded truthfully: a numba cache that cannot go stale, the commit as built, the import
 from a checkout root."""
+
 import os
 import shutil
 import subprocess
@@ -22,8 +23,7 @@ print(k.__file__, k.SOURCE_HASH, repr(float(ds.energy[-1])))
 def probe(tree, cache):
     """(kernels file, source hash, final energy) of a lie_poisson run from the source tree ``tree``."""
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(tree)}
-    done = subprocess.run([sys.executable, "-c", PROBE], cwd=tree, env=env, capture_output=True, text=True,
-                          timeout=600)
+    done = subprocess.run([sys.executable, "-c", PROBE], cwd=tree, env=env, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
     return done.stdout.split()
 
@@ -45,8 +45,12 @@ def test_editing_a_kernel_helper_never_runs_stale_machine_code(tmp_path):
     free_flow = tree / "kernels" / "free_flow.py"
     text = free_flow.read_text()
     assert "return w[0] + h * t1 / body[0]" in text
-    free_flow.write_text(text.replace("return w[0] + h * t1 / body[0], w[1] + h * t2 / body[1]",
-                                      "return w[0] + 2.0 * h * t1 / body[0], w[1] + 2.0 * h * t2 / body[1]"))
+    free_flow.write_text(
+        text.replace(
+            "return w[0] + h * t1 / body[0], w[1] + h * t2 / body[1]",
+            "return w[0] + 2.0 * h * t1 / body[0], w[1] + 2.0 * h * t2 / body[1]",
+        )
+    )
     _, after_hash, after = probe(tree, cache)
     assert after_hash != before_hash and after != before
     assert probe(tree, tmp_path / "empty-cache")[2] == after
@@ -87,8 +91,13 @@ def test_results_record_layout_code_and_library_versions():
 
 def test_import_gyrolab_from_the_checkout_root():
     """`python -c "import gyrolab; print(gyrolab.methods())"` where the README's install leaves you."""
-    done = subprocess.run([sys.executable, "-c", "import gyrolab; print(sorted(gyrolab.methods()))"], cwd=CHECKOUT,
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [sys.executable, "-c", "import gyrolab; print(sorted(gyrolab.methods()))"],
+        cwd=CHECKOUT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr
     assert "'lie_poisson'" in done.stdout and "'seed_next'" in done.stdout
 
@@ -107,8 +116,10 @@ PRESERVES = ()
 def step(w, q, dt, body):
     {body}
 '''
-TWINS = {"twin_a": "w = kick(w, q, dt, body)\n    return free_flow(w, q, dt, body)",
-         "twin_b": "w, q = free_flow(w, q, dt, body)\n    return kick(w, q, dt, body), q"}
+TWINS = {
+    "twin_a": "w = kick(w, q, dt, body)\n    return free_flow(w, q, dt, body)",
+    "twin_b": "w, q = free_flow(w, q, dt, body)\n    return kick(w, q, dt, body), q",
+}
 RUN_TWINS = """
 import sys, numpy as np
 from gyrolab.kernels.batch import integrate
@@ -122,8 +133,9 @@ for name in sys.argv[1:]:
 
 def run_twins(tree, cache, *names):
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache), "PYTHONPATH": str(tree)}
-    done = subprocess.run([sys.executable, "-c", RUN_TWINS, *names], cwd=tree, env=env, capture_output=True,
-                          text=True, timeout=600)
+    done = subprocess.run(
+        [sys.executable, "-c", RUN_TWINS, *names], cwd=tree, env=env, capture_output=True, text=True, timeout=600
+    )
     assert done.returncode == 0, done.stderr
     return dict(line.split() for line in done.stdout.splitlines())
 
@@ -132,9 +144,9 @@ def run_twins(tree, cache, *names):
 def test_kernels_cached_by_different_processes_never_share_code(tmp_path):
     """Two methods with the same call structure, each compiled alone from an empty cache in its own
     process (so both processes number their functions alike), the two caches merged into one, then
-    loaded together in a third process: each must give its own result.  With numba's per-process function counter as it is (reset in a copy
-    of the tree) the third process runs twin_a's code for twin_b: the collision is real, and the
-    random start in kernels/__init__.py is what prevents it."""
+    loaded together in a third process: each must give its own result.  With numba's per-process
+    function counter as it is (reset in a copy of the tree) the third process runs twin_a's code for
+    twin_b: the collision is real, and the random start in kernels/__init__.py is what prevents it."""
     tree = tmp_path / "tree"
     for name in ("gyrolab", "kernels", "runner", "analysis", "conf"):
         shutil.copytree(CHECKOUT / name, tree / name, ignore=shutil.ignore_patterns("__pycache__"))

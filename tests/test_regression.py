@@ -10,6 +10,7 @@ or another numba could bring) move these datasets by at most ~5e-13 of that
 scale; a 6e-5 relative change in one coefficient of lie_poisson4 moves them by
 ~1e-8 (test_coefficient_change_fails_with_a_readable_message).
 """
+
 import importlib.resources
 import importlib.util
 import shutil
@@ -55,20 +56,27 @@ def check_against_stored(fresh, name, method, stored=None):
     the file ``stored``) and was made by the same config."""
     stored = Path(stored or regen.stored_path(name, method))
     if not stored.exists():
-        pytest.fail(f"no stored regression data for method {method} on {name}; add it with:\n"
-                    f"    {regen.ADD_COMMAND}", pytrace=False)
+        pytest.fail(
+            f"no stored regression data for method {method} on {name}; add it with:\n    {regen.ADD_COMMAND}",
+            pytrace=False,
+        )
     if isinstance(fresh, xr.Dataset):
         with xr.open_dataset(stored, engine="h5netcdf") as ref:
             report = compare_datasets(fresh, ref.load(), scaled=regen.SCALED_TOL)
         report.a, report.b = "fresh run", str(stored)
     else:
         report = compare_files(fresh, stored, scaled=regen.SCALED_TOL)
-    hint = (f"If the change is intended, regenerate on purpose and commit the new file:\n"
-            f"    python tests/data/regenerate.py --write {name}:{method}")
+    hint = (
+        f"If the change is intended, regenerate on purpose and commit the new file:\n"
+        f"    python tests/data/regenerate.py --write {name}:{method}"
+    )
     text = f"A = fresh run, B = {stored.name}\n{report.text()}\n{hint}"
     if report.configs:
-        pytest.fail(f"{stored.name} was made with a different config than "
-                    f"conf/experiment/regression_{name}.yaml now holds\n{text}", pytrace=False)
+        pytest.fail(
+            f"{stored.name} was made with a different config than "
+            f"conf/experiment/regression_{name}.yaml now holds\n{text}",
+            pytrace=False,
+        )
     if report.versions:
         warnings.warn(f"{stored.name}: {'; '.join(report.versions)} (compared within tolerance anyway)")
     if not report.ok:
@@ -136,8 +144,9 @@ def test_stored_dataset_from_another_config_or_version_is_named_up_front(fresh, 
     with pytest.raises(pytest.fail.Exception) as failure:
         check_against_stored(fresh("heavy_top_release", "rk4"), "heavy_top_release", "rk4", stored=copy)
     lines = str(failure.value).splitlines()
-    assert lines[0] == ("old.h5 was made with a different config than "
-                        "conf/experiment/regression_heavy_top_release.yaml now holds")
+    assert lines[0] == (
+        "old.h5 was made with a different config than conf/experiment/regression_heavy_top_release.yaml now holds"
+    )
     assert lines[4] == f"PROVENANCE: gyrolab_version differs: A {gyrolab.__version__}, B 0.0.9"
     assert lines[5] == "PROVENANCE: config differs: scene.g: A 10.0, B 9.81"
 
@@ -146,11 +155,15 @@ def test_every_regression_config_and_method_has_a_stored_dataset():
     """Coverage: every regression config has a stored file per registered method, and nothing else is
     stored; the failure names the command that adds what is missing."""
     experiments = importlib.resources.files("gyrolab.conf") / "experiment"
-    configs = sorted(p.name[len("regression_"):-len(".yaml")] for p in experiments.iterdir()
-                     if p.name.startswith("regression_") and p.name.endswith(".yaml"))
+    configs = sorted(
+        p.name[len("regression_") : -len(".yaml")]
+        for p in experiments.iterdir()
+        if p.name.startswith("regression_") and p.name.endswith(".yaml")
+    )
     assert configs == sorted(regen.PINNED)
-    assert {regen.pinned_scene(n) for n in regen.PINNED} | {d[len("scene_"):] for d in regen.DATASETS
-                                                            if d.startswith("scene_")} == set(SCENES)
+    assert {regen.pinned_scene(n) for n in regen.PINNED} | {
+        d[len("scene_") :] for d in regen.DATASETS if d.startswith("scene_")
+    } == set(SCENES)
     missing = [f"{n}/{m}" for n in regen.DATASETS for m in METHODS if not regen.stored_path(n, m).exists()]
     assert not missing, f"no stored regression data for {', '.join(missing)}; add it with: {regen.ADD_COMMAND}"
     expected = {regen.stored_path(n, m) for n in regen.DATASETS for m in METHODS}
@@ -181,6 +194,7 @@ def test_stored_datasets_open_are_small_and_cover_every_scene_and_method():
 
 # --------------------------------------------------------------------------- a deliberate coefficient change
 
+
 def overwrite_method(path, method, run_batch):
     """Recompute every run of ``method`` in the results file ``path`` (in place) with ``run_batch``."""
     from gyrolab.kernels.driver import N_FIELDS
@@ -200,8 +214,17 @@ def overwrite_method(path, method, run_batch):
                     stride, n = sample_schedule(float(dt), config["output"]["every"], config["sweep"]["t_end"])
                     out = np.empty((1, n, N_FIELDS))
                     status, n_steps = np.zeros(1, np.int8), np.zeros(1, np.int64)
-                    run_batch(np.array([sc.omega0]), np.array([sc.q0]), np.array([sc.body]), np.array([float(dt)]),
-                              np.array([stride]), config["runner"]["divergence_threshold"], out, status, n_steps)
+                    run_batch(
+                        np.array([sc.omega0]),
+                        np.array([sc.q0]),
+                        np.array([sc.body]),
+                        np.array([float(dt)]),
+                        np.array([stride]),
+                        config["runner"]["divergence_threshold"],
+                        out,
+                        status,
+                        n_steps,
+                    )
                     for var, values in sample_variables(out[0]).items():
                         fh[var][im, jf, kt, ld] = values
                     fh["status"][im, jf, kt, ld] = status[0]

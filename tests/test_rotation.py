@@ -1,4 +1,5 @@
 """Rotations: CK quaternions against scipy and libm, and orthonormality over long runs."""
+
 import math
 
 import numpy as np
@@ -15,8 +16,10 @@ from helpers import own_methods
 
 finite = st.floats(min_value=-50.0, max_value=50.0, allow_nan=False)
 vectors = st.tuples(finite, finite, finite)
-unit_quats = st.tuples(finite, finite, finite, finite).filter(lambda q: sum(x * x for x in q) > 1e-6).map(
-    lambda q: tuple(np.asarray(q) / math.sqrt(sum(x * x for x in q)))
+unit_quats = (
+    st.tuples(finite, finite, finite, finite)
+    .filter(lambda q: sum(x * x for x in q) > 1e-6)
+    .map(lambda q: tuple(np.asarray(q) / math.sqrt(sum(x * x for x in q))))
 )
 
 
@@ -32,8 +35,9 @@ def test_quat_from_rotvec_matches_scipy(v):
     q = quat_from_rotvec(*v)
     assert abs(sum(x * x for x in q) - 1.0) <= 3 * np.finfo(float).eps
     # Matrix entries are O(1); 8 eps covers the rounding of both constructions.
-    np.testing.assert_allclose(ck_matrix(q), Rotation.from_rotvec(v).as_matrix(),
-                               rtol=0, atol=8e-16 * (1 + np.linalg.norm(v)))
+    np.testing.assert_allclose(
+        ck_matrix(q), Rotation.from_rotvec(v).as_matrix(), rtol=0, atol=8e-16 * (1 + np.linalg.norm(v))
+    )
 
 
 def test_small_angle_branch_matches_libm_to_2_ulp():
@@ -76,10 +80,15 @@ def test_ck_matrix_is_a_rotation_and_matches_scipy(q):
 @given(unit_quats, vectors)
 def test_body_step_composes_on_the_right(q, v):
     """R(q ⊗ q_v) = R(q) Rot(v): the seed's body-frame update R(t+dt) = R(t) · CK(v)."""
-    np.testing.assert_allclose(ck_matrix(rotate_body_step(q, *v)), ck_matrix(q) @ Rotation.from_rotvec(v).as_matrix(),
-                               rtol=0, atol=1e-14 * (1 + np.linalg.norm(v)))
-    np.testing.assert_allclose(ck_matrix(quat_mul(q, quat_from_rotvec(*v))), ck_matrix(rotate_body_step(q, *v)),
-                               rtol=0, atol=0)
+    np.testing.assert_allclose(
+        ck_matrix(rotate_body_step(q, *v)),
+        ck_matrix(q) @ Rotation.from_rotvec(v).as_matrix(),
+        rtol=0,
+        atol=1e-14 * (1 + np.linalg.norm(v)),
+    )
+    np.testing.assert_allclose(
+        ck_matrix(quat_mul(q, quat_from_rotvec(*v))), ck_matrix(rotate_body_step(q, *v)), rtol=0, atol=0
+    )
 
 
 def test_tilt_puts_axis_tip_at_minus_y():

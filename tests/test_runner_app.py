@@ -1,4 +1,5 @@
 """What gyrolab does with an existing output, and how Hydra's errors become one line."""
+
 import pytest
 from hydra import compose, initialize_config_module
 
@@ -54,8 +55,11 @@ def composition_error(*overrides):
         ("sweep.t_end=ten", "sweep.t_end=ten: Value 'ten' of type 'str' could not be converted to Float"),
         ("scene=plate", "scene=plate: unknown scene; choose from free_asymmetric, free_symmetric, heavy_top"),
         ("sweep.tend=3", "sweep.tend=3: Key 'tend' not in 'SweepConfig'"),
-        ("sweep.f=5", "sweep.f=5: Invalid value assigned: int is not a ListConfig, list or tuple. "
-                      "(sweep axes are lists, e.g. sweep.f=[10])"),
+        (
+            "sweep.f=5",
+            "sweep.f=5: Invalid value assigned: int is not a ListConfig, list or tuple. "
+            "(sweep axes are lists, e.g. sweep.f=[10])",
+        ),
     ],
 )
 def test_hydra_errors_become_one_line_with_key_and_value(override, line):

@@ -2,6 +2,7 @@
 
 Each subprocess costs ~1-2 s (Hydra, numba and xarray imports; JIT from cache).
 """
+
 import shlex
 import signal
 import subprocess
@@ -38,14 +39,35 @@ def reference(tmp_path_factory):
 def test_tiny_sweep_file_opens_with_xarray_and_matches_simulate(reference):
     with xr.open_dataset(reference, engine="h5netcdf") as ds:
         assert {k: ds.sizes[k] for k in GRID_DIMS + ("time", "xyz")} == {
-            "method": 2, "f": 2, "theta0": 2, "dt": 2, "time": 101, "xyz": 3}
+            "method": 2,
+            "f": 2,
+            "theta0": 2,
+            "dt": 2,
+            "time": 101,
+            "xyz": 3,
+        }
         assert list(ds["method"].values) == ["seed_next", "lie_poisson"]
         assert list(ds["f"].values) == [10.0, 50.0] and list(ds["dt"].values) == [1e-3, 1e-4]
         assert ds["f"].attrs["units"] == "Hz" and ds["theta0"].attrs["units"] == "deg"
         assert "legend" in ds["status"].attrs and np.all(ds["status"].values == 0)
-        for key in ("config", "gyrolab_version", "git_commit", "numba_version", "numpy_version", "threads",
-                    "created", "scene", "scene_M", "scene_init", "layout_version", "kernel_source_hash",
-                    "conserved", "scipy_version", "h5py_version", "xarray_version"):
+        for key in (
+            "config",
+            "gyrolab_version",
+            "git_commit",
+            "numba_version",
+            "numpy_version",
+            "threads",
+            "created",
+            "scene",
+            "scene_M",
+            "scene_init",
+            "layout_version",
+            "kernel_source_hash",
+            "conserved",
+            "scipy_version",
+            "h5py_version",
+            "xarray_version",
+        ):
             assert key in ds.attrs, key
         assert "sweep:" in ds.attrs["config"] and ds.attrs["scene"] == "heavy_top"
         assert np.all(ds["wall_time"].values > 0)
@@ -139,8 +161,13 @@ def test_multirun_writes_one_file_per_job_and_combine_merges_them(tmp_path):
     assert_ok(result)
     files = sorted(sweep_dir.glob("*/results.h5"))
     assert [f.parent.name for f in files] == ["0", "1"]
-    combined = subprocess.run(command("gyrolab-combine", "gyrolab.runner.combine") + [str(sweep_dir)],
-                              capture_output=True, text=True, env=environment(), timeout=120)
+    combined = subprocess.run(
+        command("gyrolab-combine", "gyrolab.runner.combine") + [str(sweep_dir)],
+        capture_output=True,
+        text=True,
+        env=environment(),
+        timeout=120,
+    )
     assert combined.returncode == 0, combined.stderr
     with xr.open_dataset(sweep_dir / "combined.h5", engine="h5netcdf") as ds:
         assert list(ds["scene"].values) == ["heavy_top", "free_asymmetric"]
@@ -153,10 +180,14 @@ def test_multirun_writes_one_file_per_job_and_combine_merges_them(tmp_path):
         assert ds.sizes["source"] == 2 and "sweep:" in str(ds["source_config"].values[0])
 
 
-@pytest.mark.parametrize("text, message", [
-    ("sweep:\n  f: [10\n  dt: x\n", "badexp.yaml, line 4, column 5: YAML syntax error"),
-    ("sweep:\n  t_end: ten\n", "sweep.t_end (in experiment/badexp.yaml): Value 'ten'"),
-], ids=["syntax", "type"])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("sweep:\n  f: [10\n  dt: x\n", "badexp.yaml, line 4, column 5: YAML syntax error"),
+        ("sweep:\n  t_end: ten\n", "sweep.t_end (in experiment/badexp.yaml): Value 'ten'"),
+    ],
+    ids=["syntax", "type"],
+)
 def test_bad_experiment_yaml_is_one_line_naming_the_file_and_key(tmp_path, text, message):
     (tmp_path / "conf" / "experiment").mkdir(parents=True)
     (tmp_path / "conf" / "experiment" / "badexp.yaml").write_text("# @package _global_\n" + text)

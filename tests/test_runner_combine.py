@@ -1,4 +1,5 @@
 """gyrolab-combine: tiles of one grid join along its axes; different scenes/options stack."""
+
 import numpy as np
 import pytest
 import xarray as xr

@@ -1,4 +1,5 @@
 """The grid numbers runs like the results' dims; chunks cover every run once, one method and dt each."""
+
 import numpy as np
 import pytest
 from hydra import compose, initialize_config_module
@@ -17,8 +18,14 @@ def grid_of(*overrides):
         return build_grid(compose("config", overrides=list(overrides)))
 
 
-GRID = ("sweep.method=[seed_next,rk4,lie_poisson]", "sweep.f=[1,10,50]", "sweep.theta0=[30,45]",
-        "sweep.dt=[1e-3,5e-4,1e-4]", "sweep.t_end=0.2", "output.every=1e-3")
+GRID = (
+    "sweep.method=[seed_next,rk4,lie_poisson]",
+    "sweep.f=[1,10,50]",
+    "sweep.theta0=[30,45]",
+    "sweep.dt=[1e-3,5e-4,1e-4]",
+    "sweep.t_end=0.2",
+    "output.every=1e-3",
+)
 
 
 def test_run_numbers_follow_the_dims_in_c_order():
@@ -53,8 +60,13 @@ def test_chunks_cover_every_run_once_with_one_method_each(threads, seconds):
 
 
 def test_small_dt_groups_are_pooled_not_left_as_tiny_chunks():
-    grid = grid_of("sweep.method=[seed_next]", "sweep.f=[10]", "sweep.theta0=[45]",
-                   "sweep.dt=[1e-3,5e-4,2.5e-4,2e-4,1e-4]", "sweep.t_end=0.1")
+    grid = grid_of(
+        "sweep.method=[seed_next]",
+        "sweep.f=[10]",
+        "sweep.theta0=[45]",
+        "sweep.dt=[1e-3,5e-4,2.5e-4,2e-4,1e-4]",
+        "sweep.t_end=0.1",
+    )
     (chunk,) = plan_chunks(grid, np.arange(grid.n_runs), 2, 1.0)
     assert sorted(chunk) == list(range(5))
 

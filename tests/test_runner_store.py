@@ -1,4 +1,5 @@
 """Lock, journal and results file: one writer, durable chunks, the results layout (gyrolab/layout.py)."""
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -16,8 +17,14 @@ register_configs()
 
 @pytest.fixture(scope="module")
 def grid():
-    overrides = ["sweep.method=[seed_next,seed_prev]", "sweep.f=[10,50]", "sweep.theta0=[45]",
-                 "sweep.dt=[1e-3,1e-4]", "sweep.t_end=0.05", "output.every=1e-3"]
+    overrides = [
+        "sweep.method=[seed_next,seed_prev]",
+        "sweep.f=[10,50]",
+        "sweep.theta0=[45]",
+        "sweep.dt=[1e-3,1e-4]",
+        "sweep.t_end=0.05",
+        "output.every=1e-3",
+    ]
     with initialize_config_module(config_module="gyrolab.conf", version_base=None):
         return build_grid(compose("config", overrides=overrides))
 
@@ -54,8 +61,16 @@ def test_results_file_layout_and_attrs(tmp_path, grid):
     path = tmp_path / "r.h5"
     write_results(path, grid, chunks, {"scene": "heavy_top", "config": "a: 1\n"})
     with xr.open_dataset(path, engine="h5netcdf") as ds:
-        assert dict(ds.sizes) == {"method": 2, "f": 2, "theta0": 1, "dt": 2, "time": 51, "xyz": 3, "quat": 4,
-                                  "body_param": len(BODY_FIELDS)}
+        assert dict(ds.sizes) == {
+            "method": 2,
+            "f": 2,
+            "theta0": 1,
+            "dt": 2,
+            "time": 51,
+            "xyz": 3,
+            "quat": 4,
+            "body_param": len(BODY_FIELDS),
+        }
         assert ds["axis"].dims == ("method", "f", "theta0", "dt", "time", "xyz")
         assert ds["status"].dtype == np.int8 and ds["n_steps"].dtype == np.int64
         assert list(ds["method"].values) == ["seed_next", "seed_prev"]

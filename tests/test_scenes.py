@@ -1,4 +1,5 @@
 """Scenes: bodies, initial states (docs/design.md) and clear errors for bad options."""
+
 import math
 
 import numpy as np
@@ -14,8 +15,9 @@ def test_heavy_top_seed_body():
     sc = build_scene("heavy_top", 10.0, 45.0)
     np.testing.assert_allclose(sc.body, (0.010625, 0.010625, 0.00125, 1.0), rtol=1e-15)
     sc = build_scene("heavy_top", 10.0, 45.0, M=2.0, r=0.1, l=0.3, g=9.81)
-    np.testing.assert_allclose(sc.body, (2 * (0.01 / 4 + 0.09), 2 * (0.01 / 4 + 0.09), 2 * 0.01 / 2, 2 * 9.81 * 0.3),
-                               rtol=1e-15)
+    np.testing.assert_allclose(
+        sc.body, (2 * (0.01 / 4 + 0.09), 2 * (0.01 / 4 + 0.09), 2 * 0.01 / 2, 2 * 9.81 * 0.3), rtol=1e-15
+    )
 
 
 @pytest.mark.parametrize("scene", sorted(SCENES))
@@ -125,8 +127,10 @@ def test_bad_options_name_the_key(scene, kwargs, key):
     assert key in message and "\n" not in message
 
 
-@pytest.mark.parametrize("f, theta0, key", [(-1.0, 45.0, "f=-1"), (10.0, 181.0, "theta0=181"),
-                                            (10.0, -5.0, "theta0=-5"), (float("inf"), 45.0, "f=inf")])
+@pytest.mark.parametrize(
+    "f, theta0, key",
+    [(-1.0, 45.0, "f=-1"), (10.0, 181.0, "theta0=181"), (10.0, -5.0, "theta0=-5"), (float("inf"), 45.0, "f=inf")],
+)
 def test_bad_spin_or_tilt_name_the_key(f, theta0, key):
     with pytest.raises(ValueError, match=key):
         build_scene("heavy_top", f, theta0)

@@ -15,6 +15,7 @@ the exact value) over the whole range; the test checks each part of that budget 
 including both ends.  It is not always the correctly rounded double (nor is libm's cos): that is what
 test_rotation's "≤ 2 ulp of libm" allows for.
 """
+
 from fractions import Fraction
 from math import factorial
 
@@ -42,11 +43,13 @@ def ulps(value, reference):
 def angles2():
     rng = np.random.default_rng(11)
     edge = SMALL_ANGLE * SMALL_ANGLE
-    a2 = np.concatenate([
-        rng.uniform(0.0, edge, 2000),
-        edge * 10.0 ** rng.uniform(-20, 0, 1000),
-        np.nextafter(edge, 0.0) - np.arange(1000) * np.spacing(edge),  # the top end, ulp by ulp
-    ])
+    a2 = np.concatenate(
+        [
+            rng.uniform(0.0, edge, 2000),
+            edge * 10.0 ** rng.uniform(-20, 0, 1000),
+            np.nextafter(edge, 0.0) - np.arange(1000) * np.spacing(edge),  # the top end, ulp by ulp
+        ]
+    )
     return np.concatenate([[0.0, 5e-324, 1e-300], a2])
 
 
@@ -86,8 +89,10 @@ def test_polynomial_is_faithfully_rounded_over_the_whole_range():
         assert c == 1.0 + t_c and s == 0.5 + t_s  # the same expression as rotation.py
         inner = max(ulps(1 + Fraction(t_c), c_exact), ulps(Fraction(1, 2) + Fraction(t_s), s_exact))
         worst_inner = max(worst_inner, inner)
-    print(f"max {worst_c:.3f} ulp (c), {worst_s:.3f} ulp (s), before the last rounding {worst_inner:.3f} ulp; "
-          f"correctly rounded {rounded / len(samples):.1%}")
+    print(
+        f"max {worst_c:.3f} ulp (c), {worst_s:.3f} ulp (s), before the last rounding {worst_inner:.3f} ulp; "
+        f"correctly rounded {rounded / len(samples):.1%}"
+    )
     assert worst_c < 1.0 and worst_s < 1.0
     assert worst_inner < 0.3
 

@@ -4,6 +4,7 @@ Files are built through the kernels and the layout (helpers.make_dataset): a dt 
 top (50 Hz, θ0 = 45°, released; final state at 1 s, dt = 1e-2/2^k) for the orders, long runs for
 the drift classes; the CLI's JSON schema and its one-line refusals of bad input.
 """
+
 import json
 import math
 import subprocess
@@ -17,7 +18,7 @@ from gyrolab.analysis import verdict as V
 from helpers import command, make_dataset
 
 TRUE_ORDER = {"seed_next": 1, "rk4": 4, "lie_poisson": 2, "lie_poisson4": 4}
-LADDER = [1e-2 / 2 ** k for k in range(13)]
+LADDER = [1e-2 / 2**k for k in range(13)]
 
 
 def write(ds, path):
@@ -34,16 +35,21 @@ def ladder_file(tmp_path_factory):
 @pytest.fixture(scope="module")
 def drift_files(tmp_path_factory):
     root = tmp_path_factory.mktemp("d")
-    a = make_dataset({"method": ["lie_poisson", "rk4"], "f": [50.0], "theta0": [45.0], "dt": [1e-3]},
-                     t_end=100.0, every=1e-2)
-    b = make_dataset({"method": ["explicit_euler"], "f": [50.0], "theta0": [45.0], "dt": [1e-5]},
-                     t_end=5.0, every=1e-3)
+    a = make_dataset(
+        {"method": ["lie_poisson", "rk4"], "f": [50.0], "theta0": [45.0], "dt": [1e-3]}, t_end=100.0, every=1e-2
+    )
+    b = make_dataset({"method": ["explicit_euler"], "f": [50.0], "theta0": [45.0], "dt": [1e-5]}, t_end=5.0, every=1e-3)
     return write(a, root / "long.h5"), write(b, root / "euler.h5")
 
 
 def run_cli(*args, tmp_path):
-    return subprocess.run(command("gyrolab-verdict", "gyrolab.analysis.verdict") + [str(a) for a in args],
-                          capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    return subprocess.run(
+        command("gyrolab-verdict", "gyrolab.analysis.verdict") + [str(a) for a in args],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=300,
+    )
 
 
 def records(paths, tmp_path, *extra):
@@ -122,8 +128,13 @@ def _bad_inputs(tmp_path, ladder_file):
     empty = tmp_path / "empty.h5"
     with xr.open_dataset(ladder_file, engine="h5netcdf") as ds:
         ds.load().isel(method=[]).to_netcdf(empty, engine="h5netcdf")
-    return {"missing": [tmp_path / "nope.h5"], "unreadable": [tmp_path / "notes.h5"], "foreign": [foreign],
-            "no runs": [empty], "empty dir": [tmp_path / "sub"]}
+    return {
+        "missing": [tmp_path / "nope.h5"],
+        "unreadable": [tmp_path / "notes.h5"],
+        "foreign": [foreign],
+        "no runs": [empty],
+        "empty dir": [tmp_path / "sub"],
+    }
 
 
 def test_bad_input_exits_2_with_one_line(ladder_file, tmp_path):
@@ -145,8 +156,15 @@ def test_bad_flags_exit_2(ladder_file, tmp_path):
 
 def test_stability_threshold_record(tmp_path):
     """rk4 on the free disc: |c| dt_crit = 2√2 on the imaginary axis (c = ω3 here)."""
-    path = write(make_dataset({"method": ["rk4"], "f": [10.0], "theta0": [30.0], "dt": [1e-3]},
-                              scene="free_symmetric", t_end=1.0, every=0.1), tmp_path / "disc.h5")
+    path = write(
+        make_dataset(
+            {"method": ["rk4"], "f": [10.0], "theta0": [30.0], "dt": [1e-3]},
+            scene="free_symmetric",
+            t_end=1.0,
+            every=0.1,
+        ),
+        tmp_path / "disc.h5",
+    )
     recs = records([path], tmp_path, "--stability", "10")
     thr = next(r for r in recs if r["kind"] == "threshold")
     omega = thr["omega"]
@@ -159,8 +177,10 @@ def test_stability_threshold_record(tmp_path):
 @pytest.mark.slow
 def test_seed_next_drift_at_50_hz_is_linear_at_the_issue_rate(tmp_path):
     """Issue 11: heavy top, θ0 = 45°, released, 50 Hz, dt = 1e-3 s, 400 s: linear, −3.2e-6 /s ± 10 %."""
-    path = write(make_dataset({"method": ["seed_next"], "f": [50.0], "theta0": [45.0], "dt": [1e-3]},
-                              t_end=400.0, every=0.1), tmp_path / "seed.h5")
+    path = write(
+        make_dataset({"method": ["seed_next"], "f": [50.0], "theta0": [45.0], "dt": [1e-3]}, t_end=400.0, every=0.1),
+        tmp_path / "seed.h5",
+    )
     recs = records([path], tmp_path)
     e = next(r for r in recs if r["kind"] == "summary" and r["quantity"] == "energy")
     assert e["drift_class"] == "linear" and e["drift_rate_unit"] == "1/s"

@@ -29,6 +29,7 @@ heavy top's gravity torque acts directly (Bullet would hold the pivot with a
 point-to-point constraint solved by sequential impulses, not reproduced).
 Order 1.
 """
+
 import math
 
 from numba import njit

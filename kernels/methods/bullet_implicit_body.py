@@ -22,6 +22,7 @@ rad of rotation per step (bullet_explicit).  Double precision (Bullet's
 default build is single).  The pivot is not a Bullet constraint here (see
 bullet_explicit).  Order 1.
 """
+
 from numba import njit
 
 from ..engine_common import gyro_bias, linearly_implicit_matrix, solve33
@@ -30,7 +31,9 @@ from .bullet_explicit import ANGULAR_MOTION_THRESHOLD, bullet_integrate_transfor
 
 ORDER = 1
 SYMPLECTIC = False
-REPRODUCES = "Bullet 3.25 implicit body-frame gyroscopic term"  # judged by conformance with the engine (tests/test_engines.py)
+REPRODUCES = (
+    "Bullet 3.25 implicit body-frame gyroscopic term"  # judged by conformance with the engine (tests/test_engines.py)
+)
 PRESERVES = ("L3",)
 
 

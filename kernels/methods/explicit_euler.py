@@ -9,6 +9,7 @@ for the verdict classifier (order 1, drift class "growing" / "linear").
 Source: Euler (1768), *Institutionum calculi integralis*; Hairer, Lubich &
 Wanner, *Geometric Numerical Integration* (2006), §I.1.
 """
+
 from numba import njit
 
 from ..rigid_body import euler_rhs, gravity_torque

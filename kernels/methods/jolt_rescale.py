@@ -26,6 +26,7 @@ single precision; this is double.  The pivot of the heavy top is a gravity
 torque here, not a Jolt point constraint.  Order 1 (of the bare scheme; with
 the clamp active it converges to a different motion).
 """
+
 import math
 
 from numba import njit
@@ -34,7 +35,9 @@ from ..engine_common import clamp_norm, exp_rotate, rescale_momentum_step, torqu
 
 ORDER = 1
 SYMPLECTIC = False
-REPRODUCES = "Jolt 5.5 gyroscopic |L|-rescale, shipped limits"  # judged by conformance with the engine (tests/test_engines.py)
+REPRODUCES = (
+    "Jolt 5.5 gyroscopic |L|-rescale, shipped limits"  # judged by conformance with the engine (tests/test_engines.py)
+)
 # The clamp and the damping change |L| even on a free body, so nothing is kept to rounding.
 PRESERVES = ()
 

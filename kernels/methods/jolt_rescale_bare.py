@@ -12,6 +12,7 @@ Torque-free, |L| is kept to rounding, but the explicit step does not keep
 the energy: it drifts toward L²/(2 I2), the intermediate axis (avian PR
 #993; measured in tests/test_engines.py).  Order 1.
 """
+
 import math
 
 from numba import njit
@@ -20,7 +21,9 @@ from .jolt_rescale import jolt_step
 
 ORDER = 1
 SYMPLECTIC = False
-REPRODUCES = "Jolt 5.5 gyroscopic |L|-rescale, no limits"  # judged by conformance with the engine (tests/test_engines.py)
+REPRODUCES = (
+    "Jolt 5.5 gyroscopic |L|-rescale, no limits"  # judged by conformance with the engine (tests/test_engines.py)
+)
 PRESERVES = ("L_norm",)
 
 

@@ -5,6 +5,7 @@ symmetric body, axis sub-splitting otherwise; see free_flow.py), half kick.
 Symplectic on T*SO(3), so the energy error stays bounded with no drift.
 Source: McLachlan (1993), Dullweber, Leimkuhler & McLachlan (1997).
 """
+
 from numba import njit
 
 from ..free_flow import free_flow, kick

@@ -4,6 +4,7 @@ S(w1 dt) S(w0 dt) S(w1 dt) with w1 = 1/(2 − 2^(1/3)), w0 = 1 − 2 w1, where S
 the symmetric second-order lie_poisson step.  Symplectic; the middle substep
 runs backwards in time.  Source: Yoshida (1990), Suzuki (1990).
 """
+
 from numba import njit
 
 from .lie_poisson import step as strang_step

@@ -11,6 +11,7 @@ control that shows what seed_next's RK4 ω update costs.
 Source: Trotter (1959), Proc. AMS 10, 545; McLachlan (1993), Phys. Rev. Lett.
 71, 3043; Dullweber, Leimkuhler & McLachlan (1997), J. Chem. Phys. 107, 5840.
 """
+
 from numba import njit
 
 from ..free_flow import free_flow, kick

@@ -19,6 +19,7 @@ update.  No hidden limits (MuJoCo clamps nothing; it only warns on NaN).
 norm.  With joint damping MuJoCo's Euler is implicit in the damping; the
 rigid body has none, so that branch is not reproduced.  Order 1.
 """
+
 from numba import njit
 
 from ..engine_common import gyro_bias, mj_normalize4, mj_quat_integrate

@@ -19,6 +19,7 @@ not MuJoCo's reverse-order sparse LU (differences at rounding).  It damps a
 tumbling body (MuJoCo's docs: "at a rate scaling like (h|ω|)² per step").
 No hidden limits.  Order 1.
 """
+
 from numba import njit
 
 from ..engine_common import (

@@ -20,6 +20,7 @@ that is part of a larger tree, or a ball-jointed body without gravity, would
 take the first branch in MuJoCo; gyrolab's body tuple cannot express those.
 No hidden limits.  Order 1.
 """
+
 from numba import njit
 
 from ..engine_common import mj_quat_integrate

@@ -22,6 +22,7 @@ summed in MuJoCo's order (dX = 0; dX += xᵢ bᵢ).  No hidden limits.  Order 4.
 The 3.12 variant (no dexp⁻¹) is second order on a body whose ω turns: its
 dropped commutator is h³ [ω, ω̇]/6 per step.
 """
+
 from numba import njit
 
 from ..engine_common import dexp_inv, mj_quat_integrate

@@ -24,13 +24,16 @@ or the tennis-racket flip; with gravity it is first order for a different
 equation (I ω̇ = τ) unless I1 = I2 = I3.  No velocity caps.  Order 1 (for
 that equation).
 """
+
 from numba import njit
 
 from ..engine_common import exp_rotate, torque_kick
 
 ORDER = 1
 SYMPLECTIC = False
-REPRODUCES = "PhysX / Godot default: no gyroscopic term"  # judged by conformance with the engine (tests/test_engines.py)
+REPRODUCES = (
+    "PhysX / Godot default: no gyroscopic term"  # judged by conformance with the engine (tests/test_engines.py)
+)
 # Torque-free, ω is constant: |L| = |Iω| and L3 are kept exactly (the scene's lab L is not);
 # with gravity, τ3 = 0 keeps ω3 for any body.
 PRESERVES = ("L_norm", "L3")

@@ -17,6 +17,7 @@ gyroscopic correction is opt-in (``enable_gyroscopic_forces``).  Rapier's
 f32 build is the default; this is double.  avian (Bevy) does the same
 correction (its PR #993 reports the drift toward L²/(2 I2)).  Order 1.
 """
+
 import math
 
 from numba import njit

@@ -4,6 +4,7 @@ q̇ = ½ q ⊗ (0, ω) and I ω̇ = τ(q) − ω × Iω, both stages of every RK
 substep see the torque of the current stage orientation.  The quaternion is
 renormalised after each step (a projection, so not symplectic).
 """
+
 from numba import njit
 
 from ..rigid_body import euler_rhs, gravity_torque

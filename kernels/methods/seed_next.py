@@ -5,6 +5,7 @@ with that torque frozen, giving ω(t+dt); then R(t+dt) = R(t) · CK(ω(t+dt) dt)
 Source: the write-up's eq. (8) and its argument around eq. (9) for using
 ω(t+dt).  Freezing the torque over the step makes it first order overall.
 """
+
 from numba import njit
 
 from ..rigid_body import euler_rhs, gravity_torque

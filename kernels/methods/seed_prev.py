@@ -3,6 +3,7 @@
 Same RK4 update of ω as seed_next, but R(t+dt) = R(t) · CK(ω(t) dt).  The
 write-up reports that this loses energy and lets the precession sink.
 """
+
 from numba import njit
 
 from ..rigid_body import gravity_torque

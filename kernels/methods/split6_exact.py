@@ -10,6 +10,7 @@ Source: H. Yoshida, "Construction of higher order symplectic integrators",
 Phys. Lett. A 150 (1990) 262, Table 1 (solution A); the exact free flow as in
 Celledoni, Fassò, Säfström & Zanna, SIAM J. Sci. Comput. 30 (2008) 2084.
 """
+
 from numba import njit
 
 from ..euler_poinsot import free_flow_exact

@@ -9,6 +9,7 @@ any dt, energy included; with gravity it is a symmetric, symplectic
 Zanna, SIAM J. Sci. Comput. 30 (2008) 2084, §4 (splitting with the exact free
 rigid body flow); Strang (1968); Dullweber, Leimkuhler & McLachlan (1997).
 """
+
 from numba import njit
 
 from ..euler_poinsot import free_flow_exact

@@ -8,6 +8,7 @@ is the exact solution to rounding at any dt.  Source: Yoshida, Phys. Lett. A
 150 (1990) 262; Suzuki (1990); with the exact free flow as in Celledoni,
 Fassò, Säfström & Zanna, SIAM J. Sci. Comput. 30 (2008) 2084.
 """
+
 from numba import njit
 
 from ..euler_poinsot import free_flow_exact

@@ -16,6 +16,7 @@ A scene is one module here plus ``conf/scene/<name>.yaml`` and one line in
 What a scene declares through its body is all the kernels compute: M g l = 0
 skips the torque, I1 = I2 takes the closed-form free flow.
 """
+
 import importlib
 
 from ..invariants import check_names
@@ -60,10 +61,7 @@ def build_scene(name, f, theta0, **options):
     module = get_scene(name)
     unknown = sorted(set(options) - set(module.OPTIONS))
     if unknown:
-        raise ValueError(
-            f"scene.{unknown[0]}: not an option of scene {name!r} "
-            f"(options: {', '.join(module.OPTIONS)})"
-        )
+        raise ValueError(f"scene.{unknown[0]}: not an option of scene {name!r} (options: {', '.join(module.OPTIONS)})")
     merged = {**module.OPTIONS, **options}
     check_finite({"f": f, "theta0": theta0, **merged})
     if f < 0:

@@ -1,4 +1,5 @@
 """Pieces every scene uses: the Scene record and the initial tilt."""
+
 import math
 from dataclasses import dataclass
 

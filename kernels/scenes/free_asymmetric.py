@@ -7,6 +7,7 @@ with ω3 = 2πf; the flips come every ~ ln(1/eps) / (ω3 √(...)) seconds.
 This is where methods fail differently: the flip times are exponentially
 sensitive to errors.
 """
+
 from ..body import Body
 from .common import Scene, check_positive, check_triangle, tilt_quaternion
 

@@ -11,6 +11,7 @@ gets M g l for the torque.  Initial states (docs/design.md, "Scenes"), all with 
   M g l = φ̇ (I3 ω3 − I1 φ̇ cos θ0) (Goldstein 5.77), so θ stays at θ0;
 - sleeping: release at θ0 = 0 (upright).
 """
+
 import math
 
 from ..body import Body

@@ -18,6 +18,7 @@ Without options nothing is written.  The regression tests
 (tests/test_regression.py) import ``run_config``, ``DATASETS``, ``stored_path``
 and ``SCALED_TOL`` from here.
 """
+
 import argparse
 import os
 import shutil
@@ -30,8 +31,14 @@ DATA_DIR = Path(__file__).resolve().parent
 STORE = DATA_DIR / "regression"
 PINNED = ("heavy_top_release", "heavy_top_steady", "free_symmetric", "free_asymmetric")
 # The grid of the dataset of a scene no pinned config uses: short, so the chaos stays out.
-SCENE_OVERRIDES = ("sweep.f=[10]", "sweep.theta0=[30]", "sweep.dt=[1e-3]", "sweep.t_end=1", "output.every=1e-2",
-                   "output.figures=false")
+SCENE_OVERRIDES = (
+    "sweep.f=[10]",
+    "sweep.theta0=[30]",
+    "sweep.dt=[1e-3]",
+    "sweep.t_end=1",
+    "output.every=1e-2",
+    "output.figures=false",
+)
 ADD_COMMAND = "python tests/data/regenerate.py --add"
 
 # Regression tolerance (see tests/data/README.md): a value passes when
@@ -86,7 +93,7 @@ def gyrolab_command():
 def config_overrides(name):
     """The overrides that select dataset ``name``'s config."""
     if name.startswith("scene_"):
-        return [f"scene={name[len('scene_'):]}", *SCENE_OVERRIDES]
+        return [f"scene={name[len('scene_') :]}", *SCENE_OVERRIDES]
     return [f"experiment=regression_{name}"]
 
 
@@ -96,9 +103,15 @@ def run_config(name, method, out, workdir, overrides=()):
     with gyrolab's stderr if the command fails."""
     methods = method if isinstance(method, (list, tuple)) else [method]
     tag = method if isinstance(method, str) else "all"
-    cmd = [gyrolab_command(), *config_overrides(name), f"sweep.method=[{','.join(methods)}]",
-           f"output.path={Path(out).resolve()}", "output.overwrite=true",
-           f"hydra.run.dir={Path(workdir).resolve() / f'run_{name}_{tag}'}", *overrides]
+    cmd = [
+        gyrolab_command(),
+        *config_overrides(name),
+        f"sweep.method=[{','.join(methods)}]",
+        f"output.path={Path(out).resolve()}",
+        "output.overwrite=true",
+        f"hydra.run.dir={Path(workdir).resolve() / f'run_{name}_{tag}'}",
+        *overrides,
+    ]
     done = subprocess.run(cmd, capture_output=True, text=True, cwd=workdir)
     if done.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} exited {done.returncode}: {done.stderr.strip()[-2000:]}")
@@ -140,9 +153,13 @@ def _targets(words, methods):
     for word in words:
         name, _, method = word.partition(":")
         if name not in DATASETS:
-            raise SystemExit(f"regenerate.py: error: {name}: not a regression dataset; choose from {', '.join(DATASETS)}")
+            raise SystemExit(
+                f"regenerate.py: error: {name}: not a regression dataset; choose from {', '.join(DATASETS)}"
+            )
         if method and method not in methods:
-            raise SystemExit(f"regenerate.py: error: {method}: not a registered method; choose from {', '.join(methods)}")
+            raise SystemExit(
+                f"regenerate.py: error: {method}: not a registered method; choose from {', '.join(methods)}"
+            )
         pairs += [(name, m) for m in ([method] if method else methods)]
     return pairs
 
@@ -159,8 +176,12 @@ def main(argv=None):
     from gyrolab.analysis.compare import CompareError, compare_files
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("targets", nargs="*", metavar="NAME[:METHOD]",
-                        help=f"datasets (default all: {', '.join(DATASETS)}), optionally one method of one")
+    parser.add_argument(
+        "targets",
+        nargs="*",
+        metavar="NAME[:METHOD]",
+        help=f"datasets (default all: {', '.join(DATASETS)}), optionally one method of one",
+    )
     what = parser.add_mutually_exclusive_group()
     what.add_argument("--add", action="store_true", help="write only the files that are missing")
     what.add_argument("--write", action="store_true", help="replace the named stored files (default: only compare)")
@@ -187,8 +208,10 @@ def main(argv=None):
             if args.write or args.add:
                 _store(new, old)
     total = sum(p.stat().st_size for p in STORE.rglob("*.h5"))
-    print(f"stored datasets: {total / 1024:.0f} kB in all"
-          + ("" if args.write or args.add else " (nothing written: add --add or --write)"))
+    print(
+        f"stored datasets: {total / 1024:.0f} kB in all"
+        + ("" if args.write or args.add else " (nothing written: add --add or --write)")
+    )
 
 
 if __name__ == "__main__":

@@ -16,6 +16,7 @@ and the largest |change| of each variable is printed divided by the largest
 |value| of that variable in the stored file: the quantity the regression
 tolerance (SCALED_TOL in regenerate.py) bounds.
 """
+
 import numpy as np
 import xarray as xr
 import yaml
@@ -41,8 +42,16 @@ def runs(ds):
             for theta0 in ds["theta0"].values:
                 for dt in ds["dt"].values:
                     stride, n = sample_schedule(float(dt), config["output"]["every"], config["sweep"]["t_end"])
-                    yield (m, f, theta0, dt, build_scene(name, float(f), float(theta0), **options), stride, n,
-                           config["runner"]["divergence_threshold"])
+                    yield (
+                        m,
+                        f,
+                        theta0,
+                        dt,
+                        build_scene(name, float(f), float(theta0), **options),
+                        stride,
+                        n,
+                        config["runner"]["divergence_threshold"],
+                    )
 
 
 def scaled_change(ds, perturb=None, kernel=None, only=None):
@@ -58,8 +67,17 @@ def scaled_change(ds, perturb=None, kernel=None, only=None):
             samples = integrate(m, np.array([sc.body]), w0, q0, h, stride, n, threshold)[0]
         else:
             samples = np.empty((1, n, N_FIELDS))
-            kernel(w0, q0, np.array([sc.body]), np.array([h]), np.array([stride]), threshold, samples,
-                   np.zeros(1, np.int8), np.zeros(1, np.int64))
+            kernel(
+                w0,
+                q0,
+                np.array([sc.body]),
+                np.array([h]),
+                np.array([stride]),
+                threshold,
+                samples,
+                np.zeros(1, np.int8),
+                np.zeros(1, np.int64),
+            )
         stored = ds.sel({"method": m, "f": f, "theta0": theta0, "dt": dt})
         for var, values in sample_variables(samples[0]).items():
             change = np.nanmax(np.abs(values - stored[var].values)) / np.nanmax(np.abs(ds[var].values))
@@ -84,16 +102,22 @@ def main():
     from gyrolab.kernels.registry import METHODS
 
     for name in DATASETS:
-        ds = xr.concat([xr.open_dataset(stored_path(name, m), engine="h5netcdf").load() for m in METHODS],
-                       dim="method", data_vars="minimal", coords="minimal", compat="override",
-                       combine_attrs="override")
+        ds = xr.concat(
+            [xr.open_dataset(stored_path(name, m), engine="h5netcdf").load() for m in METHODS],
+            dim="method",
+            data_vars="minimal",
+            coords="minimal",
+            compat="override",
+            combine_attrs="override",
+        )
         print(f"{name}")
         rows = {"rerun as is": scaled_change(ds)}
         rows.update({label: scaled_change(ds, perturb=p) for label, p in PERTURBATIONS.items()})
         rows.update({label: scaled_change(ds, kernel=k, only="lie_poisson4") for label, k in kernels.items()})
         for label, worst in rows.items():
-            print(f"  {label:30s} max {max(worst.values()):8.1e}   "
-                  + " ".join(f"{v}={e:.0e}" for v, e in worst.items()))
+            print(
+                f"  {label:30s} max {max(worst.values()):8.1e}   " + " ".join(f"{v}={e:.0e}" for v, e in worst.items())
+            )
 
 
 if __name__ == "__main__":
