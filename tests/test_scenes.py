@@ -144,3 +144,13 @@ def test_unknown_scene_names_the_choices():
 def test_steady_without_spin_is_refused():
     with pytest.raises(ValueError, match="f=0"):
         build_scene("heavy_top", 0.0, 45.0, init="steady_slow")
+
+
+def test_published_unphysical_bodies_need_the_recorded_opt_in():
+    """Principia's Dzhanibekov body I = (3, 5, 9) breaks the triangle inequality: refused by default,
+    built with allow_unphysical=True (an option, so the runner stores it in the file attrs)."""
+    with pytest.raises(ValueError, match="triangle inequality.*allow_unphysical=true"):
+        build_scene("free_asymmetric", 1.0, 20.0, I1=3.0, I2=5.0, I3=9.0)
+    sc = build_scene("free_asymmetric", 1.0, 20.0, I1=3.0, I2=5.0, I3=9.0, allow_unphysical=True)
+    assert tuple(sc.body[:3]) == (3.0, 5.0, 9.0)
+    assert "allow_unphysical" in SCENES["free_asymmetric"].OPTIONS

@@ -60,5 +60,5 @@ def check_triangle(I1, I2, I3):
         if a + b < c:
             raise ValueError(
                 f"scene.{name}={c}: violates the triangle inequality of principal moments "
-                f"({a} + {b} < {c}); no rigid body has these moments"
+                f"({a} + {b} < {c}); no rigid body has these moments (scene.allow_unphysical=true runs them anyway)"
             )
