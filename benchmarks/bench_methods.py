@@ -1,0 +1,59 @@
+"""ns per step of chosen methods through the public batch entry, for A/B runs across versions.
+
+    python benchmarks/bench_methods.py --methods seed_next,rk4,lie_poisson --repeat 7
+
+Only ``gyrolab.kernels.batch.integrate`` and ``gyrolab.kernels.scenes.build_scene`` are used, so the
+same script times any gyrolab version (run it with each version's interpreter, alternately, and
+compare medians taken under the same load).  Rows: scene x method x path (256 runs in blocks on all
+numba threads; 256 runs one by one); heavy top f = 10 Hz, free asymmetric box f = 10 Hz, θ0 = 45°,
+dt = 1e-4 s, 2000 steps per run, aggregate ns per step over all runs (median of --repeat after a
+warm-up call that compiles or loads the kernels).
+"""
+
+import argparse
+import statistics
+import time
+
+import numba
+import numpy as np
+
+from gyrolab.kernels.batch import integrate
+from gyrolab.kernels.scenes import build_scene
+
+
+def time_path(method, scene, path, runs, steps, repeat):
+    sc = build_scene(scene, 10.0, 45.0)
+    args = (
+        np.tile(sc.body, (runs, 1)),
+        np.tile(sc.omega0, (runs, 1)) * np.linspace(0.9, 1.1, runs)[:, None],
+        np.tile(sc.q0, (runs, 1)),
+        1e-4,
+        steps // 4,
+        5,
+        1e9,
+    )
+    integrate(method, *args, path=path)
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        integrate(method, *args, path=path)
+        times.append(time.perf_counter() - start)
+    return statistics.median(times) / (runs * steps) * 1e9
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--methods", default="seed_next,seed_prev,rk4,lie_poisson,lie_poisson4")
+    parser.add_argument("--runs", type=int, default=256)
+    parser.add_argument("--steps", type=int, default=2000)
+    parser.add_argument("--repeat", type=int, default=7)
+    args = parser.parse_args()
+    print(f"threads {numba.get_num_threads()}; ns/step aggregate, median of {args.repeat}")
+    for scene in ("heavy_top", "free_asymmetric"):
+        for method in args.methods.split(","):
+            row = [time_path(method, scene, path, args.runs, args.steps, args.repeat) for path in ("blocks", "runs")]
+            print(f"{scene:16s} {method:13s} blocks {row[0]:7.2f}  runs {row[1]:7.2f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
