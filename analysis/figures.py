@@ -22,19 +22,25 @@ from pathlib import Path
 from .figure import Figure  # noqa: F401 (the record each figure module defines)
 from .io import open_results
 
+# One line per figure kind: "<module of analysis/>.<its Figure record>".
+ENTRIES = (
+    "nutation.THETA",
+    "nutation.TIP",
+    "energy.DRIFT",
+    "energy.INVARIANTS",
+    "work_precision.FIGURE",
+    "stability.FIGURE",
+    "animation.FIGURE",
+)
+
 
 def _registry():
-    from . import animation, energy, nutation, stability, work_precision
+    import importlib
 
-    figures = (
-        nutation.THETA,
-        nutation.TIP,
-        energy.DRIFT,
-        energy.INVARIANTS,
-        work_precision.FIGURE,
-        stability.FIGURE,
-        animation.FIGURE,
-    )
+    figures = []
+    for entry in ENTRIES:
+        module, _, record = entry.partition(".")
+        figures.append(getattr(importlib.import_module(f".{module}", __package__), record))
     return {f.name: f for f in figures}
 
 
