@@ -108,7 +108,9 @@ def run(args, notes=None):
     if kind == "seed":
         from .seed_figures import seed_figures
 
-        out = Path(args.output or Path(args.file[0]) / "seed_figures.png")
+        first = Path(args.file[0])
+        # next to a results file given as FILE, inside a multirun directory given as DIR
+        out = Path(args.output or (first.parent if first.is_file() else first) / "seed_figures.png")
         return seed_figures(args.file, out, formats=args.format)
     figure = FIGURES[kind]  # argparse has already refused anything else
     ds = open_results(args.file)

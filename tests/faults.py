@@ -53,7 +53,9 @@ def _foreign_netcdf(path, good):
 def _no_layout_version(path, good):
     with xr.open_dataset(good, engine="h5netcdf") as ds:
         ds = ds.load()
-    ds.attrs.pop("layout_version")
+    # no layout version and no provenance: not a layout-0 gyrolab file either (those are read)
+    for key in ("layout_version", "gyrolab_version"):
+        ds.attrs.pop(key, None)
     ds.to_netcdf(path, engine="h5netcdf")
 
 

@@ -24,7 +24,7 @@ from gyrolab.kernels.rigid_body import gravity_torque
 from gyrolab.kernels.rotation import ck_matrix, lab_up_in_body, quat_from_rotvec, quat_mul
 from gyrolab.kernels.scenes import build_scene
 
-from helpers import own_methods
+from helpers import CONTROL_FAILURES, own_methods
 
 # seed_prev pumps energy into the top (see test_seed_prev_gains_energy_as_predicted):
 # over 2 s at dt = 1e-4 its θ extrema are off by 6–20 %, far beyond a first-order
@@ -32,8 +32,13 @@ from helpers import own_methods
 SEED_PREV_PUMPS = "seed_prev gains energy at O(dt) per unit time (measured: θ_min off by 6-20 % after 2 s)"
 
 
+# The closed forms and DOP853 agree to ~1e-11 (test_heavy_top's references): a bound below that would
+# test the references' rounding, not the method (split6_exact's (ω3 dt)^6 is 1e-16 at 10 Hz).
+REFERENCE_FLOOR = 1e-10
+
+
 def order_tolerance(name, omega3, dt):
-    return (omega3 * dt) ** METHODS[name].ORDER
+    return max((omega3 * dt) ** METHODS[name].ORDER, REFERENCE_FLOOR)
 
 
 # ---------------------------------------------------------------- gravity's sign
@@ -198,7 +203,7 @@ def test_dop853_matches_closed_form(regime):
 
 
 @pytest.mark.parametrize("regime", REGIMES)
-@pytest.mark.parametrize("name", own_methods({"seed_prev": SEED_PREV_PUMPS}))
+@pytest.mark.parametrize("name", own_methods({"seed_prev": SEED_PREV_PUMPS, **CONTROL_FAILURES}))
 def test_method_matches_closed_form(name, regime, run_scene):
     """θ_min, θ_max, nutation period, mean precession within (ω3 dt)^ORDER relative at dt = 1e-4 s.
 
@@ -215,7 +220,7 @@ def test_method_matches_closed_form(name, regime, run_scene):
 
 
 @pytest.mark.parametrize("f, init", [(23.0, "steady_fast"), (50.0, "steady_slow"), (50.0, "steady_fast")])
-@pytest.mark.parametrize("name", own_methods({"seed_prev": SEED_PREV_PUMPS}))
+@pytest.mark.parametrize("name", own_methods({"seed_prev": SEED_PREV_PUMPS, **CONTROL_FAILURES}))
 def test_steady_precession_keeps_theta(name, f, init, run_scene):
     """θ stays at θ0 = 45° for 2 s at dt = 1e-4: within 1e-6 rad for ORDER ≥ 2, (ω3 dt) rad for first order.
 

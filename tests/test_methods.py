@@ -16,6 +16,7 @@ import pytest
 from numba.core.dispatcher import Dispatcher
 
 import gyrolab
+from gyrolab.analysis.classify import fit_order
 from gyrolab.kernels.batch import MIN_BLOCK_RUNS, integrate
 from gyrolab.kernels.closed_form import free_symmetric_solution
 from gyrolab.kernels.invariants import INVARIANTS
@@ -24,7 +25,7 @@ from gyrolab.kernels.registry import METHODS, register
 from gyrolab.kernels.rotation import ck_matrix
 from gyrolab.kernels.scenes import build_scene
 
-from helpers import method_params, own_methods
+from helpers import CONTROL_FAILURES, method_params, own_methods
 
 # Error level below which a run is at its rounding floor, not its truncation error
 # (measured floors: 1e-13 .. 4e-11 over up to 2e5 steps).
@@ -135,7 +136,7 @@ def test_free_closed_form_matches_dop853():
         np.testing.assert_allclose(omega[0], sc.omega0, atol=0)
 
 
-@pytest.mark.parametrize("name", own_methods())
+@pytest.mark.parametrize("name", own_methods(CONTROL_FAILURES))
 def test_free_top_matches_closed_form(name, run_scene):
     """Free disc, f = 10 Hz, θ0 = 30°, wobble 0.1, 1 s, dt = 1e-3, 5e-4, 2.5e-4: axis and ω/ω3 within
     (ω3 dt)^ORDER + 1e-11 of the exact solution, and the error shrinks by 2^ORDER per halving (30 % slack)
@@ -166,7 +167,7 @@ def test_free_top_matches_closed_form(name, run_scene):
         # not that of the asymmetric box
         for m, p in (
             (q.values[0] if hasattr(q, "values") else q, q if hasattr(q, "values") else pytest.param(q))
-            for q in own_methods()
+            for q in own_methods(CONTROL_FAILURES)
         )
     ],
 )
@@ -249,12 +250,16 @@ def test_measured_order_matches_declared(name, case):
     dts = 1e-2 / 2.0 ** np.arange(14)
     errors = final_state_errors(name, sc, reference, dts, t_end)
     if sc.body.mgl == 0.0 and getattr(METHODS[name], "FREE_EXACT", False):
-        assert np.nanmax(errors) <= 1e-11, errors  # the exact flow: DOP853's own error, at every dt
+        # the exact flow at every dt: no truncation error even at the coarsest step (a second-order
+        # splitting is at ~1e-3 there), only rounding, accumulated over up to 8192 steps of up to 7 exact
+        # flows (measured: 7e-13 .. 9e-13 after one step of 1e-2 s; 1.8e-10 .. 1.1e-9 after 8192 steps)
+        assert errors[0] <= 1e-11 and np.nanmax(errors) <= 1e-8, errors
         return
-    usable = np.nonzero(errors > 1e-9)[0][-4:]
-    assert len(usable) == 4, errors
-    slope = np.polyfit(np.log(dts[usable]), np.log(errors[usable]), 1)[0]
-    assert abs(slope - expected_order(METHODS[name], sc)) <= 0.3, (slope, errors)
+    # classify.fit_order: the slope over the asymptotic range, round-off floor and pre-asymptotic
+    # steps excluded (a sixth-order method reaches rounding within a few halvings)
+    fit = fit_order(dts, errors)
+    assert fit.n_points >= 3, (fit.reason, errors)
+    assert abs(fit.order - expected_order(METHODS[name], sc)) <= 0.3, (fit.order, errors)
 
 
 def expected_order(module, scene):
@@ -277,4 +282,6 @@ def test_symplectic_energy_is_bounded(name, run_scene):
     rel = np.abs(s[:, 6] / s[0, 6] - 1)
     n = len(rel) // 10
     assert rel.max() <= order_tolerance(name, sc.omega0[2], 1e-3)
-    assert rel[-n:].max() <= 1.1 * rel[:n].max()
+    # no secular drift: the last 10 s within 10 % of the first (plus a rounding floor: split6_exact's
+    # energy error is ~1e-12, where rounding, not the method, sets the level)
+    assert rel[-n:].max() <= 1.1 * rel[:n].max() + 1e-11
