@@ -31,18 +31,10 @@ import time
 import numpy as np
 from numba import get_num_threads, njit, prange, set_num_threads
 
-ENGINE_METHODS = (
-    "mujoco_euler",
-    "mujoco_implicitfast",
-    "mujoco_implicit",
-    "mujoco_rk4",
-    "bullet_explicit",
-    "bullet_implicit_body",
-    "jolt_rescale",
-    "jolt_rescale_bare",
-    "rapier_rescale",
-    "no_gyro",
-)
+from gyrolab.kernels.registry import METHODS
+
+# every registered reproduction of an engine scheme (kernels/methods README: REPRODUCES)
+ENGINE_METHODS = tuple(name for name, module in METHODS.items() if getattr(module, "REPRODUCES", ""))
 OWN_METHODS = ("rk4", "lie_poisson")
 
 M, R_DISC, ARM, G = 1.0, 0.05, 0.1, 10.0

@@ -17,7 +17,6 @@ The methods are not registered yet, so each is driven by its ``step`` in a
 small njit loop defined here.
 """
 
-import importlib
 import math
 
 import numpy as np
@@ -25,19 +24,11 @@ import pytest
 from numba import njit
 from scipy.integrate import solve_ivp
 
-ENGINE_METHODS = (
-    "mujoco_euler",
-    "mujoco_implicitfast",
-    "mujoco_implicit",
-    "mujoco_rk4",
-    "bullet_explicit",
-    "bullet_implicit_body",
-    "jolt_rescale",
-    "jolt_rescale_bare",
-    "rapier_rescale",
-    "no_gyro",
-)
-MODULES = {name: importlib.import_module(f"gyrolab.kernels.methods.{name}") for name in ENGINE_METHODS}
+from gyrolab.kernels.registry import METHODS
+
+# every registered reproduction of an engine scheme (kernels/methods README: REPRODUCES)
+ENGINE_METHODS = tuple(name for name, module in METHODS.items() if getattr(module, "REPRODUCES", ""))
+MODULES = {name: METHODS[name] for name in ENGINE_METHODS}
 INVARIANT_NAMES = ("energy", "L", "L_norm", "Lz", "L3")
 MJ_INTEGRATOR = {
     "Euler": "mujoco_euler",
