@@ -95,7 +95,7 @@ def run(args, notes=None):
     """Make the figure ``args.kind``; return the written path(s).  ``notes`` (a list) receives the
     figure's selection notes, with FILE replaced by the file's path."""
     from .figures import FIGURES
-    from .io import open_results, parse_selection
+    from .io import SelectionError, open_results, parse_selection
 
     kind = args.kind
     _check_output(args)
@@ -104,7 +104,10 @@ def run(args, notes=None):
 
         out = args.output or Path(args.file).parent / "figures"
         open_results(args.file)  # a clear error before anything is written
-        return standard_figures(args.file, out, log=lambda line: print(line.replace("gyrolab:", "gyrolab-plot:", 1)))
+        paths = standard_figures(args.file, out, log=lambda line: print(line.replace("gyrolab:", "gyrolab-plot:", 1)))
+        if not paths:  # every figure failed (each said why on stderr): not a success
+            raise SelectionError(f"FILE={args.file}: no figure could be drawn from it")
+        return paths
     if kind == "seed":
         from .seed_figures import seed_figures
 

@@ -60,3 +60,15 @@ def test_a_newer_layout_is_refused_in_one_line(files, tmp_path):
     ds.to_netcdf(path, engine="h5netcdf")
     with pytest.raises(SelectionError, match="newer than this gyrolab reads"):
         open_results(path)
+
+
+def test_plot_standard_that_draws_nothing_exits_2(files, tmp_path, monkeypatch, capsys):
+    """`gyrolab-plot standard` whose every figure fails is not a success: one line, exit 2."""
+    from gyrolab.analysis import cli, figures
+
+    monkeypatch.setattr(figures, "standard_figures", lambda *args, **kwargs: [])
+    with pytest.raises(SystemExit) as done:
+        cli.main(["standard", str(files[0]), "-o", str(tmp_path / "figs")])
+    assert done.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no figure could be drawn" in err[0]
