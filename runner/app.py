@@ -76,14 +76,35 @@ class Interrupted(KeyboardInterrupt):
         self.signum = signum
 
 
+# Signals received, in order.  The exception a handler raises can land inside a finalizer (a weakref
+# callback), where Python prints "Exception ignored" and carries on: the sweep would then finish as if
+# never signalled.  raise_pending() raises it again at the points where a sweep commits work.
+_PENDING = []
+
+
 def _raise_interrupted(signum, frame):
+    _PENDING.append(signum)
     raise Interrupted(signum)
 
 
+def _raise_keyboard_interrupt(signum, frame):
+    _PENDING.append(signum)
+    raise KeyboardInterrupt
+
+
+def raise_pending():
+    """Raise the interrupt of a signal whose exception was swallowed; nothing when none came."""
+    if _PENDING:
+        raise KeyboardInterrupt if _PENDING[0] == signal.SIGINT else Interrupted(_PENDING[0])
+
+
 def handle_signals():
-    """SIGTERM and SIGHUP interrupt like Ctrl-C (KeyboardInterrupt)."""
+    """SIGTERM and SIGHUP interrupt like Ctrl-C (KeyboardInterrupt); every one is also recorded for
+    raise_pending.  SIGINT keeps Python's meaning, and stays ignored where it was ignored at start."""
     for sig in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, _raise_interrupted)
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, _raise_keyboard_interrupt)
 
 
 def ignore_signals():
@@ -451,7 +472,8 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
             run_missing(grid, journal, todo, threads, cfg.runner.chunk_seconds, number, progress)
         computing = time.perf_counter() - start
         bar.close()
-        assemble(out, grid, journal, file_attrs(cfg, grid, threads, chash))
+        raise_pending()  # a signal swallowed during integration
+        assemble(out, grid, journal, file_attrs(cfg, grid, threads, chash), before_replace=raise_pending)
     except KeyboardInterrupt as err:
         ignore_signals()
         bar.close()

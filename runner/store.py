@@ -83,15 +83,18 @@ def remove_stale_temporaries(path):
     return removed
 
 
-def atomic_replace(path, write_to):
+def atomic_replace(path, write_to, before_replace=None):
     """Call ``write_to(tmp_path)``, fsync that file and rename it to ``path``; the
-    temporary file is removed if anything fails, so ``path`` is old or whole."""
+    temporary file is removed if anything fails, so ``path`` is old or whole.
+    ``before_replace()``, if given, runs just before the rename and may raise to cancel it."""
     path = Path(path)
     tmp = temporary_name(path)
     try:
         write_to(tmp)
         with open(tmp, "rb") as fh:
             os.fsync(fh.fileno())
+        if before_replace is not None:
+            before_replace()
         os.replace(tmp, path)
     finally:
         if tmp.exists():
@@ -385,8 +388,9 @@ def _chunk_problem(path, listed, n_runs, n_samples, seen):
 ASSEMBLY_DELAY_ENV = "GYROLAB_TEST_ASSEMBLY_DELAY"
 
 
-def assemble(out, grid, journal, attrs):
-    """Write the results file from the journal into a temporary name, fsync it, rename it to ``out``."""
+def assemble(out, grid, journal, attrs, before_replace=None):
+    """Write the results file from the journal into a temporary name, fsync it, rename it to ``out``
+    (``before_replace`` as in atomic_replace)."""
     need = grid.bytes_stored() * 1.05 + 2**20  # samples plus HDF5 metadata, coordinates and inputs
     free = shutil.disk_usage(Path(out).parent).free
     if free < need:  # HDF5 can crash (not raise) when the disk fills while it closes a file
@@ -397,7 +401,7 @@ def assemble(out, grid, journal, attrs):
         )
     delay = float(os.environ.get(ASSEMBLY_DELAY_ENV, "0") or 0)
     chunks = journal.chunks() if not delay else _slowly(journal.chunks(), delay)
-    atomic_replace(out, lambda tmp: write_results(tmp, grid, chunks, attrs))
+    atomic_replace(out, lambda tmp: write_results(tmp, grid, chunks, attrs), before_replace)
 
 
 def _slowly(chunks, delay):

@@ -73,3 +73,28 @@ def test_only_empty_directories_are_removed(tmp_path):
     assert sorted(p.name for p in (tmp_path / "outputs" / "day").iterdir()) == ["other"]
     remove_empty_dirs(tmp_path / "outputs" / "day" / "other", tmp_path)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_signal_swallowed_by_a_finalizer_is_raised_before_the_results_are_renamed(tmp_path, monkeypatch):
+    """A signal's exception raised inside a weakref callback is printed as "Exception ignored" and
+    lost (seen in CI: a SIGHUP during assembly, exit 0). The handler also records the signal, and
+    raise_pending() raises it again just before the results file would be renamed into place."""
+    import signal
+    import weakref
+
+    from gyrolab.runner import app
+    from gyrolab.runner.store import atomic_replace
+
+    monkeypatch.setattr(app, "_PENDING", [])
+
+    class Thing:
+        pass
+
+    thing = Thing()
+    keep = weakref.ref(thing, lambda _: app._raise_interrupted(signal.SIGHUP, None))
+    del thing  # the callback raises Interrupted inside the finalizer: swallowed
+    assert keep() is None and app._PENDING == [signal.SIGHUP]
+    out = tmp_path / "results.h5"
+    with pytest.raises(app.Interrupted):
+        atomic_replace(out, lambda tmp: tmp.write_bytes(b"data"), before_replace=app.raise_pending)
+    assert not out.exists() and list(tmp_path.iterdir()) == []
