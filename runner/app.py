@@ -98,9 +98,24 @@ def raise_pending():
         raise KeyboardInterrupt if _PENDING[0] == signal.SIGINT else Interrupted(_PENDING[0])
 
 
+def quiet_swallowed_interrupts(previous):
+    """A sys.unraisablehook that drops an interrupt swallowed by a finalizer and passes anything else
+    to ``previous``: the interrupt is recorded in _PENDING and raised again by raise_pending, so
+    Python's "Exception ignored ... Traceback" would only break the sweep's one-line message."""
+
+    def hook(unraisable):
+        if not (isinstance(unraisable.exc_value, KeyboardInterrupt) and _PENDING):
+            previous(unraisable)
+
+    hook.quiets_interrupts = True
+    return hook
+
+
 def handle_signals():
     """SIGTERM and SIGHUP interrupt like Ctrl-C (KeyboardInterrupt); every one is also recorded for
     raise_pending.  SIGINT keeps Python's meaning, and stays ignored where it was ignored at start."""
+    if not getattr(sys.unraisablehook, "quiets_interrupts", False):
+        sys.unraisablehook = quiet_swallowed_interrupts(sys.unraisablehook)
     for sig in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, _raise_interrupted)
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:

@@ -98,3 +98,35 @@ def test_a_signal_swallowed_by_a_finalizer_is_raised_before_the_results_are_rena
     with pytest.raises(app.Interrupted):
         atomic_replace(out, lambda tmp: tmp.write_bytes(b"data"), before_replace=app.raise_pending)
     assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_an_interrupt_swallowed_by_a_finalizer_prints_no_traceback(monkeypatch, capfd):
+    """Python reports an exception raised in a finalizer as "Exception ignored ... Traceback"; the
+    sweep's one-line interrupt message must stay the only output, so the hook gyrolab installs keeps
+    quiet about a recorded interrupt, and passes any other unraisable exception on."""
+    import signal
+    import sys
+    import weakref
+
+    from gyrolab.runner import app
+
+    monkeypatch.setattr(app, "_PENDING", [])
+    monkeypatch.setattr(sys, "unraisablehook", app.quiet_swallowed_interrupts(sys.__unraisablehook__))
+
+    class Thing:
+        pass
+
+    thing = Thing()
+    keep = weakref.ref(thing, lambda _: app._raise_interrupted(signal.SIGHUP, None))
+    del thing
+    assert keep() is None and app._PENDING == [signal.SIGHUP]
+    assert capfd.readouterr().err == ""
+
+    def fail_in_finalizer(_):
+        raise ValueError("a real bug in a finalizer")
+
+    thing = Thing()
+    keep = weakref.ref(thing, fail_in_finalizer)
+    del thing
+    err = capfd.readouterr().err
+    assert "ValueError: a real bug in a finalizer" in err and "Traceback" in err
