@@ -31,7 +31,7 @@ METHOD_COLORS = {
     "RK45": "#7f7f7f",
 }
 DT_STYLES = ("-", "--", ":", "-.")
-QUANTITY_LABELS = {"energy": "E", "Lz": "L_z", "L3": "L_3", "L": "L", "L_norm": "|L|"}
+QUANTITY_LABELS = {"energy": "E", "Lz": "L_z", "L3": "L_3", "L": "L", "L_norm": "|L|", "kovalevskaya": "K"}
 
 
 class SelectionError(ValueError):

@@ -141,3 +141,27 @@ def test_heavy_body_from_the_command_line_stores_its_com_and_reads_back(tmp_path
     assert "gamma" in ds and ds.attrs["conserved"] == "energy Lz"
     np.testing.assert_allclose((ds.gamma**2).sum("xyz"), 1.0, rtol=1e-12)
     assert bool(np.isfinite(ds.energy).all()) and int(ds.status.max()) == 0
+
+
+def test_peer_table_reads_every_declared_invariant_from_the_file(tmp_path):
+    """``python -m gyrolab.analysis.peer_table``: per file an axis-error table and one table per declared
+    invariant (Kovalevskaya's K included), a row per method and a column per dt, numbers from the file."""
+    from gyrolab.analysis import peer_table
+    from gyrolab.analysis.io import invariant_error, open_results
+
+    from helpers import build_dataset
+
+    path = tmp_path / "kov.h5"
+    grid = {"method": ["rk4", "lie_poisson4"], "f": [3.0], "theta0": [40.0], "dt": [2e-3, 1e-3]}
+    build_dataset(path, grid, scene="kovalevskaya", t_end=0.4, every=2e-2, omega1=2.0, omega2=1.0)
+    out = tmp_path / "peer.md"
+    assert peer_table.main([str(path), "-o", str(out)]) == 0
+    text = out.read_text()
+    for q in ("energy", "Lz", "kovalevskaya"):
+        assert f"Worst relative error of {q} over the run:" in text
+    ds = open_results(path)
+    run = ds.sel({"method": "rk4", "f": 3.0, "theta0": 40.0, "dt": 1e-3})
+    worst = float(np.nanmax(invariant_error(run, "kovalevskaya")))
+    k_table = text.split("Worst relative error of kovalevskaya over the run:")[1]
+    rk4_row = next(line for line in k_table.splitlines() if line.startswith("| `rk4`"))
+    assert rk4_row.split("|")[2].strip() == f"{worst:.2g}"  # the dt = 1e-3 column
