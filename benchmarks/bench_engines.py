@@ -31,6 +31,7 @@ import time
 import numpy as np
 from numba import get_num_threads, njit, prange, set_num_threads
 
+from gyrolab.kernels.body import Body, body_row
 from gyrolab.kernels.registry import METHODS
 
 # every registered reproduction of an engine scheme (kernels/methods README: REPRODUCES)
@@ -39,7 +40,7 @@ OWN_METHODS = ("rk4", "lie_poisson")
 
 M, R_DISC, ARM, G = 1.0, 0.05, 0.1, 10.0
 I1 = M * (R_DISC**2 / 4 + ARM**2)
-TOP = (I1, I1, M * R_DISC**2 / 2, M * G * ARM)
+TOP = tuple(Body(I1, I1, M * R_DISC**2 / 2, M * G * ARM))
 F_HZ, THETA0, DT = 50.0, 45.0, 1e-4
 
 
@@ -59,7 +60,7 @@ def make_batch(step):
         for i in prange(W.shape[0]):
             w = (W[i, 0], W[i, 1], W[i, 2])
             q = (Q[i, 0], Q[i, 1], Q[i, 2], Q[i, 3])
-            body = (bodies[i, 0], bodies[i, 1], bodies[i, 2], bodies[i, 3])
+            body = body_row(bodies, i)
             for _ in range(n_steps):
                 w, q = step(w, q, dt, body)
             W[i, 0], W[i, 1], W[i, 2] = w

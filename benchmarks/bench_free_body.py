@@ -23,6 +23,7 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from gyrolab.kernels.body import N_FIELDS, body_row
 from gyrolab.kernels.euler_poinsot import free_flow_exact
 from gyrolab.kernels.methods import lie_poisson, strang_exact
 
@@ -43,7 +44,7 @@ def make_harness(step):
         for i in prange(W.shape[0]):
             w = (W[i, 0], W[i, 1], W[i, 2])
             q = (Q[i, 0], Q[i, 1], Q[i, 2], Q[i, 3])
-            body = (B[i, 0], B[i, 1], B[i, 2], B[i, 3])
+            body = body_row(B, i)
             for _ in range(n_steps):
                 w, q = step(w, q, dt, body)
             W[i, 0], W[i, 1], W[i, 2] = w
@@ -67,7 +68,7 @@ def ns_per_step(harness, inputs, dt, steps, threads, repeat):
 
 def generic_inputs(n, seed=0):
     rng = np.random.default_rng(seed)
-    B = np.zeros((n, 4))
+    B = np.zeros((n, N_FIELDS))
     B[:, :3] = rng.uniform(1.0, 3.0, (n, 3))
     W = rng.normal(size=(n, 3)) * 10.0
     Q = rng.normal(size=(n, 4))
@@ -79,7 +80,7 @@ def box_inputs(n):
     om3 = 2 * math.pi * spins
     W = np.stack([1e-3 * om3, np.zeros(n), om3], axis=1)
     Q = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
-    B = np.tile([1e-4, 3e-4, 2e-4, 0.0], (n, 1))
+    B = np.tile([1e-4, 3e-4, 2e-4, 0.0, 0.0, 0.0], (n, 1))
     return W, Q, B
 
 

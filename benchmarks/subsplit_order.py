@@ -75,7 +75,7 @@ def main():
     args = parser.parse_args()
     dts = [float(x) for x in args.dts.split(",")]
     I = (1e-4, 3e-4, 2e-4)
-    body = I + (0.0,)
+    body = I + (0.0, 0.0, 0.0)  # kernels/body.py Body: a free body
     omega3 = 2 * math.pi * 10.0
     q0 = (1.0, 0.0, 0.0, 0.0)
     print(

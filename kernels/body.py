@@ -25,11 +25,6 @@ N_FIELDS = len(FIELDS)
 UNITS = {"I1": "kg m2", "I2": "kg m2", "I3": "kg m2", "mgl": "N m", "mgc1": "N m", "mgc2": "N m"}
 
 
-def weight_moment(body):
-    """(M g c1, M g c2, M g c3) (N m): the weight times the centre of mass in body coordinates."""
-    return body[4], body[5], body[3]
-
-
 @njit(cache=True, error_model="numpy")
 def body_row(bodies, i):
     """Row i of a (n, N_FIELDS) body array as a Body."""

@@ -24,6 +24,7 @@ import pytest
 from numba import njit
 from scipy.integrate import solve_ivp
 
+from gyrolab.kernels.body import Body
 from gyrolab.kernels.registry import METHODS
 
 # every registered reproduction of an engine scheme (kernels/methods README: REPRODUCES)
@@ -41,7 +42,7 @@ MJ_INTEGRATOR = {
 
 M, R_DISC, ARM, G = 1.0, 0.05, 0.1, 10.0
 I1_TOP = M * (R_DISC**2 / 4 + ARM**2)
-TOP = (I1_TOP, I1_TOP, M * R_DISC**2 / 2, M * G * ARM)  # moments about the pivot, M g l
+TOP = Body(I1_TOP, I1_TOP, M * R_DISC**2 / 2, M * G * ARM)  # moments about the pivot, M g l
 
 
 def tilt(theta_deg):
@@ -54,7 +55,7 @@ def top_state(f, theta_deg=45.0):
     return (0.0, 0.0, 2 * math.pi * f), tilt(theta_deg)
 
 
-FREE = (1e-4, 3e-4, 2e-4, 0.0)  # e3 is the intermediate axis (I1 < I3 < I2)
+FREE = Body(1e-4, 3e-4, 2e-4, 0.0)  # e3 is the intermediate axis (I1 < I3 < I2)
 W3_FREE = 2 * math.pi * 10
 RACKET = ((1e-3 * W3_FREE, 0.0, W3_FREE), tilt(30.0))  # tennis racket near its intermediate axis, 10 Hz
 TUMBLE = ((0.5 * 2 * math.pi * 20, 0.3 * 2 * math.pi * 20, 2 * math.pi * 20), tilt(30.0))  # far from any axis
@@ -89,7 +90,8 @@ def trajectory(name, w0, q0, dt, body, n, every=1):
     """(W (n//every, 3), Q (n//every, 4)): the states after every `every`-th step."""
     W = np.empty((n // every, 3))
     Q = np.empty((n // every, 4))
-    _loop(name)(tuple(map(float, w0)), tuple(map(float, q0)), float(dt), tuple(map(float, body)), n, every, W, Q)
+    body = tuple(map(float, Body(*body)))  # a 4-tuple (I1, I2, I3, M g l) is the top with c on e3
+    _loop(name)(tuple(map(float, w0)), tuple(map(float, q0)), float(dt), body, n, every, W, Q)
     return W, Q
 
 
@@ -164,7 +166,7 @@ PRESERVE_SCENES = {
     # scene: (body, (ω0, q0), invariants the exact motion conserves)
     "heavy_top_10Hz": (TOP, top_state(10.0), ("energy", "Lz", "L3")),
     "free_symmetric": (
-        (1e-4, 1e-4, 2e-4, 0.0),
+        Body(1e-4, 1e-4, 2e-4, 0.0),
         ((0.1 * W3_FREE, 0.0, W3_FREE), tilt(30.0)),
         ("energy", "L", "L_norm", "Lz", "L3"),
     ),

@@ -14,6 +14,7 @@ from numba import njit, prange
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
+from gyrolab.kernels.body import Body
 from gyrolab.kernels.euler_poinsot import flip_period, free_body, free_flow_exact
 from gyrolab.kernels.free_flow import free_flow
 from gyrolab.kernels.methods import split6_exact, strang_exact, strang_exact4
@@ -326,7 +327,7 @@ def test_splitting_declared_order_on_heavy_asymmetric_body(name):
     t = 1 against DOP853 (rtol = atol = 1e-13) for dt = 0.4 / 2^k: the log-log slope over the four smallest
     dt whose error is above 1e-11 is ORDER ± 0.3.  Measured slopes: 2.00, 4.00, 6.03 (rounding floor ~4e-13)."""
     module = SPLITTINGS[name]
-    body = (1.0, 1.4, 0.7, 2.0)
+    body = Body(1.0, 1.4, 0.7, 2.0)
     w0 = (0.4, -0.3, 6.0)
     q0 = (math.cos(math.radians(15)), math.sin(math.radians(15)), 0.0, 0.0)
     w_ref, R_ref = dop853(body[:3], np.array(w0), np.array(q0), 1.0, mgl=body[3])
@@ -367,7 +368,7 @@ def test_splitting_exact_on_free_asymmetric_body(name):
         scale = np.abs(w0).max()
         for frac in (1e-3, 0.1, 0.77, 3.3, 25.0, -0.4):
             dt = frac * T
-            w, q = loop(w0, tuple(q0), dt, I + (0.0,), 40)
+            w, q = loop(w0, tuple(q0), dt, tuple(Body(*I, 0.0)), 40)
             we, qe = free_body(I, w0, q0, [40 * dt])
             err = max(np.abs(np.array(w) - we[0]).max() / scale, np.abs(np.array(q) - qe[0]).max())
             tol = 1e-15 * 40 * N_FLOWS[name] * (1 + 40 * abs(frac))
@@ -381,7 +382,7 @@ def test_splitting_box_near_separatrix():
     I = (1e-4, 3e-4, 2e-4)
     w0 = (1e-3 * 20 * math.pi, 0.0, 20 * math.pi)
     q0 = (1.0, 0.0, 0.0, 0.0)
-    w, q = _loop(strang_exact.step)(w0, q0, 1e-4, I + (0.0,), 2000)
+    w, q = _loop(strang_exact.step)(w0, q0, 1e-4, tuple(Body(*I, 0.0)), 2000)
     we, qe = free_body(I, w0, q0, [0.2])
     err = max(np.abs(np.array(w) - we[0]).max() / w0[2], np.abs(np.array(q) - qe[0]).max())
     print(f"box near separatrix, strang_exact vs exact: {err:.2g}")
@@ -397,7 +398,7 @@ def test_lane_step_is_bit_for_bit():
 
     fast = lane_step(strang_exact.step)
     rng = np.random.default_rng(17)
-    body = (1e-4, 3e-4, 2e-4, 0.0)
+    body = Body(1e-4, 3e-4, 2e-4, 0.0)
     for _ in range(20):
         w = tuple(rng.normal(size=3) * 60.0)
         q = rng.normal(size=4)
@@ -432,8 +433,8 @@ def test_splitting_invariants_do_not_drift(name):
         return dE, dG
 
     for body, w0 in (
-        ((1e-4, 3e-4, 2e-4, 0.0), (0.02 * math.pi, 0.0, 20 * math.pi)),
-        ((1.0, 2.0, 3.0, 0.0), (0.7, -1.1, 0.4)),
+        (Body(1e-4, 3e-4, 2e-4, 0.0), (0.02 * math.pi, 0.0, 20 * math.pi)),
+        (Body(1.0, 2.0, 3.0, 0.0), (0.7, -1.1, 0.4)),
     ):
         dE, dG = drift(w0, (1.0, 0.0, 0.0, 0.0), 1e-4, body, 200_000)
         print(f"{name} {body[:3]}: 2e5 steps, max |dE/E| {dE:.2g}, |d|L|/|L|| {dG:.2g}")

@@ -5,7 +5,6 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from gyrolab.kernels.batch import integrate
 from gyrolab.kernels.driver import FIELDS
 from gyrolab.kernels.reference import dop853
 from gyrolab.kernels.registry import METHODS
@@ -27,24 +26,7 @@ def kovalevskaya_of(samples, body):
     return kovalevskaya_integral(omega, gamma, stored).values
 
 
-def run(name, scene, dt, t_end, every):
-    stride = int(round(every / dt))
-    n_samples = int(round(t_end / every)) + 1
-    samples, status, _ = integrate(
-        name,
-        np.array([scene.body]),
-        np.array([scene.omega0]),
-        np.array([scene.q0]),
-        np.array([dt]),
-        np.array([stride]),
-        n_samples,
-        1e9,
-    )
-    assert status[0] == 0
-    return samples[0]
-
-
-def test_heavy_body_with_centre_of_mass_on_e3_is_the_heavy_top():
+def test_heavy_body_with_centre_of_mass_on_e3_is_the_heavy_top(run_scene):
     """heavy_body with the heavy top's moments and com = [0, 0, l] builds the heavy top's body and state
     to the bit, so every method runs it identically (the stored heavy-top regression data, written
     before the body had a centre-of-mass vector, check the kernels themselves bit for bit)."""
@@ -54,7 +36,7 @@ def test_heavy_body_with_centre_of_mass_on_e3_is_the_heavy_top():
     body = build_scene("heavy_body", 10.0, 45.0, I1=I1, I2=I2, I3=I3, com=[0.0, 0.0, l], M=M, g=g)
     assert tuple(body.body) == tuple(top.body) and body.omega0 == top.omega0 and body.q0 == top.q0
     for name in ("seed_next", "lie_poisson4"):
-        np.testing.assert_array_equal(run(name, body, 1e-3, 0.2, 1e-2), run(name, top, 1e-3, 0.2, 1e-2))
+        np.testing.assert_array_equal(run_scene(name, body, 1e-3, 0.2, 1e-2), run_scene(name, top, 1e-3, 0.2, 1e-2))
 
 
 @pytest.mark.parametrize(
@@ -89,14 +71,14 @@ def test_reference_keeps_every_declared_invariant(scene, options):
 
 
 @pytest.mark.parametrize("name", ["rk4", "lie_poisson4", "strang_exact4"])
-def test_kovalevskaya_integral_error_falls_at_the_declared_order(name):
+def test_kovalevskaya_integral_error_falls_at_the_declared_order(name, run_scene):
     """max |K − K0| over 2 s for dt = 4e-3 … 5e-4 falls like dt^ORDER (log-log slope ORDER ± 0.4):
     the fourth-order methods keep Kovalevskaya's integral to their order, none exactly."""
     sc = build_scene("kovalevskaya", 3.0, 40.0, omega1=2.0, omega2=1.0)
     dts = np.array([4e-3, 2e-3, 1e-3, 5e-4])
     errors = []
     for dt in dts:
-        K = kovalevskaya_of(run(name, sc, dt, 2.0, 2e-2), sc.body)
+        K = kovalevskaya_of(run_scene(name, sc, dt, 2.0, 2e-2), sc.body)
         errors.append(np.max(np.abs(K - K[0])) / K[0])
     slope = np.polyfit(np.log(dts), np.log(errors), 1)[0]
     assert errors[-1] > 1e-14  # above rounding: the slope measures truncation
