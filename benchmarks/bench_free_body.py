@@ -99,7 +99,7 @@ def lane_compile(step, n_lanes=8, steps=2000):
                     (W[j, 0], W[j, 1], W[j, 2]),
                     (Q[j, 0], Q[j, 1], Q[j, 2], Q[j, 3]),
                     dt,
-                    (B[j, 0], B[j, 1], B[j, 2], B[j, 3]),
+                    body_row(B, j),
                 )
                 W[j, 0], W[j, 1], W[j, 2] = w
                 Q[j, 0], Q[j, 1], Q[j, 2], Q[j, 3] = q

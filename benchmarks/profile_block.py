@@ -38,7 +38,7 @@ def _euler_rhs_reciprocal(w, tau, inv):
 @njit
 def _step_reciprocal(w, q, dt, body):
     inv = (body[0], body[1], body[2], 1.0 / body[0], 1.0 / body[1], 1.0 / body[2])
-    tau = gravity_torque(q, body[3])
+    tau = gravity_torque(q, body)
     h = 0.5 * dt
     k1 = _euler_rhs_reciprocal(w, tau, inv)
     k2 = _euler_rhs_reciprocal((w[0] + h * k1[0], w[1] + h * k1[1], w[2] + h * k1[2]), tau, inv)
@@ -55,7 +55,7 @@ def _step_reciprocal(w, q, dt, body):
 
 @njit
 def _omega_only(w, q, dt, body):
-    return rk4_frozen_torque(w, gravity_torque(q, body[3]), dt, body), q
+    return rk4_frozen_torque(w, gravity_torque(q, body), dt, body), q
 
 
 @njit
@@ -74,7 +74,7 @@ def _plain_loop(fast):
                     (W[0, j], W[1, j], W[2, j]),
                     (Q[0, j], Q[1, j], Q[2, j], Q[3, j]),
                     DT[j],
-                    (B[0, j], B[0, j], B[2, j], B[3, j]),
+                    (B[0, j], B[0, j], B[2, j], B[3, j], B[4, j], B[5, j]),
                 )
                 W[0, j], W[1, j], W[2, j] = w
                 Q[0, j], Q[1, j], Q[2, j], Q[3, j] = q

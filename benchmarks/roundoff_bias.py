@@ -86,7 +86,7 @@ def _quat_from_rotvec(v0, v1, v2, libm):
 
 @njit(cache=True, error_model="numpy")
 def _kick(w, q, h, body, v):
-    t1, t2, t3 = gravity_torque(q, body[3])
+    t1, t2, t3 = gravity_torque(q, body)
     if v == 5 or v == 11:
         L1, L2, L3 = body[0] * w[0] + h * t1, body[1] * w[1] + h * t2, body[2] * w[2] + h * t3
         return L1 / body[0], L2 / body[1], L3 / body[2]
