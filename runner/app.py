@@ -404,9 +404,7 @@ def sweep(cfg, run_dir, stack):
         state = output_state(out, chash, overwrite, resume)  # again, now that we hold the lock
         remove_stale_temporaries(out)  # a killed assembly's half-written results file
         try:
-            computing = execute(
-                cfg, grid, out, threads, chash, resume=state == "resume", run_dir=run_dir, cluster=cluster
-            )
+            timing = execute(cfg, grid, out, threads, chash, resume=state == "resume", run_dir=run_dir, cluster=cluster)
         except KeyboardInterrupt as err:
             ignore_signals()
             sys.exit(exit_status(err))
@@ -418,7 +416,8 @@ def sweep(cfg, run_dir, stack):
         failed = int((fh["status"][...] != 0).sum())
     print(
         f"gyrolab: results: {out} ({_size(out.stat().st_size)}, {grid.n_runs} runs, "
-        f"{failed} diverged) in {elapsed:.1f} s ({computing:.1f} s integrating)"
+        f"{failed} diverged) in {elapsed:.1f} s ({timing['integrating']:.1f} s integrating, "
+        f"{timing['journal']:.1f} s journal, {timing['assembly']:.1f} s assembly)"
     )
     figures = cfg.output.figures
     if figures:
@@ -430,7 +429,8 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
     """Run the missing runs with a progress bar (on ``cluster`` if given, else here), then
     assemble the results file (we hold the lock).
 
-    Returns the seconds spent integrating (JIT warm-up excluded)."""
+    Returns the wall time (s) of the phases: {"integrating" (JIT warm-up and journal writes
+    excluded), "journal" (writing the journal's chunks), "assembly" (writing the results file)}."""
     from tqdm import tqdm
 
     from .execute import run_missing, warm_up
@@ -485,10 +485,12 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
             cluster.run_missing(grid, journal, todo, cfg.runner.chunk_seconds, number, progress)
         elif todo.size:
             run_missing(grid, journal, todo, threads, cfg.runner.chunk_seconds, number, progress)
-        computing = time.perf_counter() - start
+        computing = time.perf_counter() - start - journal.write_seconds
         bar.close()
         raise_pending()  # a signal swallowed during integration
+        start = time.perf_counter()
         assemble(out, grid, journal, file_attrs(cfg, grid, threads, chash), before_replace=raise_pending)
+        assembly = time.perf_counter() - start
     except KeyboardInterrupt as err:
         ignore_signals()
         bar.close()
@@ -518,7 +520,7 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
         )
         raise
     journal.discard()
-    return computing
+    return {"integrating": computing, "journal": journal.write_seconds, "assembly": assembly}
 
 
 def io_error(err, where):
