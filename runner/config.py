@@ -13,6 +13,7 @@ output.every in seconds.
 import dataclasses
 import hashlib
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Any, List, Optional
 
@@ -20,6 +21,7 @@ from omegaconf import MISSING, OmegaConf
 
 from ..kernels.scenes import SCENES
 from ..layout import RUN_ONLY  # settings that change how a sweep is run, not its data
+from .ranges import RESOLVERS, register_resolvers
 
 BACKENDS = ("local", "dask")
 
@@ -89,6 +91,7 @@ def register_configs():
     """Put the schemas into Hydra's ConfigStore (root ``gyrolab_schema``, ``schema/scene/<name>``)."""
     from hydra.core.config_store import ConfigStore
 
+    register_resolvers()
     cs = ConfigStore.instance()
     cs.store(name="gyrolab_schema", node=GyrolabConfig)
     for name, module in SCENES.items():
@@ -112,6 +115,7 @@ def check_figures(setting):
 def check_values(cfg):
     """ConfigError for the first value a type cannot rule out: NaN/inf, empty or
     duplicated axes, non-positive times and sizes, unknown backend, bad threads."""
+    check_resolvable(cfg)
     check_keys(cfg)
     check_finite(OmegaConf.to_container(cfg, resolve=True))
     sweep, output, runner = cfg.sweep, cfg.output, cfg.runner
@@ -218,6 +222,28 @@ def check_cluster(runner):
         )
     if not runner.connect_timeout > 0:
         raise ConfigError(f"runner.connect_timeout={runner.connect_timeout}: must be > 0 s")
+
+
+def check_resolvable(cfg):
+    """ConfigError naming the key and expression of the first interpolation that does not resolve
+    (a range resolver's bad argument, runner/ranges.py; a list where a number belongs ...)."""
+    from omegaconf.errors import OmegaConfBaseException
+
+    for group in cfg:
+        node = cfg[group]
+        if not OmegaConf.is_config(node):
+            continue
+        raw = OmegaConf.to_container(node, resolve=False)
+        for key in node:
+            try:
+                OmegaConf.to_container(OmegaConf.create({"v": node[key]}), resolve=True)
+            except OmegaConfBaseException as err:
+                text = str(err).splitlines()[0] if str(err) else type(err).__name__
+                text = re.sub(r"^\w+ raised while resolving interpolation: ", "", text)
+                text = re.sub(r"^While dereferencing interpolation '[^']*': ", "", text)
+                if text.startswith("Unsupported interpolation type"):
+                    text += f" (sweep ranges: {', '.join(RESOLVERS)}; runner/ranges.py)"
+                raise ConfigError(f"{group}.{key}={raw[key]}: {text}") from None
 
 
 def check_keys(cfg):
