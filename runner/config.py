@@ -20,7 +20,7 @@ from typing import Any, List, Optional
 from omegaconf import MISSING, OmegaConf
 
 from ..kernels.scenes import SCENES
-from ..layout import RUN_ONLY  # settings that change how a sweep is run, not its data
+from ..layout import RUN_ONLY, drop_neutral_defaults  # settings that change how a sweep is run, not its data
 from .ranges import RESOLVERS, register_resolvers
 
 BACKENDS = ("local", "dask")
@@ -45,12 +45,14 @@ class SweepConfig:
 class OutputConfig:
     """every: sample interval (s); path: results file, relative to Hydra's output dir; figures: the
     figure kinds to draw after the sweep (names from analysis/figures.py's registry; true: the
-    default set, false: none)."""
+    default set, false: none); variables: the per-sample variables stored (names of
+    gyrolab/layout.py's SAMPLE_VARIABLES; null: all; per-run status, n_steps, wall_time always)."""
 
     every: float = 1e-3
     path: str = "results.h5"
     overwrite: bool = False
     figures: Any = True
+    variables: Optional[List[str]] = None
 
 
 @dataclass
@@ -112,6 +114,18 @@ def check_figures(setting):
         raise ConfigError(str(err)) from None
 
 
+def check_variables(names):
+    """ConfigError unless ``output.variables`` is null (all) or names each per-sample variable once."""
+    from ..layout import chosen_variables
+
+    if names is None:
+        return
+    try:
+        chosen_variables(list(names))
+    except ValueError as err:
+        raise ConfigError(f"output.variables={_fmt(list(names))}: {err}") from None
+
+
 def check_values(cfg):
     """ConfigError for the first value a type cannot rule out: NaN/inf, empty or
     duplicated axes, non-positive times and sizes, unknown backend, bad threads."""
@@ -146,6 +160,7 @@ def check_values(cfg):
     if sweep.t_end < output.every:
         raise ConfigError(f"sweep.t_end={sweep.t_end}: shorter than the sample interval output.every={output.every}")
     check_sizes(sweep, output)
+    check_variables(output.variables)
     check_figures(output.figures)
     check_scene_options(cfg.scene)
     if not str(output.path).strip():
@@ -286,7 +301,7 @@ def data_config(cfg):
     for group, keys in RUN_ONLY.items():
         for key in keys:
             data.get(group, {}).pop(key, None)
-    return data
+    return drop_neutral_defaults(data)
 
 
 def config_hash(cfg):

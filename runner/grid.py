@@ -17,7 +17,7 @@ from ..kernels.batch import MIN_BLOCK_RUNS, sample_schedule
 from ..kernels.body import N_FIELDS as N_BODY
 from ..kernels.registry import METHODS
 from ..kernels.scenes import SCENES, build_scene
-from ..layout import RAW_PER_SAMPLE, STORED_PER_SAMPLE
+from ..layout import RAW_PER_SAMPLE, SAMPLE_VARIABLES, chosen_variables, stored_per_sample
 from .config import ConfigError, check_values
 
 # Rough steps per second per thread of each method on the development machine
@@ -33,7 +33,8 @@ MAX_CHUNK_BYTES = 256 * 2**20
 class Grid:
     """All runs of a sweep.  Axes: methods (str), f (Hz), theta0 (deg), dt (s);
     t_end and every (s); strides[l] steps per sample at dt[l]; bodies/omega0/q0
-    of each (f, theta0) as arrays (nf, nt, N_BODY|3|4)."""
+    of each (f, theta0) as arrays (nf, nt, N_BODY|3|4); variables: the per-sample variables
+    the results file holds."""
 
     scene: str
     options: dict
@@ -49,6 +50,7 @@ class Grid:
     bodies: np.ndarray = field(repr=False)
     omega0: np.ndarray = field(repr=False)
     q0: np.ndarray = field(repr=False)
+    variables: tuple = tuple(SAMPLE_VARIABLES)  # the per-sample variables stored (output.variables)
 
     @property
     def shape(self):
@@ -84,11 +86,11 @@ class Grid:
 
     def bytes_stored(self):
         """Size of the per-sample data in the results file (bytes)."""
-        return self.n_runs * self.n_samples * STORED_PER_SAMPLE * 8
+        return self.n_runs * self.n_samples * stored_per_sample(self.variables) * 8
 
     def bytes_per_run(self):
         """Memory of one run's samples while a chunk is integrated and stored (bytes)."""
-        return self.n_samples * (RAW_PER_SAMPLE + STORED_PER_SAMPLE) * 8
+        return self.n_samples * (RAW_PER_SAMPLE + stored_per_sample(self.variables)) * 8
 
 
 def build_grid(cfg):
@@ -133,7 +135,12 @@ def build_grid(cfg):
         bodies=bodies,
         omega0=omega0,
         q0=q0,
+        variables=chosen_variables(_list_or_none(cfg.output.variables)),
     )
+
+
+def _list_or_none(node):
+    return None if node is None else list(node)
 
 
 def _prefix_sweep(message):

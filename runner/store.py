@@ -37,6 +37,7 @@ from ..layout import (
     RUN_VARIABLES,
     SAMPLE_VARIABLES,
     VARIABLE_ATTRS,
+    VARIABLES_ATTR,
     WALL_TIME_NOTE,
     sample_dims,
     sample_variables,
@@ -456,7 +457,7 @@ def write_results(path, grid, chunks, attrs, after_read=None):
             var = nc.create_variable(name, (name,), dtype, data=values)
             var.attrs.update(COORD_ATTRS[name])
         variables = {}
-        for name in SAMPLE_VARIABLES:
+        for name in grid.variables:
             dims = GRID_DIMS + sample_dims(name)
             chunking = box + (time_chunk,) + ((3,) if len(dims) > len(GRID_DIMS) + 1 else ())
             variables[name] = nc.create_variable(name, dims, np.float64, chunks=chunking)
@@ -472,9 +473,11 @@ def write_results(path, grid, chunks, attrs, after_read=None):
             runs = box_runs(shape, where)
             raw = gather(sources, owner, row, runs, (ns, RAW_PER_SAMPLE), after_read)
             lengths = tuple(s.stop - s.start for s in where)
-            for name, values in sample_variables(raw).items():
+            for name, values in sample_variables(raw, grid.variables).items():
                 variables[name][where] = values.reshape(lengths + values.shape[1:])
             del raw
         for name, values in per_run.items():
             variables[name][...] = values.reshape(shape)
         nc.attrs.update(attrs)
+        if set(grid.variables) != set(SAMPLE_VARIABLES):
+            nc.attrs[VARIABLES_ATTR] = " ".join(grid.variables)
