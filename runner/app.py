@@ -48,7 +48,7 @@ from omegaconf.errors import OmegaConfBaseException
 from ..layout import RAW_PER_SAMPLE, scene_attrs
 from .config import ConfigError, config_hash, register_configs
 from .execute import BackendError
-from .grid import build_grid, estimate_seconds, plan_chunks
+from .grid import build_grid, estimate_seconds, estimate_writing_seconds, plan_chunks
 from .store import Journal, OutputLock, assemble, partial_dir, remove_stale_temporaries
 
 EXIT_FAILED = 1
@@ -320,9 +320,10 @@ def dry_run(grid, out, chunks, threads, peak, state, cluster=None):
         seconds, where = estimate_seconds(grid, chunks, threads), f"{threads} threads"
     print(f"gyrolab dry run: {describe(grid)}")
     print(f"  steps per run: {steps.min():.3g} to {steps.max():.3g}; {len(chunks)} chunks on {where}")
+    writing = estimate_writing_seconds(grid)
     print(
-        f"  estimated time: {seconds:.3g} s of integration "
-        f"(+ up to ~{COMPILE_SECONDS * len(grid.methods):.0f} s of JIT on a cold numba cache)"
+        f"  estimated time: {seconds + writing:.3g} s ({seconds:.3g} s integration, {writing:.3g} s journal and "
+        f"assembly; + up to ~{COMPILE_SECONDS * len(grid.methods):.0f} s of JIT on a cold numba cache; figures extra)"
     )
     print(f"  peak memory: ~{_size(peak)} of samples per chunk (+ ~0.3 GB for Python, numba, xarray)")
     print(

@@ -7,7 +7,6 @@ first.  A chunk is a set of runs of ONE method and ONE step count, so the
 batch kernel's prange hands every thread the same amount of work.
 """
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,6 +26,12 @@ DEFAULT_STEP_RATE = 5e6
 # Blocks of >= MIN_BLOCK_RUNS runs against one by one, per run (docs/benchmarks.md: 10-22x).
 BLOCK_SPEEDUP = 10
 MAX_CHUNK_BYTES = 256 * 2**20
+# Effective rates of the pipeline around the kernels on the development machine (docs/benchmarks.md,
+# benchmarks/bench_pipeline.py): journal bytes (raw samples) per second, results bytes per second
+# of assembly (journal read, variables derived, file written), and seconds per run of assembly.
+JOURNAL_RATE = 3.0e8
+ASSEMBLY_RATE = 3.5e8
+ASSEMBLY_PER_RUN = 2e-5
 
 
 @dataclass(frozen=True)
@@ -215,12 +220,33 @@ def _pool(grid, runs, rate, threads, chunk_seconds, max_bytes):
     return chunks
 
 
+def step_rate(method, n_runs):
+    """Estimated steps per second per thread of ``method`` in a chunk of ``n_runs`` runs: STEP_RATE,
+    times BLOCK_SPEEDUP when the batch kernels run the chunk in vectorised blocks."""
+    from ..kernels.registry import get_method, uses_blocks
+
+    rate = STEP_RATE.get(method, DEFAULT_STEP_RATE)
+    if n_runs >= MIN_BLOCK_RUNS and uses_blocks(get_method(method)):
+        rate *= BLOCK_SPEEDUP
+    return rate
+
+
 def estimate_seconds(grid, chunks, threads):
-    """Estimated compute time (s) of the chunks from STEP_RATE, JIT compile not included."""
+    """Estimated integration wall time (s) of the chunks, JIT compile not included: each chunk's
+    runs' steps (every run counted, at its own dt) at ``step_rate``, shared among ``threads``, and
+    never less than its longest run."""
     total = 0.0
     for chunk in chunks:
         method = grid.methods[int(grid.index(chunk[:1])[0][0])]
-        rate = STEP_RATE.get(method, DEFAULT_STEP_RATE)
-        per_thread = math.ceil(len(chunk) / threads)
-        total += per_thread * int(grid.steps(chunk[:1])[0]) / rate
+        steps = grid.steps(chunk)
+        rate = step_rate(method, len(chunk))
+        total += max(float(steps.sum()) / min(threads, len(chunk)), float(steps.max())) / rate
     return total
+
+
+def estimate_writing_seconds(grid):
+    """Estimated wall time (s) of writing the journal (raw samples, checksummed, fsync) and assembling
+    the results file, at the effective rates JOURNAL_RATE and ASSEMBLY_RATE (bytes/s) measured by
+    benchmarks/bench_pipeline.py, plus ASSEMBLY_PER_RUN seconds per run."""
+    raw = grid.n_runs * grid.n_samples * RAW_PER_SAMPLE * 8
+    return raw / JOURNAL_RATE + grid.bytes_stored() / ASSEMBLY_RATE + grid.n_runs * ASSEMBLY_PER_RUN
