@@ -56,6 +56,9 @@ EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT; SIGTERM gives 143, SIGHUP 129
 HANDLED_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 COMPILE_SECONDS = 3.0  # rough JIT time of one method's kernel on a cold numba cache
+# Loading one method's kernels from a warm numba cache, the checks and the file's open and close
+# (the "rest" of benchmarks/bench_pipeline.py: 0.5-0.9 s with 2 to 4 methods).
+LOAD_SECONDS = 0.2
 
 
 def fail(message):
@@ -320,10 +323,11 @@ def dry_run(grid, out, chunks, threads, peak, state, cluster=None):
         seconds, where = estimate_seconds(grid, chunks, threads), f"{threads} threads"
     print(f"gyrolab dry run: {describe(grid)}")
     print(f"  steps per run: {steps.min():.3g} to {steps.max():.3g}; {len(chunks)} chunks on {where}")
-    writing = estimate_writing_seconds(grid)
+    writing, loading = estimate_writing_seconds(grid), LOAD_SECONDS * len(grid.methods)
     print(
-        f"  estimated time: {seconds + writing:.3g} s ({seconds:.3g} s integration, {writing:.3g} s journal and "
-        f"assembly; + up to ~{COMPILE_SECONDS * len(grid.methods):.0f} s of JIT on a cold numba cache; figures extra)"
+        f"  estimated time: {seconds + writing + loading:.3g} s to the results file ({seconds:.3g} s integration, "
+        f"{writing:.3g} s journal and assembly, {loading:.2g} s loading kernels; + up to "
+        f"~{COMPILE_SECONDS * len(grid.methods):.0f} s of JIT on a cold numba cache; figures extra)"
     )
     print(f"  peak memory: ~{_size(peak)} of samples per chunk (+ ~0.3 GB for Python, numba, xarray)")
     print(
