@@ -81,6 +81,8 @@ def test_a_figure_that_needs_a_missing_variable_is_one_line(files, tmp_path):
     assert result.returncode == 2 and "Traceback" not in result.stderr
     (line,) = result.stderr.strip().splitlines()
     assert line.startswith("gyrolab-plot: error: figure tip needs variable axis")
+    with pytest.raises(MissingVariableError, match="figure energy needs variable Lz, which this file does not hold"):
+        FIGURES["energy"].write(ds, tmp_path / "lz.png", quantity="Lz")  # conserved, but not stored
     drawn = standard_figures(str(chosen), str(tmp_path / "std"), ["nutation", "energy"], log=None)
     assert [p.name for p in drawn] == ["nutation_theta.png", "energy_drift.png"]
 
