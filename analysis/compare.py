@@ -191,13 +191,13 @@ def open_results(path, label):
     missing = [d for d in RUN_DIMS + ("time",) if d not in ds.coords]
     if missing:
         raise CompareError(f"{label}: {path}: not a gyrolab results file (no coordinate {missing[0]})")
-    from ..layout import file_layout_version
+    from ..layout import file_layout_version, with_current_body
 
     if file_layout_version(ds) is None:
         raise CompareError(f"{label}: {path}: not a gyrolab results file (no layout_version attr)")
     if "status" not in ds.data_vars:
         raise CompareError(f"{label}: {path}: not a complete gyrolab results file (no variable 'status')")
-    return ds
+    return with_current_body(ds)
 
 
 def _match(values_a, values_b):
@@ -373,6 +373,9 @@ def compare_variable(name, a, b, rtol, atol, exact, dims, coords):
 
 def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, scaled=None, names=("A", "B")):
     """Compare two opened results Datasets; see ``compare_files``."""
+    from ..layout import with_current_body
+
+    da, db = with_current_body(da), with_current_body(db)
     ignored = dict(IGNORED)
     ignored.update({name: "asked" for name in ignore})
     if da.attrs.get("scene") != db.attrs.get("scene"):

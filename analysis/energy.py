@@ -13,7 +13,7 @@ marked "diverged" in the legend.
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ..layout import conserved
+from ..layout import DERIVED_INVARIANTS, conserved
 from .figure import add_note, choose, coincidence_text, coincident, legend_below, panel_size, subplots, suptitle
 from .io import (
     DT_STYLES,
@@ -54,7 +54,8 @@ def _check_quantity(ds, quantity):
     """ValueError unless the file's scene conserves ``quantity`` (layout.conserved)."""
     have = drawable_invariants(ds)
     if quantity not in have and quantity in conserved(ds):  # conserved, but the file does not hold it
-        raise missing_variable_error(ds, "L" if quantity == "L_norm" else quantity, "energy")
+        lacking = [v for v in DERIVED_INVARIANTS.get(quantity, (quantity,)) if v not in ds.data_vars]
+        raise missing_variable_error(ds, " and ".join(lacking), "energy")
     if quantity not in have:
         raise ValueError(
             f"quantity={quantity}: the scene {scene_name(ds)} does not conserve it; choose from {', '.join(have)}"
@@ -178,7 +179,7 @@ def invariants_figure(ds, sel=None, envelope=True):
     not drawn; one that every drawn run keeps exactly (error 0) gets no row, the figure says so."""
     quantities = drawable_invariants(ds)
     if not quantities and conserved(ds):
-        needed = sorted({"L" if q == "L_norm" else q for q in conserved(ds)})
+        needed = sorted({v for q in conserved(ds) for v in DERIVED_INVARIANTS.get(q, (q,)) if v not in ds.data_vars})
         raise missing_variable_error(ds, " or ".join(needed), "invariants")
     if not quantities:
         raise ValueError("the file's scene declares no invariant that its variables hold")

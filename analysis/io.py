@@ -31,7 +31,7 @@ METHOD_COLORS = {
     "RK45": "#7f7f7f",
 }
 DT_STYLES = ("-", "--", ":", "-.")
-QUANTITY_LABELS = {"energy": "E", "Lz": "L_z", "L3": "L_3", "L": "L", "L_norm": "|L|"}
+QUANTITY_LABELS = {"energy": "E", "Lz": "L_z", "L3": "L_3", "L": "L", "L_norm": "|L|", "kovalevskaya": "K"}
 
 
 class SelectionError(ValueError):
@@ -73,7 +73,7 @@ def open_results(path):
     file: anything h5py/h5netcdf/xarray raise while reading, no layout version (layout 0, files from
     before the attr, are read), a grid
     dimension or a layout variable missing or on the wrong dims (gyrolab/layout.py)."""
-    from ..layout import LAYOUT_VERSION, file_layout_version, required_variables
+    from ..layout import LAYOUT_VERSION, file_layout_version, required_variables, with_current_body
 
     path = Path(path)
     if not path.is_file():
@@ -100,7 +100,7 @@ def open_results(path):
             raise SelectionError(f"FILE={path}: not a complete gyrolab results file (no variable {name!r})")
         if ds[name].dims != dims:
             raise SelectionError(f"FILE={path}: variable {name} has dims {ds[name].dims}, expected {dims}")
-    return ds
+    return with_current_body(ds)
 
 
 def parse_selection(words):
@@ -174,6 +174,8 @@ def scene_options(ds):
                 value = value.decode()
             if isinstance(value, np.generic):
                 value = value.item()
+            if isinstance(value, np.ndarray):  # a vector option (heavy_body's com)
+                value = value.tolist()
             opts[key[len("scene_") :]] = value
     return opts
 
@@ -250,10 +252,9 @@ def invariant_error(run, name):
 
 def drawable_invariants(ds):
     """The invariants the file's scene declares (layout.conserved) that its variables can give."""
-    from ..layout import conserved
+    from ..layout import conserved, has_invariant
 
-    have = set(ds.data_vars)
-    return [q for q in conserved(ds) if (q in have) or (q == "L_norm" and "L" in have)]
+    return [q for q in conserved(ds) if has_invariant(ds, q)]
 
 
 FLOOR = 1e-17  # plotted instead of an exact 0 on log axes (below double precision)

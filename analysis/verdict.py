@@ -286,14 +286,14 @@ def preserved_ulps(n_steps):
 
 def drift_records(ds):
     """Run records (one per run and declared invariant) of every run with ≥ MIN_DRIFT_SAMPLES samples."""
-    from ..layout import conserved, invariant
+    from ..layout import conserved, has_invariant, invariant
     from .io import scene_name
 
     if ds.sizes["time"] < MIN_DRIFT_SAMPLES:
         return []
     t = np.asarray(ds.time.values, dtype=float)
     out = []
-    names = [q for q in conserved(ds) if q in ds or (q == "L_norm" and "L" in ds)]
+    names = [q for q in conserved(ds) if has_invariant(ds, q)]
     for m in ds.method.values:
         declared = declared_preserves(m)
         for f in ds.f.values:

@@ -96,7 +96,7 @@ def _kick(w, q, h, body, v):
 @njit(cache=True, error_model="numpy")
 def _free_flow(w, q, h, body, v):
     """kernels/free_flow.free_flow, symmetric branch (I1 = I2), with variant v."""
-    I1, _, I3, _ = body
+    I1, _, I3, _ = body[:4]
     libm = v == 2 or v == 8
     c = (1.0 - I3 / I1) * w[2]
     qv = _quat_from_rotvec(w[0] * h, w[1] * h, I3 / I1 * w[2] * h, libm)

@@ -42,7 +42,7 @@ from gyrolab.kernels.scenes import build_scene
 @njit(cache=True, error_model="numpy")
 def exact_frozen_torque(w, tau, dt, body):
     """ω(t+dt) of I ω̇ = τ − ω × Iω with τ frozen, exactly, for I1 = I2 (ω3 is constant)."""
-    I1, _, I3, _ = body
+    I1, _, I3, _ = body[:4]
     c = (1.0 - I3 / I1) * w[2]
     cc, sc = math.cos(c * dt), math.sin(c * dt)
     if c == 0.0:
@@ -64,7 +64,7 @@ def run(variant, w, q, dt, body, stride, n):
     loss = 0.0
     for k in range(1, n):
         for _ in range(stride):
-            tau = gravity_torque(q, body[3])
+            tau = gravity_torque(q, body)
             if variant == 2:
                 w, q = lie_trotter.step(w, q, dt, body)
                 continue

@@ -33,7 +33,7 @@ from .kernels.body import UNITS as BODY_UNITS
 from .kernels.driver import FIELDS as RAW_FIELDS
 from .kernels.driver import STATUS_LEGEND
 
-LAYOUT_VERSION = 1
+LAYOUT_VERSION = 2
 GRID_DIMS = ("method", "f", "theta0", "dt")
 INPUT_DIMS = ("f", "theta0")  # a run's body and initial state depend on these only
 RAW_PER_SAMPLE = len(RAW_FIELDS)
@@ -71,7 +71,9 @@ SAMPLE_VARIABLES = {
     "theta": SampleVariable("rad", "tilt: angle between e3 and lab z", _theta),
     "phi": SampleVariable("rad", "azimuth of the axis tip, unwrapped", _phi),
     "energy": SampleVariable(
-        "J", "total energy 1/2 w.Iw + M g l cos(theta)", lambda r: r[..., RAW_FIELDS.index("energy")]
+        "J",
+        "total energy 1/2 w.Iw + M g c.gamma (M g l cos(theta) for c = l e3)",
+        lambda r: r[..., RAW_FIELDS.index("energy")],
     ),
     "L": SampleVariable(
         "kg m2 s-1",
@@ -89,6 +91,12 @@ SAMPLE_VARIABLES = {
         "rad s-1",
         "body angular velocity (body-frame components)",
         lambda r: r[..., _raw("omega_1", "omega_2", "omega_3")],
+        vector=True,
+    ),
+    "gamma": SampleVariable(
+        "1",
+        "lab vertical R^T z in body coordinates (body-frame components)",
+        lambda r: r[..., _raw("gamma_1", "gamma_2", "gamma_3")],
         vector=True,
     ),
 }
@@ -198,9 +206,11 @@ def drop_neutral_defaults(data):
     return data
 
 
-# Files written before layout_version existed (gyrolab at c0ed527 and earlier) are layout 0: the same
-# grid and variables less these, and no stored run inputs.  Every reader opens them.
-ABSENT_BEFORE = {0: ("L",)}
+# Files of older layouts hold the same grid and variables less these; every reader opens them.
+# Layout 0: files written before layout_version existed (gyrolab at c0ed527 and earlier), without
+# stored run inputs.  Layout 1: no gamma, and a body of four fields (I1, I2, I3, mgl: the centre of
+# mass on e3), read as today's Body with mgc1 = mgc2 = 0.
+ABSENT_BEFORE = {0: ("L", "gamma"), 1: ("gamma",)}
 
 
 def file_layout_version(ds):
@@ -212,6 +222,18 @@ def file_layout_version(ds):
         except (TypeError, ValueError):
             return None
     return 0 if "gyrolab_version" in ds.attrs and "config" in ds.attrs else None
+
+
+def with_current_body(ds):
+    """``ds`` with its stored ``body`` on today's ``body_param`` fields: a layout-1 body (I1, I2, I3,
+    mgl: the centre of mass on e3) gains mgc1 = mgc2 = 0, which is what it meant.  Files without
+    stored bodies, or with today's, come back unchanged."""
+    if "body" not in ds.data_vars or list(ds["body_param"].values) == list(BODY_FIELDS):
+        return ds
+    known = [str(v) for v in ds["body_param"].values]
+    if known != list(BODY_FIELDS[: len(known)]):
+        return ds  # not an older gyrolab body: leave it for the reader's checks to name
+    return ds.reindex(body_param=list(BODY_FIELDS), fill_value=0.0)
 
 
 def required_variables(version, ds=None):
@@ -278,10 +300,37 @@ def closed_form(ds):
 
 
 def invariant(ds, name):
-    """The invariant ``name`` (kernels/invariants.py) per sample: a stored variable, or |L| from L."""
+    """The invariant ``name`` (kernels/invariants.py) per sample: a stored variable, |L| from L, or
+    Kovalevskaya's integral from ω, γ and the stored body."""
     if name == "L_norm":
         return np.sqrt((ds["L"] ** 2).sum("xyz"))
+    if name == "kovalevskaya":
+        return kovalevskaya_integral(ds["omega"], ds["gamma"], ds["body"])
     return ds[name]
+
+
+# Invariants derived from stored variables rather than stored themselves: {name: what they need}.
+DERIVED_INVARIANTS = {"L_norm": ("L",), "kovalevskaya": ("omega", "gamma", "body")}
+
+
+def has_invariant(ds, name):
+    """True when ``invariant(ds, name)`` can be computed from what the file holds."""
+    return all(v in ds.data_vars for v in DERIVED_INVARIANTS.get(name, (name,)))
+
+
+def kovalevskaya_integral(omega, gamma, body):
+    """K = (ω1² − ω2² − ν γ1)² + (2 ω1 ω2 − ν γ2)² (rad⁴ s⁻⁴), ν = M g c1 / I3.
+
+    Conserved by the exact motion of Kovalevskaya's top: I1 = I2 = 2 I3 about
+    the pivot, centre of mass on body e1 (c = (c1, 0, 0)); γ = Rᵀ ẑ the lab
+    vertical in body coordinates.  ``omega``/``gamma``: DataArrays with an
+    ``xyz`` dim; ``body``: the stored body (dim ``body_param``).  The sign of ν
+    follows from V = M g c·γ (checked by tests/test_heavy_body.py).
+    """
+    nu = body.sel(body_param="mgc1") / body.sel(body_param="I3")
+    w1, w2 = omega.sel(xyz="x"), omega.sel(xyz="y")
+    g1, g2 = gamma.sel(xyz="x"), gamma.sel(xyz="y")
+    return (w1 * w1 - w2 * w2 - nu * g1) ** 2 + (2.0 * w1 * w2 - nu * g2) ** 2
 
 
 def to_dataset(raw, per_run, coords, inputs=None, attrs=None):

@@ -32,7 +32,7 @@ from .body import N_FIELDS as N_BODY
 from .body import body_lane, body_lane_with_moments
 from .driver import STATUS_OK, _diverged, _record
 from .lanes import ieee_step, lane_step
-from .rigid_body import kinetic_energy
+from .rigid_body import kinetic_energy, potential_scale
 
 # The loop over lanes always covers whole vectors of this many lanes (8 doubles
 # fill an AVX-512 register): a scalar remainder of up to 7 lanes would cost as
@@ -52,7 +52,7 @@ def make_block_steps(step):
     lanes 0 .. n_lanes − 1.
 
     W (3, ≥ n_lanes) body ω (rad/s), Q (4, ·) quaternions, updated in place;
-    B (4, ·) bodies, DT (·,) steps (s); S (7, ·) float and BAD (·,) uint8
+    B (N_BODY, ·) bodies, DT (·,) steps (s); S (7, ·) float and BAD (·,) uint8
     scratch.  ``symmetric`` promises I1 == I2 ≠ 0 on every lane (_make_pass).
 
     The m steps run unchecked with ``lane_step``; a lane that ends non-finite
@@ -120,7 +120,7 @@ def _make_pass(fast, symmetric):
 
     The step's branches on the body (I1 == I2 in free_flow) are data to LLVM, so
     the vectorised loop computes both sides.  With ``symmetric`` (a compile-time
-    constant) the loop passes the body as (I1, I1, I3, mgl), I1 made provably
+    constant) the loop passes the body as (I1, I1, I3, …), I1 made provably
     not NaN: LLVM then folds I1 == I2 to true and drops the asymmetric free
     flow (lie_poisson: 11.5 → 3.4 ns/step).  Bit for bit the same when every
     lane has I1 == I2 ≠ 0 (so that not even the sign of a zero differs).
@@ -178,7 +178,7 @@ def make_advance_block(step):
             w = (W[0, j], W[1, j], W[2, j])
             body = body_lane(B, j)
             _record(out, i, 0, w, (Q[0, j], Q[1, j], Q[2, j], Q[3, j]), body)
-            TOL[j] = threshold * (kinetic_energy(w, body) + abs(body[3]))
+            TOL[j] = threshold * (kinetic_energy(w, body) + potential_scale(body))
             status[i] = STATUS_OK
             n_steps[i] = 0
         symmetric, wide = True, 0

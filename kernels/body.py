@@ -1,11 +1,15 @@
 """The body record every kernel and the runner share: one definition, extended here only.
 
-``Body(I1, I2, I3, mgl)``: principal moments of inertia (kg m²) about the
-pivot (about the centre of mass for a free body) and M g l (N m), the weight
-times the distance from the pivot to the centre of mass, which sits on body
-e3; mgl = 0 is a free body and skips the gravity torque.  A namedtuple of
-floats, so numba keeps it in registers exactly as a plain tuple (same
-machine code, same bits) while kernels may read fields by name.
+``Body(I1, I2, I3, mgl, mgc1, mgc2)``: principal moments of inertia (kg m²)
+about the pivot (about the centre of mass for a free body) and the weight M g
+times the body coordinates (c1, c2, c3) of the centre of mass (N m):
+``mgl`` = M g c3 (for the symmetric top, M g l: the name it has had since the
+centre of mass could only sit on e3), ``mgc1`` = M g c1, ``mgc2`` = M g c2.
+All three zero is a free body and skips the gravity torque; mgc1 = mgc2 = 0
+is the top with its centre of mass on e3.  ``Body(I1, I2, I3, mgl)`` still
+builds that top (the last two default to 0).  A namedtuple of floats, so
+numba keeps it in registers exactly as a plain tuple (same machine code, same
+bits) while kernels may read fields by name.
 
 The runner stores bodies as float64 arrays whose last axis is ``FIELDS``;
 results files carry that axis as the ``body_param`` coordinate.
@@ -15,25 +19,30 @@ from collections import namedtuple
 
 from numba import njit
 
-Body = namedtuple("Body", ["I1", "I2", "I3", "mgl"])
+Body = namedtuple("Body", ["I1", "I2", "I3", "mgl", "mgc1", "mgc2"], defaults=(0.0, 0.0))
 FIELDS = Body._fields
 N_FIELDS = len(FIELDS)
-UNITS = {"I1": "kg m2", "I2": "kg m2", "I3": "kg m2", "mgl": "N m"}
+UNITS = {"I1": "kg m2", "I2": "kg m2", "I3": "kg m2", "mgl": "N m", "mgc1": "N m", "mgc2": "N m"}
+
+
+def weight_moment(body):
+    """(M g c1, M g c2, M g c3) (N m): the weight times the centre of mass in body coordinates."""
+    return body[4], body[5], body[3]
 
 
 @njit(cache=True, error_model="numpy")
 def body_row(bodies, i):
     """Row i of a (n, N_FIELDS) body array as a Body."""
-    return Body(bodies[i, 0], bodies[i, 1], bodies[i, 2], bodies[i, 3])
+    return Body(bodies[i, 0], bodies[i, 1], bodies[i, 2], bodies[i, 3], bodies[i, 4], bodies[i, 5])
 
 
 @njit(cache=True, error_model="numpy")
 def body_lane(B, j):
     """Column j of a structure-of-arrays (N_FIELDS, n) body block as a Body."""
-    return Body(B[0, j], B[1, j], B[2, j], B[3, j])
+    return Body(B[0, j], B[1, j], B[2, j], B[3, j], B[4, j], B[5, j])
 
 
 @njit(cache=True, error_model="numpy")
 def body_lane_with_moments(B, j, I1, I2):
     """``body_lane(B, j)`` with I1 and I2 replaced (block.py's symmetric pass)."""
-    return Body(I1, I2, B[2, j], B[3, j])
+    return Body(I1, I2, B[2, j], B[3, j], B[4, j], B[5, j])

@@ -37,9 +37,16 @@ def scene_rotation(scene):
     return Rotation.from_quat([b, c, d, a])
 
 
+def _axial(scene):
+    """ValueError unless the centre of mass lies on e3 (mgc1 = mgc2 = 0): these closed forms are the top's."""
+    if any(float(v) != 0.0 for v in tuple(scene.body)[4:]):
+        raise ValueError(f"body={tuple(scene.body)}: the closed form needs the centre of mass on e3 (mgc1 = mgc2 = 0)")
+
+
 def top_invariants(scene):
     """(E (J), Lz, L3 (kg m²/s)) of the scene's initial state, from rotation matrices."""
-    I1, I2, I3, mgl = scene.body
+    I1, I2, I3, mgl = scene.body[:4]
+    _axial(scene)
     w = np.asarray(scene.omega0, dtype=float)
     R = scene_rotation(scene).as_matrix()
     Iw = np.array([I1, I2, I3]) * w
@@ -50,7 +57,8 @@ def top_invariants(scene):
 
 def _cubic(scene):
     """Coefficients (α, β, a, b) of f(u) for the scene's initial state."""
-    I1, I2, I3, mgl = scene.body
+    I1, I2, I3, mgl = scene.body[:4]
+    _axial(scene)
     if I1 != I2:
         raise ValueError(f"body={scene.body}: the closed form needs a symmetric top (I1 = I2)")
     if not mgl > 0:
@@ -173,7 +181,8 @@ def free_symmetric_solution(scene, times):
     body, L_b turns by −c t about e3 with c = (1/I3 − 1/I1) L3, and
     R(t) = R0 · Rot(L_b0 t / I1) · Rot(e3 c t).
     """
-    I1, I2, I3, mgl = scene.body
+    I1, I2, I3, mgl = scene.body[:4]
+    _axial(scene)
     if I1 != I2 or mgl != 0.0:
         raise ValueError(f"body={scene.body}: needs a free symmetric body (I1 = I2, M g l = 0)")
     t = np.asarray(times, dtype=float).reshape(-1)

@@ -15,7 +15,8 @@ an edit of this file or of any helper never runs stale machine code.
 
 Sample layout, last axis of ``out`` (n_runs, n_samples, N_FIELDS):
 axis_x, axis_y, axis_z (R e3, lab), omega_1..3 (body, rad/s),
-energy (J), L_x, L_y, L_z (lab angular momentum, kg m²/s), L3 (kg m²/s).
+energy (J), L_x, L_y, L_z (lab angular momentum, kg m²/s), L3 (kg m²/s),
+gamma_1..3 (γ = Rᵀ ẑ, the lab vertical in body coordinates).
 A new per-sample quantity is one more field here and in ``_record``, and one
 entry in the results layout (gyrolab/layout.py).
 """
@@ -26,9 +27,25 @@ import numpy as np
 from numba import njit
 
 from .body import body_row
-from .rigid_body import axis_lab, energy, kinetic_energy, lab_momentum
+from .rigid_body import axis_lab, energy, kinetic_energy, lab_momentum, potential_scale
+from .rotation import lab_up_in_body
 
-FIELDS = ("axis_x", "axis_y", "axis_z", "omega_1", "omega_2", "omega_3", "energy", "L_x", "L_y", "L_z", "L3")
+FIELDS = (
+    "axis_x",
+    "axis_y",
+    "axis_z",
+    "omega_1",
+    "omega_2",
+    "omega_3",
+    "energy",
+    "L_x",
+    "L_y",
+    "L_z",
+    "L3",
+    "gamma_1",
+    "gamma_2",
+    "gamma_3",
+)
 ENERGY = FIELDS.index("energy")
 N_FIELDS = len(FIELDS)
 
@@ -38,7 +55,7 @@ STATUS_ENERGY = 2
 STATUS_LEGEND = {
     STATUS_OK: "ok",
     STATUS_NONFINITE: "state became NaN/inf",
-    STATUS_ENERGY: "|E - E0| exceeded divergence_threshold x (T0 + M g l)",
+    STATUS_ENERGY: "|E - E0| exceeded divergence_threshold x (T0 + |M g c|)",
 }
 
 
@@ -57,6 +74,10 @@ def _record(out, i, k, w, q, body):
     out[i, k, 8] = L[1]
     out[i, k, 9] = L[2]
     out[i, k, 10] = body[2] * w[2]
+    g = lab_up_in_body(q)
+    out[i, k, 11] = g[0]
+    out[i, k, 12] = g[1]
+    out[i, k, 13] = g[2]
 
 
 def make_advance(step):
@@ -66,7 +87,7 @@ def make_advance(step):
     Integrates run i for ``strides[i]`` steps of ``dts[i]`` (s) per sample.
     Stops early, fills the remaining samples with NaN and sets ``status[i]``
     when the state goes non-finite or |E − E0| passes ``threshold`` times the
-    energy scale T0 + M g l (so a top released at θ0 = 90°, E0 = T0, is fine).
+    energy scale T0 + |M g c| (so a top released at θ0 = 90°, E0 = T0, is fine).
     """
 
     @njit(error_model="numpy")
@@ -77,7 +98,7 @@ def make_advance(step):
         dt = dts[i]
         stride = strides[i]
         _record(out, i, 0, w, q, body)
-        tolerance = threshold * (kinetic_energy(w, body) + abs(body[3]))
+        tolerance = threshold * (kinetic_energy(w, body) + potential_scale(body))
         status[i] = STATUS_OK
         done = 0
         for k in range(1, out.shape[1]):

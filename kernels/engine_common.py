@@ -162,7 +162,7 @@ def solve33(A, b):
 @njit(cache=True, error_model="numpy")
 def torque_kick(w, q, h, body):
     """ω + h I⁻¹ τ_g(q): an applied torque integrated explicitly over one step."""
-    t1, t2, t3 = gravity_torque(q, body[3])
+    t1, t2, t3 = gravity_torque(q, body)
     return w[0] + h * t1 / body[0], w[1] + h * t2 / body[1], w[2] + h * t3 / body[2]
 
 

@@ -1,7 +1,7 @@
 """The exact torque-free rigid-body motion (Euler–Poinsot) in Jacobi elliptic functions.
 
 ``free_flow_exact(w, q, h, body) -> (w, q)`` is the flow of the free rigid body
-over h seconds (mgl is ignored) for any positive principal moments in any
+over h seconds (the gravity fields of the body are ignored) for any positive principal moments in any
 order, any ω and any orientation: three distinct moments on either side of
 the separatrix and on it, two equal (the symmetric top, in closed form), all
 equal (the sphere).  ``free_body(I, omega0, q0, t)`` evaluates it on an array
@@ -61,7 +61,7 @@ corrections.  Our own choices on top of it:
 
 Elliptic functions: kernels/elliptic.py (our own AGM/Landen sn, cn, dn and
 Carlson R_F, R_J).  Conventions: q scalar first, R(q) body → lab, ω body
-frame (rad/s), body = (I1, I2, I3, mgl).
+frame (rad/s), body = kernels/body.py's Body (only I1, I2, I3 are read).
 """
 
 import math
@@ -371,8 +371,8 @@ def _project(x, y, z, x0, y0, z0):
 
 @njit(cache=True, error_model="numpy")
 def free_flow_exact(w, q, h, body):
-    """(ω, q) after the torque-free motion for h seconds (any h, any sign); mgl is ignored."""
-    I1, I2, I3, _ = body
+    """(ω, q) after the torque-free motion for h seconds (any h, any sign); only I1, I2, I3 of the body are read."""
+    I1, I2, I3 = body[0], body[1], body[2]
     p0, p1, p2, par = _sort3(I1, I2, I3)
     I = (I1 + 0.0, I2 + 0.0, I3 + 0.0)
     J1 = I[p0]

@@ -20,7 +20,7 @@ from .rotation import half_angle, quat_mul, quat_normalize, rotate_body_step
 @njit(cache=True, error_model="numpy")
 def kick(w, q, h, body):
     """ω after the potential's flow for h seconds (q unchanged)."""
-    t1, t2, t3 = gravity_torque(q, body[3])
+    t1, t2, t3 = gravity_torque(q, body)
     return w[0] + h * t1 / body[0], w[1] + h * t2 / body[1], w[2] + h * t3 / body[2]
 
 
@@ -47,7 +47,7 @@ def _axis_rotation(w, q, axis, h, body):
 @njit(cache=True, error_model="numpy")
 def free_flow(w, q, h, body):
     """Torque-free motion of (ω, q) for h seconds; exact when I1 = I2."""
-    I1, I2, I3, _ = body
+    I1, I2, I3 = body[0], body[1], body[2]
     if I1 == I2:
         c = (1.0 - I3 / I1) * w[2]  # (1/I3 − 1/I1) L3
         q = rotate_body_step(q, w[0] * h, w[1] * h, I3 / I1 * w[2] * h)

@@ -2,7 +2,8 @@
 
 A different formulation from every registered method (no quaternions, no
 splitting, adaptive 8th-order steps): state y = (ω body (3), R row-major (9)),
-I ω̇ = τ_b − ω × Iω, Ṙ = R [ω]×, τ_b = M g l (γ × e3), γ = Rᵀ ẑ.
+I ω̇ = τ_b − ω × Iω, Ṙ = R [ω]×, τ_b = γ × (M g c), γ = Rᵀ ẑ (the body's
+(mgl, mgc1, mgc2) = M g (c3, c1, c2); c = l e3 is the symmetric heavy top).
 """
 
 import math
@@ -14,17 +15,17 @@ from .closed_form import scene_rotation
 from .driver import N_FIELDS
 
 
-def rhs(_t, y, I1, I2, I3, mgl):
+def rhs(_t, y, I1, I2, I3, mgl, mgc1=0.0, mgc2=0.0):
     """d/dt of y = (ω body (rad/s), R row-major): Euler's equations with the gravity
     torque, and Ṙ = R [ω]×; the scipy ``solve_ivp`` form, args = the body tuple."""
     w1, w2, w3 = y[0], y[1], y[2]
     R = y[3:].reshape(3, 3)
-    g1, g2 = R[2, 0], R[2, 1]  # γ = Rᵀ ẑ is the third row of R
-    # γ × e3 = (γ2, −γ1, 0)
+    gamma = R[2]  # γ = Rᵀ ẑ is the third row of R
+    tau = np.cross(gamma, (mgc1, mgc2, mgl))
     dw = (
-        (mgl * g2 + (I2 - I3) * w2 * w3) / I1,
-        (-mgl * g1 + (I3 - I1) * w3 * w1) / I2,
-        ((I1 - I2) * w1 * w2) / I3,
+        (tau[0] + (I2 - I3) * w2 * w3) / I1,
+        (tau[1] + (I3 - I1) * w3 * w1) / I2,
+        (tau[2] + (I1 - I2) * w1 * w2) / I3,
     )
     W = np.array([[0.0, -w3, w2], [w3, 0.0, -w1], [-w2, w1, 0.0]])
     return np.concatenate((dw, (R @ W).ravel()))
@@ -33,23 +34,25 @@ def rhs(_t, y, I1, I2, I3, mgl):
 def samples_from_states(body, omega, R):
     """Samples (n, driver.N_FIELDS) in driver.FIELDS order from ω (n, 3) and R (n, 3, 3)."""
     I = np.asarray(body[:3], dtype=float)
-    mgl = body[3]
+    body = tuple(body) + (0.0,) * (6 - len(body))
+    weight_moment = np.array([body[4], body[5], body[3]])  # M g c in body coordinates
     Iw = omega * I
     L = np.einsum("nij,nj->ni", R, Iw)
     out = np.empty((omega.shape[0], N_FIELDS))
     out[:, 0:3] = R[:, :, 2]
     out[:, 3:6] = omega
-    out[:, 6] = 0.5 * np.sum(omega * Iw, axis=1) + mgl * R[:, 2, 2]
+    out[:, 6] = 0.5 * np.sum(omega * Iw, axis=1) + R[:, 2, :] @ weight_moment
     out[:, 7:10] = L
     out[:, 10] = Iw[:, 2]
+    out[:, 11:14] = R[:, 2, :]
     return out
 
 
 def dop853(scene, t_end, every, rtol=1e-12, atol=1e-12):
-    """Reference samples (n_samples, 9) at t = 0, every, 2 every, ... ≤ t_end (s).
+    """Reference samples (n_samples, driver.N_FIELDS) at t = 0, every, 2 every, ... ≤ t_end (s).
 
     Fields in driver.FIELDS order: axis R e3 (lab), ω (body, rad/s), E (J),
-    Lz, L3 (kg m²/s).  The samples come from DOP853's dense output, accurate
+    L (lab), L3 (kg m²/s), γ (body).  The samples come from DOP853's dense output, accurate
     to about the tolerances.
     """
     if not (every > 0 and t_end >= every):

@@ -1,10 +1,13 @@
 """Euler's equations, the gravity torque and the invariants, in the body frame.
 
-A body is the tuple (I1, I2, I3, mgl): principal moments about the pivot
-(kg m²) and M g l (N m), zero for a free body.  ω is the body angular
+A body is kernels/body.py's Body (I1, I2, I3, mgl, mgc1, mgc2): principal
+moments about the pivot (kg m²) and the weight times the centre of mass's
+body coordinates (M g c3, M g c1, M g c2; N m), all zero for a free body.  ω is the body angular
 velocity (rad/s, components on the current body axes), q the orientation
 quaternion (see rotation.py).
 """
+
+import math
 
 from numba import njit
 
@@ -12,22 +15,25 @@ from .rotation import body_to_lab, lab_up_in_body
 
 
 @njit(cache=True, error_model="numpy")
-def gravity_torque(q, mgl):
-    """τ_b = M g l (γ × e3) in the body frame (N m), with γ = Rᵀ ẑ.
+def gravity_torque(q, body):
+    """τ_b = γ × (M g c) in the body frame (N m), with γ = Rᵀ ẑ the lab vertical in body coordinates.
 
-    The centre of mass sits at l e3 and gravity is −g ẑ, so the lab torque is
-    l e3 × (−M g ẑ) = M g l ẑ × e3; in body coordinates that is γ × e3.
+    The centre of mass sits at c (body coordinates) and gravity is −g ẑ, so the
+    lab torque is R c × (−M g ẑ) = M g ẑ × R c; in body coordinates that is
+    γ × (M g c).  For c = l e3 it is M g l (γ2, −γ1, 0) bit for bit: the terms
+    with M g c1 = M g c2 = 0 add exact zeros.
     """
-    if mgl == 0.0:
+    m3, m1, m2 = body[3], body[4], body[5]
+    if m3 == 0.0 and m1 == 0.0 and m2 == 0.0:
         return 0.0, 0.0, 0.0
-    g1, g2, _ = lab_up_in_body(q)
-    return mgl * g2, -mgl * g1, 0.0
+    g1, g2, g3 = lab_up_in_body(q)
+    return g2 * m3 - g3 * m2, g3 * m1 - g1 * m3, g1 * m2 - g2 * m1
 
 
 @njit(cache=True, error_model="numpy")
 def euler_rhs(w, tau, body):
     """ω̇ = I⁻¹ (τ − ω × Iω) (rad/s²), all in the body frame."""
-    I1, I2, I3, _ = body
+    I1, I2, I3 = body[0], body[1], body[2]
     w1, w2, w3 = w
     t1, t2, t3 = tau
     return (
@@ -39,21 +45,34 @@ def euler_rhs(w, tau, body):
 
 @njit(cache=True, error_model="numpy")
 def kinetic_energy(w, body):
-    I1, I2, I3, _ = body
+    I1, I2, I3 = body[0], body[1], body[2]
     w1, w2, w3 = w
     return 0.5 * (I1 * w1 * w1 + I2 * w2 * w2 + I3 * w3 * w3)
 
 
 @njit(cache=True, error_model="numpy")
+def potential_energy(q, body):
+    """V = M g c·γ (J): the height of the centre of mass times M g (for c = l e3, M g l cos θ)."""
+    g1, g2, g3 = lab_up_in_body(q)
+    return body[3] * g3 + body[4] * g1 + body[5] * g2
+
+
+@njit(cache=True, error_model="numpy")
+def potential_scale(body):
+    """|M g c| (J): the largest change of V over orientations is twice this."""
+    return math.sqrt(body[3] * body[3] + body[4] * body[4] + body[5] * body[5])
+
+
+@njit(cache=True, error_model="numpy")
 def energy(w, q, body):
-    """E = ½ ω·Iω + M g l cos θ (J); cos θ = e3·ẑ = γ3."""
-    return kinetic_energy(w, body) + body[3] * lab_up_in_body(q)[2]
+    """E = ½ ω·Iω + M g c·γ (J); for c = l e3 that is ½ ω·Iω + M g l cos θ (γ3 = cos θ)."""
+    return kinetic_energy(w, body) + potential_energy(q, body)
 
 
 @njit(cache=True, error_model="numpy")
 def lab_momentum(w, q, body):
     """L = R I ω, the angular momentum about the pivot in the lab frame (kg m²/s)."""
-    I1, I2, I3, _ = body
+    I1, I2, I3 = body[0], body[1], body[2]
     return body_to_lab(q, I1 * w[0], I2 * w[1], I3 * w[2])
 
 

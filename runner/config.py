@@ -84,6 +84,9 @@ def scene_schema(name, module):
     """A dataclass with ``name`` plus one typed field per entry of the scene's OPTIONS."""
     fields = [("name", str, field(default=name))]
     for key, default in module.OPTIONS.items():
+        if isinstance(default, (list, tuple)):  # a body-frame vector
+            fields.append((key, List[float], field(default_factory=lambda v=list(default): list(v))))
+            continue
         kind = str if isinstance(default, str) else bool if isinstance(default, bool) else float
         fields.append((key, kind, field(default=default)))
     return dataclasses.make_dataclass(f"{name.title().replace('_', '')}Scene", fields)

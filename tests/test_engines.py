@@ -533,7 +533,7 @@ def test_no_gyro_keeps_omega_constant(w0):
 
 def rhs(_t, y, body, damping, gyro):
     """(ω, R row-major)' for I ω̇ = τ − [gyro] ω × Iω − damping I ω, Ṙ = R [ω]×, τ = M g l (γ × e3)."""
-    I1, I2, I3, mgl = body
+    I1, I2, I3, mgl = body[:4]
     w1, w2, w3 = y[0], y[1], y[2]
     R = y[3:].reshape(3, 3)
     g1, g2 = R[2, 0], R[2, 1]

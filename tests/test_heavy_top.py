@@ -15,12 +15,13 @@ from scipy.integrate import cumulative_trapezoid, quad
 from scipy.special import ellipk
 
 import gyrolab
+from gyrolab.kernels.body import Body
 from gyrolab.kernels.closed_form import heavy_top_nutation, nutation_roots
 from gyrolab.kernels.driver import FIELDS
 from gyrolab.kernels.reference import dop853
 from gyrolab.kernels.reference import rhs as reference_rhs
 from gyrolab.kernels.registry import METHODS
-from gyrolab.kernels.rigid_body import gravity_torque
+from gyrolab.kernels.rigid_body import gravity_torque, potential_energy
 from gyrolab.kernels.rotation import ck_matrix, lab_up_in_body, quat_from_rotvec, quat_mul
 from gyrolab.kernels.scenes import build_scene
 
@@ -44,25 +45,41 @@ def order_tolerance(name, omega3, dt):
 # ---------------------------------------------------------------- gravity's sign
 
 
-@pytest.mark.parametrize("seed", range(5))
+@pytest.mark.parametrize("seed", range(6))
 def test_gravity_torque_is_minus_gradient_of_potential(seed):
-    """τ_k = −∂V/∂ε_k for the body-frame rotation R → R Rot(ε e_k), V = M g l cos θ = M g l γ3."""
+    """τ_k = −∂V/∂ε_k for the body-frame rotation R → R Rot(ε e_k), V = M g c·γ, for a centre of mass
+    on e3 (seeds 0-2: V = M g l γ3) and anywhere (seeds 3-5), against central differences of V."""
     rng = np.random.default_rng(seed)
     q = rng.normal(size=4)
     q = tuple(q / np.linalg.norm(q))
-    mgl, eps = 2.5, 1e-6
-    tau = gravity_torque(q, mgl)
+    mgc = (0.0, 0.0, 2.5) if seed < 3 else tuple(rng.normal(size=3) * 2.0)
+    body = Body(0.3, 0.4, 0.1, mgc[2], mgc[0], mgc[1])
+    eps = 1e-6
+    tau = gravity_torque(q, body)
     for k in range(3):
         v = [0.0, 0.0, 0.0]
         v[k] = eps
-        plus = mgl * lab_up_in_body(quat_mul(q, quat_from_rotvec(*v)))[2]
+        plus = np.dot(mgc, lab_up_in_body(quat_mul(q, quat_from_rotvec(*v))))
         v[k] = -eps
-        minus = mgl * lab_up_in_body(quat_mul(q, quat_from_rotvec(*v)))[2]
+        minus = np.dot(mgc, lab_up_in_body(quat_mul(q, quat_from_rotvec(*v))))
         assert tau[k] == pytest.approx(-(plus - minus) / (2 * eps), abs=1e-8)
-    # The reference's independent torque (matrix form) agrees: at ω = 0, I ω̇ = τ.
-    body = (0.3, 0.3, 0.1, mgl)
+    assert potential_energy(q, body) == pytest.approx(np.dot(mgc, lab_up_in_body(q)), abs=1e-15)
+    # The reference's independent torque (matrix form, np.cross) agrees: at ω = 0, I ω̇ = τ.
     y = np.concatenate(([0.0, 0.0, 0.0], ck_matrix(q).ravel()))
     np.testing.assert_allclose(np.asarray(reference_rhs(0.0, y, *body)[:3]) * body[:3], tau, rtol=0, atol=1e-14)
+
+
+def test_gravity_torque_of_an_axial_centre_of_mass_is_the_tops_bit_for_bit():
+    """c = l e3 through the general formula γ × (M g c) is M g l (γ2, −γ1, 0) exactly: the general
+    body reproduces the symmetric top's torque, so its runs are the same to the bit."""
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        q = rng.normal(size=4)
+        q = tuple(q / np.linalg.norm(q))
+        mgl = float(rng.uniform(0.1, 5.0))
+        g1, g2, _ = lab_up_in_body(q)
+        t1, t2, t3 = gravity_torque(q, Body(0.3, 0.3, 0.1, mgl))
+        assert (t1, t2) == (mgl * g2, -mgl * g1) and t3 == 0.0
 
 
 @pytest.mark.parametrize("name", own_methods())
@@ -73,7 +90,7 @@ def test_top_released_at_rest_falls(name, run_scene):
     s = run_scene(name, sc, dt, t_end, 1e-3)
     theta = np.arccos(s[:, 2])
     assert np.all(np.diff(theta) > 0)
-    I1, _, _, mgl = sc.body
+    I1, _, _, mgl = sc.body[:4]
     expected = 0.5 * mgl * math.sin(math.radians(45.0)) / I1 * t_end**2
     assert theta[-1] - theta[0] == pytest.approx(expected, rel=1e-2)
 
@@ -81,7 +98,7 @@ def test_top_released_at_rest_falls(name, run_scene):
 def test_reference_top_released_at_rest_falls():
     sc = build_scene("heavy_top", 0.0, 45.0)
     s = dop853(sc, 0.01, 1e-3)
-    I1, _, _, mgl = sc.body
+    I1, _, _, mgl = sc.body[:4]
     assert np.all(np.diff(np.arccos(s[:, 2])) > 0)
     assert np.arccos(s[-1, 2]) - math.pi / 4 == pytest.approx(0.5 * mgl * math.sin(math.pi / 4) / I1 * 1e-4, rel=1e-3)
 
@@ -92,7 +109,7 @@ def test_reference_top_released_at_rest_falls():
 def test_release_roots_match_the_quadratic():
     """Released (θ̇ = φ̇ = 0): u0 = cos θ0 is a root and the others solve β u² − a² u + a² u0 − β = 0."""
     sc = build_scene("heavy_top", 50.0, 45.0)
-    I1, _, I3, mgl = sc.body
+    I1, _, I3, mgl = sc.body[:4]
     a, beta, u0 = I3 * sc.omega0[2] / I1, 2 * mgl / I1, math.cos(math.pi / 4)
     u1, u2, u3 = nutation_roots(sc)
     disc = math.sqrt(a**4 - 4 * beta * (a * a * u0 - beta))
@@ -285,7 +302,7 @@ def test_slow_sleeping_top_falls(name, run_scene):
 
 
 def energy_prediction(samples, body, dt, every, scheme):
-    I1, _, I3, mgl = body
+    I1, _, I3, mgl = body[:4]
     t = np.arange(len(samples)) * every
     cos_theta, w3, Lz, L3 = (
         samples[:, 2],

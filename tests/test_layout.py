@@ -1,8 +1,11 @@
-"""The results layout: files of the current layout and of layout 0 (before layout_version) open with
-every reader; foreign files are refused."""
+"""The results layout: files of the current layout, of layout 1 (before heavy bodies: no gamma, a
+four-field body) and of layout 0 (before layout_version) open with every reader; foreign files are
+refused."""
 
 import subprocess
+from pathlib import Path
 
+import numpy as np
 import pytest
 
 from gyrolab.analysis.compare import compare_files
@@ -10,6 +13,8 @@ from gyrolab.analysis.io import SelectionError, open_results
 from gyrolab.layout import LAYOUT_VERSION, SAMPLE_VARIABLES, file_layout_version
 
 from helpers import BIN, make_dataset
+
+DATA = Path(__file__).resolve().parent / "data"
 
 
 @pytest.fixture(scope="module")
@@ -21,17 +26,57 @@ def files(tmp_path_factory):
     ds.attrs.update(gyrolab_version="0.1.0", config="sweep:\n  t_end: 0.2\n")
     new, old = root / "new.h5", root / "old.h5"
     ds.to_netcdf(new, engine="h5netcdf")
-    legacy = ds.drop_vars(["L", "body", "omega0", "q0"])
+    legacy = ds.drop_vars(["L", "gamma", "body", "omega0", "q0"])
     legacy.attrs = {k: v for k, v in ds.attrs.items() if k not in ("layout_version", "conserved", "closed_form")}
     legacy.to_netcdf(old, engine="h5netcdf")
     return new, old
+
+
+@pytest.fixture(scope="module")
+def layout_1(files, tmp_path_factory):
+    """The current file as layout 1 wrote it: no gamma, body_param = (I1, I2, I3, mgl)."""
+    import xarray as xr
+
+    ds = xr.open_dataset(files[0], engine="h5netcdf").load()
+    one = ds.drop_vars("gamma").isel(body_param=slice(0, 4))
+    one.attrs["layout_version"] = 1
+    path = tmp_path_factory.mktemp("layout1") / "v1.h5"
+    one.to_netcdf(path, engine="h5netcdf")
+    return path
+
+
+def test_layout_1_file_opens_with_the_body_it_meant(files, layout_1):
+    """A layout-1 body (centre of mass on e3) reads as today's Body with mgc1 = mgc2 = 0; compare with a
+    current file of the same runs passes and says that gamma is not in the older layout."""
+    from gyrolab.analysis.io import build_run_scene
+    from gyrolab.kernels.body import FIELDS
+
+    ds = open_results(layout_1)
+    assert file_layout_version(ds) == 1 and "gamma" not in ds
+    assert list(ds["body_param"].values) == list(FIELDS)
+    np.testing.assert_array_equal(ds["body"].values[..., 4:], 0.0)
+    current = open_results(files[0])
+    np.testing.assert_array_equal(ds["body"].values, current["body"].values)
+    assert build_run_scene(ds, 10.0, 45.0) == build_run_scene(current, 10.0, 45.0)
+    report = compare_files(layout_1, files[0])
+    assert report.ok and not report.versions, report.text()
+    assert any("variable gamma" in note for note in report.dropped)
+
+
+def test_stored_regression_data_of_layout_1_open_with_the_current_body():
+    from gyrolab.kernels.body import FIELDS
+
+    ds = open_results(DATA / "regression" / "heavy_top_release" / "rk4.h5")
+    assert file_layout_version(ds) == 1 and list(ds["body_param"].values) == list(FIELDS)
+    assert float(ds["body"].sel(body_param="mgl").values.max()) > 0.0
 
 
 def test_current_and_layout_0_files_open(files):
     new, old = files
     assert file_layout_version(open_results(new)) == LAYOUT_VERSION
     legacy = open_results(old)
-    assert file_layout_version(legacy) == 0 and "L" not in legacy and set(SAMPLE_VARIABLES) - {"L"} <= set(legacy)
+    assert file_layout_version(legacy) == 0 and "L" not in legacy
+    assert set(SAMPLE_VARIABLES) - {"L", "gamma"} <= set(legacy)
 
 
 def test_compare_across_layouts_compares_the_shared_variables(files):

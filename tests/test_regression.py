@@ -229,7 +229,8 @@ def overwrite_method(path, method, run_batch):
                         n_steps,
                     )
                     for var, values in sample_variables(out[0]).items():
-                        fh[var][im, jf, kt, ld] = values
+                        if var in fh:  # a stored file of an older layout lacks the newer variables
+                            fh[var][im, jf, kt, ld] = values
                     fh["status"][im, jf, kt, ld] = status[0]
                     fh["n_steps"][im, jf, kt, ld] = n_steps[0]
 

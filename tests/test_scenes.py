@@ -13,10 +13,10 @@ from gyrolab.kernels.scenes.heavy_top import steady_precession_rates
 def test_heavy_top_seed_body():
     """M = 1 kg, r = 0.05 m, l = 0.1 m, g = 10: I1 = I2 = M(r²/4 + l²), I3 = M r²/2, M g l = 1."""
     sc = build_scene("heavy_top", 10.0, 45.0)
-    np.testing.assert_allclose(sc.body, (0.010625, 0.010625, 0.00125, 1.0), rtol=1e-15)
+    np.testing.assert_allclose(sc.body, (0.010625, 0.010625, 0.00125, 1.0, 0.0, 0.0), rtol=1e-15)
     sc = build_scene("heavy_top", 10.0, 45.0, M=2.0, r=0.1, l=0.3, g=9.81)
     np.testing.assert_allclose(
-        sc.body, (2 * (0.01 / 4 + 0.09), 2 * (0.01 / 4 + 0.09), 2 * 0.01 / 2, 2 * 9.81 * 0.3), rtol=1e-15
+        sc.body, (2 * (0.01 / 4 + 0.09), 2 * (0.01 / 4 + 0.09), 2 * 0.01 / 2, 2 * 9.81 * 0.3, 0.0, 0.0), rtol=1e-15
     )
 
 
@@ -63,7 +63,7 @@ def test_steady_rates_solve_the_precession_condition(f, theta0):
     rates = []
     for init in ("steady_slow", "steady_fast"):
         sc = build_scene("heavy_top", f, theta0, init=init)
-        I1, _, I3, mgl = sc.body
+        I1, _, I3, mgl = sc.body[:4]
         th = math.radians(theta0)
         phidot = sc.omega0[1] / math.sin(th)  # ω2 = φ̇ sin θ at ψ = 0
         assert sc.omega0[0] == 0.0  # θ̇0 = 0
@@ -89,7 +89,7 @@ def test_sleeping_top_is_upright_and_spinning():
 def test_free_symmetric_body_and_rates():
     """Disc about its centre: I1 = I2 = M r²/4, I3 = M r²/2, no gravity; ω = (0, wobble ω3, ω3)."""
     sc = build_scene("free_symmetric", 10.0, 30.0, M=2.0, r=0.1, wobble=0.25)
-    np.testing.assert_allclose(sc.body, (0.005, 0.005, 0.01, 0.0), rtol=1e-15)
+    np.testing.assert_allclose(sc.body, (0.005, 0.005, 0.01, 0.0, 0.0, 0.0), rtol=1e-15)
     w3 = 2 * math.pi * 10.0
     np.testing.assert_allclose(sc.omega0, (0.0, 0.25 * w3, w3), rtol=1e-15)
 
@@ -97,7 +97,7 @@ def test_free_symmetric_body_and_rates():
 def test_free_asymmetric_body_and_rates():
     """Spin about e3, the intermediate axis by default (I1 < I3 < I2), with a small ω1 = eps ω3."""
     sc = build_scene("free_asymmetric", 5.0, 0.0)
-    I1, I2, I3, mgl = sc.body
+    I1, I2, I3, mgl = sc.body[:4]
     assert I1 < I3 < I2 and mgl == 0.0
     w3 = 2 * math.pi * 5.0
     np.testing.assert_allclose(sc.omega0, (1e-3 * w3, 0.0, w3), rtol=1e-15)

@@ -73,7 +73,7 @@ def step(w, q, dt, body):
     if l2 > MAX_GYROSCOPIC_FORCE * MAX_GYROSCOPIC_FORCE:
         s = 1.0 / math.sqrt(l2) * MAX_GYROSCOPIC_FORCE
         g1, g2, g3 = g1 * s, g2 * s, g3 * s
-    t1, t2, t3 = gravity_torque(q, body[3])
+    t1, t2, t3 = gravity_torque(q, body)
     w_next = (
         w[0] + (t1 - g1) / body[0] * dt,
         w[1] + (t2 - g2) / body[1] * dt,

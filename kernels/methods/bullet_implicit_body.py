@@ -41,7 +41,7 @@ PRESERVES = ("L3",)
 def step(w, q, dt, body):
     c1, c2, c3 = gyro_bias(w, body)
     d1, d2, d3 = solve33(linearly_implicit_matrix(w, dt, body), (dt * c1, dt * c2, dt * c3))
-    t1, t2, t3 = gravity_torque(q, body[3])
+    t1, t2, t3 = gravity_torque(q, body)
     w_next = (
         w[0] + t1 / body[0] * dt - d1,
         w[1] + t2 / body[1] * dt - d2,

@@ -24,7 +24,7 @@ PRESERVES = ("L3",)
 
 @njit(cache=True, error_model="numpy")
 def step(w, q, dt, body):
-    wd = euler_rhs(w, gravity_torque(q, body[3]), body)
+    wd = euler_rhs(w, gravity_torque(q, body), body)
     qd = quat_mul(q, (0.0, w[0], w[1], w[2]))
     h = 0.5 * dt
     q_next = (q[0] + h * qd[0], q[1] + h * qd[1], q[2] + h * qd[2], q[3] + h * qd[3])

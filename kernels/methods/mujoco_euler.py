@@ -35,7 +35,7 @@ PRESERVES = ("L3",)
 @njit(cache=True, error_model="numpy")
 def qacc(w, q, body):
     """M⁻¹ (τ − ω × Iω) at the (MuJoCo-normalised) orientation q (rad/s²)."""
-    t1, t2, t3 = gravity_torque(mj_normalize4(q), body[3])
+    t1, t2, t3 = gravity_torque(mj_normalize4(q), body)
     c1, c2, c3 = gyro_bias(w, body)
     return (t1 - c1) / body[0], (t2 - c2) / body[1], (t3 - c3) / body[2]
 

@@ -41,7 +41,7 @@ PRESERVES = ("L3",)
 @njit(cache=True, error_model="numpy")
 def implicit_qacc(w, q, dt, body):
     """(I + h J(ω))⁻¹ (τ(q) − ω × Iω) (rad/s²)."""
-    t1, t2, t3 = gravity_torque(mj_normalize4(q), body[3])
+    t1, t2, t3 = gravity_torque(mj_normalize4(q), body)
     c1, c2, c3 = gyro_bias(w, body)
     return solve33(linearly_implicit_matrix(w, dt, body), (t1 - c1, t2 - c2, t3 - c3))
 

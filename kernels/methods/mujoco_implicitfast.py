@@ -8,11 +8,11 @@ unsymmetric solve for free joints whose body has no children), and
 doc/computation/index.rst "Gyroscopic derivatives for free bodies"; checked
 against the ``mujoco`` 4.0.0 wheel by tests/test_engines.py.
 
-- Ball joint (the heavy top, body[3] = M g l ≠ 0): D holds only damping and
+- Ball joint (a heavy body, M g c ≠ 0): D holds only damping and
   actuator derivatives, zero for the rigid body, so M − h D = M and the update
   is exactly MuJoCo's semi-implicit Euler (mujoco_euler): the gyroscopic force
   is explicit.
-- Free body (body[3] = 0, read as a standalone free joint): the bias
+- Free body (M g c = 0, read as a standalone free joint): the bias
   derivative is put back, so the update is mujoco_implicit's.
 
 Both then integrate q with the new ω (``mju_quatIntegrate``).  A free body
@@ -24,6 +24,7 @@ No hidden limits.  Order 1.
 from numba import njit
 
 from ..engine_common import mj_quat_integrate
+from ..rigid_body import potential_scale
 from .mujoco_euler import qacc
 from .mujoco_implicit import implicit_qacc
 
@@ -35,7 +36,7 @@ PRESERVES = ("L3",)
 
 @njit(cache=True, error_model="numpy")
 def step(w, q, dt, body):
-    if body[3] == 0.0:
+    if potential_scale(body) == 0.0:
         a = implicit_qacc(w, q, dt, body)
     else:
         a = qacc(w, q, body)

@@ -17,7 +17,7 @@ PRESERVES = ("L3",)
 
 @njit(cache=True, error_model="numpy")
 def _rhs(w, q, body):
-    wd = euler_rhs(w, gravity_torque(q, body[3]), body)
+    wd = euler_rhs(w, gravity_torque(q, body), body)
     qd = quat_mul(q, (0.0, w[0], w[1], w[2]))
     return wd, (0.5 * qd[0], 0.5 * qd[1], 0.5 * qd[2], 0.5 * qd[3])
 

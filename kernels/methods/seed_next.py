@@ -34,5 +34,5 @@ def rk4_frozen_torque(w, tau, dt, body):
 
 @njit(cache=True, error_model="numpy")
 def step(w, q, dt, body):
-    w_next = rk4_frozen_torque(w, gravity_torque(q, body[3]), dt, body)
+    w_next = rk4_frozen_torque(w, gravity_torque(q, body), dt, body)
     return w_next, rotate_body_step(q, w_next[0] * dt, w_next[1] * dt, w_next[2] * dt)

@@ -17,5 +17,5 @@ PRESERVES = ("L3",)
 
 @njit(cache=True, error_model="numpy")
 def step(w, q, dt, body):
-    w_next = rk4_frozen_torque(w, gravity_torque(q, body[3]), dt, body)
+    w_next = rk4_frozen_torque(w, gravity_torque(q, body), dt, body)
     return w_next, rotate_body_step(q, w[0] * dt, w[1] * dt, w[2] * dt)

@@ -13,8 +13,10 @@ A scene is one module here plus ``conf/scene/<name>.yaml`` and one line in
 - ``build(f, theta0, **options) -> Scene``: the body (kernels/body.py) and
   initial state for spin f (Hz) and tilt θ0 (deg).
 
-What a scene declares through its body is all the kernels compute: M g l = 0
-skips the torque, I1 = I2 takes the closed-form free flow.
+An option is a number, a bool, a string or a list of three numbers (a
+body-frame vector such as heavy_body's ``com``).  What a scene declares
+through its body is all the kernels compute: M g c = 0 skips the torque,
+I1 = I2 takes the closed-form free flow.
 """
 
 import importlib
@@ -27,6 +29,8 @@ NAMES = (
     "heavy_top",
     "free_symmetric",
     "free_asymmetric",
+    "heavy_body",
+    "kovalevskaya",
 )
 SCENES = {name: importlib.import_module(f".{name}", __package__) for name in NAMES}
 

@@ -62,3 +62,30 @@ def check_triangle(I1, I2, I3):
                 f"scene.{name}={c}: violates the triangle inequality of principal moments "
                 f"({a} + {b} < {c}); no rigid body has these moments (scene.allow_unphysical=true runs them anyway)"
             )
+
+
+def check_pivot_inertia(I1, I2, I3, M, com):
+    """Principal moments about a pivot that some rigid body of mass M (kg) with its centre of mass
+    at ``com`` (m, body coordinates) can have: the inertia about the centre of mass,
+    diag(I) − M (|c|² 1 − c cᵀ) (parallel-axis theorem), must be a real body's (positive
+    eigenvalues that obey the triangle inequality).  ValueError naming what fails."""
+    c = np.asarray(com, dtype=float)
+    about_com = np.diag([I1, I2, I3]) - M * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
+    moments = np.linalg.eigvalsh(about_com)
+    if not moments[0] > 0.0 or moments[0] + moments[1] < moments[2] * (1.0 - 1e-12):
+        raise ValueError(
+            f"scene.I1, I2, I3 = {I1}, {I2}, {I3} about the pivot, M = {M}, com = {[float(x) for x in c]}: the moments "
+            f"about the centre of mass would be {', '.join(f'{m:.4g}' for m in moments)} (kg m2), which no "
+            "rigid body has (scene.allow_unphysical=true runs them anyway)"
+        )
+
+
+def check_vector(key, value):
+    """A list of three finite floats (a body-frame vector option) as a tuple; ValueError otherwise."""
+    try:
+        vector = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"scene.{key}={value}: must be a list of three numbers [x, y, z]") from None
+    if len(vector) != 3 or not all(np.isfinite(vector)):
+        raise ValueError(f"scene.{key}={list(value)}: must be a list of three finite numbers [x, y, z]")
+    return vector
