@@ -53,7 +53,11 @@ def composition_error(*overrides):
     "override, line",
     [
         ("sweep.t_end=ten", "sweep.t_end=ten: Value 'ten' of type 'str' could not be converted to Float"),
-        ("scene=plate", "scene=plate: unknown scene; choose from free_asymmetric, free_symmetric, heavy_top"),
+        (
+            "scene=plate",
+            "scene=plate: unknown scene; choose from "
+            "free_asymmetric, free_symmetric, heavy_body, heavy_top, kovalevskaya",
+        ),
         ("sweep.tend=3", "sweep.tend=3: Key 'tend' not in 'SweepConfig'"),
         (
             "sweep.f=5",
