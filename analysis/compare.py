@@ -284,13 +284,13 @@ def data_config(text):
     """The flattened config of a file's ``config`` attr, without the keys that do not change data."""
     import yaml
 
-    from ..layout import RUN_ONLY
+    from ..layout import RUN_ONLY, drop_neutral_defaults
 
     data = yaml.safe_load(text) or {}
     for group, keys in RUN_ONLY.items():
         for key in keys:
             (data.get(group) or {}).pop(key, None)
-    return _flatten(data)
+    return _flatten(drop_neutral_defaults(data))
 
 
 def version_notes(da, db):
@@ -387,12 +387,18 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
     inputs = input_notes(da, db)
     va = [v for v in da.data_vars if v not in ignored and v not in INPUT_VARIABLES]
     vb = [v for v in db.data_vars if v not in ignored and v not in INPUT_VARIABLES]
-    from ..layout import ABSENT_BEFORE, file_layout_version
+    from ..layout import ABSENT_BEFORE, SAMPLE_VARIABLES, file_layout_version, held_variables
 
     # A file of an older layout lacks some variables: compare the rest, and say so.
     older = {name: set(ABSENT_BEFORE.get(file_layout_version(d), ())) for name, d in zip(names, (da, db))}
     for v in sorted((set(va) ^ set(vb)) & (older[names[0]] | older[names[1]])):
         dropped.append(f"variable {v} (not in the older layout of one file)")
+        va, vb = [x for x in va if x != v], [x for x in vb if x != v]
+    # A file written with output.variables holds only the chosen ones: compare the rest, and say so.
+    unchosen = {name: set(SAMPLE_VARIABLES) - set(held_variables(d)) for name, d in zip(names, (da, db))}
+    for v in sorted((set(va) ^ set(vb)) & (unchosen[names[0]] | unchosen[names[1]])):
+        which = names[0] if v in unchosen[names[0]] else names[1]
+        dropped.append(f"variable {v} (not stored in {which}: output.variables)")
         va, vb = [x for x in va if x != v], [x for x in vb if x != v]
     for v in va:
         if v not in vb:

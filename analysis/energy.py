@@ -13,6 +13,7 @@ marked "diverged" in the legend.
 import matplotlib.pyplot as plt
 import numpy as np
 
+from ..layout import DERIVED_INVARIANTS, conserved
 from .figure import add_note, choose, coincidence_text, coincident, legend_below, panel_size, subplots, suptitle
 from .io import (
     DT_STYLES,
@@ -22,6 +23,7 @@ from .io import (
     drawable_invariants,
     fmt_dt,
     invariant_error,
+    missing_variable_error,
     relative_error,
     scene_label,
     scene_name,
@@ -51,6 +53,9 @@ def drift_table(ds, quantity="energy", sel=None):
 def _check_quantity(ds, quantity):
     """ValueError unless the file's scene conserves ``quantity`` (layout.conserved)."""
     have = drawable_invariants(ds)
+    if quantity not in have and quantity in conserved(ds):  # conserved, but the file does not hold it
+        lacking = [v for v in DERIVED_INVARIANTS.get(quantity, (quantity,)) if v not in ds.data_vars]
+        raise missing_variable_error(ds, " and ".join(lacking), "energy")
     if quantity not in have:
         raise ValueError(
             f"quantity={quantity}: the scene {scene_name(ds)} does not conserve it; choose from {', '.join(have)}"
@@ -173,6 +178,9 @@ def invariants_figure(ds, sel=None, envelope=True):
     columns: every invariant's relative drift on log axes.  Quantities the scene does not conserve are
     not drawn; one that every drawn run keeps exactly (error 0) gets no row, the figure says so."""
     quantities = drawable_invariants(ds)
+    if not quantities and conserved(ds):
+        needed = sorted({v for q in conserved(ds) for v in DERIVED_INVARIANTS.get(q, (q,)) if v not in ds.data_vars})
+        raise missing_variable_error(ds, " or ".join(needed), "invariants")
     if not quantities:
         raise ValueError("the file's scene declares no invariant that its variables hold")
     sub, note = choose(select(ds, sel), "invariants", max_panels=4)

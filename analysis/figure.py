@@ -9,7 +9,7 @@ from typing import Callable
 
 import numpy as np
 
-from .io import save_figure
+from .io import absent_variable, missing_variable_error, save_figure
 
 MAX_COLS = 3  # panels per row before wrapping
 MAX_PANELS = 9  # panels drawn before values are selected (and the figure says which)
@@ -41,9 +41,15 @@ class Figure:
     def write(self, ds, out, sel=None, formats=("png",), notes=None, **options):
         """Draw into ``out`` (suffix replaced per format); the written path.  ``notes`` (a list), when
         given, receives the figure's selection notes (what it drew, how to draw the rest)."""
-        if self.render is not None:
-            return self.render(ds, out, sel=sel, **options)
-        fig = self.draw(ds, sel, **options)
+        try:
+            if self.render is not None:
+                return self.render(ds, out, sel=sel, **options)
+            fig = self.draw(ds, sel, **options)
+        except (KeyError, AttributeError) as err:
+            missing = absent_variable(ds, err)
+            if missing is None:
+                raise
+            raise missing_variable_error(ds, missing, self.name) from None
         if notes is not None:
             notes.extend(getattr(fig, "gyrolab_notes", []))
         return save_figure(fig, out, formats=formats)

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 from .figure import Figure  # noqa: F401 (the record each figure module defines)
-from .io import open_results
+from .io import MissingVariableError, open_results
 
 # One line per figure kind: "<module of analysis/>.<its Figure record>".
 ENTRIES = (
@@ -93,6 +93,9 @@ def standard_figures(results_path, out_dir, names=None, log=print):
         notes = []
         try:
             path = figure.write(ds, out_dir / (figure.file_name or f"{name.replace('-', '_')}.png"), notes=notes)
+        except MissingVariableError as err:
+            print(f"gyrolab: figure {name} skipped: {err}", file=sys.stderr)
+            continue
         except Exception as err:  # a figure must never cost the user the results
             print(f"gyrolab: figure {name} skipped: {type(err).__name__}: {err}", file=sys.stderr)
             continue

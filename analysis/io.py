@@ -38,6 +38,34 @@ class SelectionError(ValueError):
     """A selection naming a coordinate or value the file does not have (one-line message)."""
 
 
+class MissingVariableError(SelectionError):
+    """A figure needs a per-sample variable the file does not hold (output.variables left it out)."""
+
+
+def absent_variable(ds, err):
+    """The per-sample variable (gyrolab/layout.py) named in the KeyError/AttributeError ``err`` that
+    ``ds`` does not hold, or None when ``err`` is about something else."""
+    import re
+
+    from ..layout import SAMPLE_VARIABLES
+
+    for name in re.findall(r"'(\w+)'", str(err)) + [str(err.args[0]) if err.args else ""]:
+        if name in SAMPLE_VARIABLES and name not in ds.data_vars:
+            return name
+    return None
+
+
+def missing_variable_error(ds, name, figure):
+    """The one-line MissingVariableError of figure ``figure`` needing variable ``name``."""
+    from ..layout import held_variables
+
+    held = ", ".join(held_variables(ds)) or "none"
+    return MissingVariableError(
+        f"figure {figure} needs variable {name}, which this file does not hold "
+        f"(it holds {held}: output.variables chose them when it was written)"
+    )
+
+
 def open_results(path):
     """The results Dataset of ``path`` loaded into memory (file closed afterwards).
 
@@ -67,7 +95,7 @@ def open_results(path):
             f"FILE={path}: layout_version={version} is newer than this gyrolab reads "
             f"({LAYOUT_VERSION}); upgrade gyrolab"
         )
-    for name, dims in required_variables(version).items():
+    for name, dims in required_variables(version, ds).items():
         if name not in ds.data_vars:
             raise SelectionError(f"FILE={path}: not a complete gyrolab results file (no variable {name!r})")
         if ds[name].dims != dims:

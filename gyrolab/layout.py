@@ -133,8 +133,44 @@ FIXED_COORDS = {"xyz": ["x", "y", "z"], "quat": ["a", "b", "c", "d"], "body_para
 VARIABLE_ATTRS = {name: {"units": v.units, "long_name": v.long_name} for name, v in SAMPLE_VARIABLES.items()}
 VARIABLE_ATTRS.update({name: attrs for name, (_, attrs) in RUN_VARIABLES.items()})
 VARIABLE_ATTRS.update({name: attrs for name, (_, attrs) in INPUT_VARIABLES.items()})
-# Float64 values per stored sample of one run (the results file's main cost).
+# Float64 values per stored sample of one run (the results file's main cost), every variable stored.
 STORED_PER_SAMPLE = sum(3 if v.vector else 1 for v in SAMPLE_VARIABLES.values())
+# File attr naming the per-sample variables a file holds (space-separated, SAMPLE_VARIABLES order),
+# written only when ``output.variables`` chose a subset; a file without it holds all of its layout's.
+VARIABLES_ATTR = "variables"
+
+
+def stored_per_sample(names=None):
+    """Float64 values per sample of one run for the per-sample variables ``names`` (None: all)."""
+    names = SAMPLE_VARIABLES if names is None else names
+    return sum(3 if SAMPLE_VARIABLES[n].vector else 1 for n in names)
+
+
+def chosen_variables(names):
+    """The per-sample variables ``names`` (output.variables; None: all) in SAMPLE_VARIABLES order;
+    ValueError (one line) naming the first unknown or repeated name."""
+    if names is None:
+        return tuple(SAMPLE_VARIABLES)
+    names = list(names)
+    for name in names:
+        if name not in SAMPLE_VARIABLES:
+            raise ValueError(f"unknown variable {name!r}; choose from {', '.join(SAMPLE_VARIABLES)}")
+        if names.count(name) > 1:
+            raise ValueError(f"variable {name!r} appears twice")
+    return tuple(n for n in SAMPLE_VARIABLES if n in names)
+
+
+def held_variables(ds, version=None):
+    """The per-sample variables an opened results file holds by its layout and its writer's choice
+    (``VARIABLES_ATTR``), in SAMPLE_VARIABLES order."""
+    version = file_layout_version(ds) if version is None else version
+    absent = ABSENT_BEFORE.get(version, ())
+    if VARIABLES_ATTR in ds.attrs:
+        chosen = set(_text(ds.attrs[VARIABLES_ATTR]).split())
+        return tuple(n for n in SAMPLE_VARIABLES if n in chosen and n not in absent)
+    return tuple(n for n in SAMPLE_VARIABLES if n not in absent)
+
+
 WALL_TIME_NOTE = (
     "chunk wall-clock time x threads used, shared among the chunk's runs in proportion to their steps "
     "(runs of one chunk run in parallel; JIT compilation excluded)"
@@ -153,6 +189,21 @@ RUN_ONLY = {
         "connect_timeout",
     ),
 }
+
+# Config keys whose default changes nothing a file written before the key existed holds: left out of
+# the data hash and of comparisons while they have this value (output.variables=null: all stored).
+NEUTRAL_DEFAULTS = {"output": {"variables": None}}
+
+
+def drop_neutral_defaults(data):
+    """``data`` (a resolved config as nested dicts) without the NEUTRAL_DEFAULTS keys at their default."""
+    for group, keys in NEUTRAL_DEFAULTS.items():
+        node = data.get(group)
+        if isinstance(node, dict):
+            for key, default in keys.items():
+                if key in node and node[key] == default:
+                    node.pop(key)
+    return data
 
 
 # Files of older layouts hold the same grid and variables less these; every reader opens them.
@@ -185,10 +236,12 @@ def with_current_body(ds):
     return ds.reindex(body_param=list(BODY_FIELDS), fill_value=0.0)
 
 
-def required_variables(version):
-    """{name: dims} every results file of layout ``version`` holds (grid dims first)."""
+def required_variables(version, ds=None):
+    """{name: dims} every results file of layout ``version`` holds (grid dims first); with the
+    opened file ``ds``, only the per-sample variables its writer chose (``held_variables``)."""
     absent = ABSENT_BEFORE.get(version, ())
-    wanted = {name: GRID_DIMS + sample_dims(name) for name in SAMPLE_VARIABLES if name not in absent}
+    held = held_variables(ds, version) if ds is not None else SAMPLE_VARIABLES
+    wanted = {name: GRID_DIMS + sample_dims(name) for name in SAMPLE_VARIABLES if name not in absent and name in held}
     wanted.update({name: GRID_DIMS for name in RUN_VARIABLES})
     return wanted
 
@@ -198,9 +251,10 @@ def sample_dims(name):
     return ("time", "xyz") if SAMPLE_VARIABLES[name].vector else ("time",)
 
 
-def sample_variables(raw):
-    """{name: values} of every per-sample variable from raw kernel samples (..., time, RAW_PER_SAMPLE)."""
-    return {name: v.derive(raw) for name, v in SAMPLE_VARIABLES.items()}
+def sample_variables(raw, names=None):
+    """{name: values} of the per-sample variables ``names`` (None: every one) from raw kernel samples
+    (..., time, RAW_PER_SAMPLE)."""
+    return {name: v.derive(raw) for name, v in SAMPLE_VARIABLES.items() if names is None or name in names}
 
 
 def unwrap_nan(phase):

@@ -48,7 +48,7 @@ from omegaconf.errors import OmegaConfBaseException
 from ..layout import RAW_PER_SAMPLE, scene_attrs
 from .config import ConfigError, config_hash, register_configs
 from .execute import BackendError
-from .grid import build_grid, estimate_seconds, plan_chunks
+from .grid import build_grid, estimate_seconds, estimate_writing_seconds, plan_chunks
 from .store import Journal, OutputLock, assemble, partial_dir, remove_stale_temporaries
 
 EXIT_FAILED = 1
@@ -56,6 +56,9 @@ EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT; SIGTERM gives 143, SIGHUP 129
 HANDLED_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 COMPILE_SECONDS = 3.0  # rough JIT time of one method's kernel on a cold numba cache
+# Loading one method's kernels from a warm numba cache, the checks and the file's open and close
+# (the "rest" of benchmarks/bench_pipeline.py: 0.5-0.9 s with 2 to 4 methods).
+LOAD_SECONDS = 0.2
 
 
 def fail(message):
@@ -320,9 +323,11 @@ def dry_run(grid, out, chunks, threads, peak, state, cluster=None):
         seconds, where = estimate_seconds(grid, chunks, threads), f"{threads} threads"
     print(f"gyrolab dry run: {describe(grid)}")
     print(f"  steps per run: {steps.min():.3g} to {steps.max():.3g}; {len(chunks)} chunks on {where}")
+    writing, loading = estimate_writing_seconds(grid), LOAD_SECONDS * len(grid.methods)
     print(
-        f"  estimated time: {seconds:.3g} s of integration "
-        f"(+ up to ~{COMPILE_SECONDS * len(grid.methods):.0f} s of JIT on a cold numba cache)"
+        f"  estimated time: {seconds + writing + loading:.3g} s to the results file ({seconds:.3g} s integration, "
+        f"{writing:.3g} s journal and assembly, {loading:.2g} s loading kernels; + up to "
+        f"~{COMPILE_SECONDS * len(grid.methods):.0f} s of JIT on a cold numba cache; figures extra)"
     )
     print(f"  peak memory: ~{_size(peak)} of samples per chunk (+ ~0.3 GB for Python, numba, xarray)")
     print(
@@ -404,9 +409,7 @@ def sweep(cfg, run_dir, stack):
         state = output_state(out, chash, overwrite, resume)  # again, now that we hold the lock
         remove_stale_temporaries(out)  # a killed assembly's half-written results file
         try:
-            computing = execute(
-                cfg, grid, out, threads, chash, resume=state == "resume", run_dir=run_dir, cluster=cluster
-            )
+            timing = execute(cfg, grid, out, threads, chash, resume=state == "resume", run_dir=run_dir, cluster=cluster)
         except KeyboardInterrupt as err:
             ignore_signals()
             sys.exit(exit_status(err))
@@ -418,7 +421,8 @@ def sweep(cfg, run_dir, stack):
         failed = int((fh["status"][...] != 0).sum())
     print(
         f"gyrolab: results: {out} ({_size(out.stat().st_size)}, {grid.n_runs} runs, "
-        f"{failed} diverged) in {elapsed:.1f} s ({computing:.1f} s integrating)"
+        f"{failed} diverged) in {elapsed:.1f} s ({timing['integrating']:.1f} s integrating, "
+        f"{timing['journal']:.1f} s journal, {timing['assembly']:.1f} s assembly)"
     )
     figures = cfg.output.figures
     if figures:
@@ -430,7 +434,8 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
     """Run the missing runs with a progress bar (on ``cluster`` if given, else here), then
     assemble the results file (we hold the lock).
 
-    Returns the seconds spent integrating (JIT warm-up excluded)."""
+    Returns the wall time (s) of the phases: {"integrating" (JIT warm-up and journal writes
+    excluded), "journal" (writing the journal's chunks), "assembly" (writing the results file)}."""
     from tqdm import tqdm
 
     from .execute import run_missing, warm_up
@@ -485,10 +490,12 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
             cluster.run_missing(grid, journal, todo, cfg.runner.chunk_seconds, number, progress)
         elif todo.size:
             run_missing(grid, journal, todo, threads, cfg.runner.chunk_seconds, number, progress)
-        computing = time.perf_counter() - start
+        computing = time.perf_counter() - start - journal.write_seconds
         bar.close()
         raise_pending()  # a signal swallowed during integration
+        start = time.perf_counter()
         assemble(out, grid, journal, file_attrs(cfg, grid, threads, chash), before_replace=raise_pending)
+        assembly = time.perf_counter() - start
     except KeyboardInterrupt as err:
         ignore_signals()
         bar.close()
@@ -518,7 +525,7 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
         )
         raise
     journal.discard()
-    return computing
+    return {"integrating": computing, "journal": journal.write_seconds, "assembly": assembly}
 
 
 def io_error(err, where):

@@ -41,6 +41,7 @@ from ..layout import (
     RUN_VARIABLES,
     SAMPLE_VARIABLES,
     VARIABLE_ATTRS,
+    held_variables,
     sample_dims,
 )
 from .config import ConfigError
@@ -126,7 +127,9 @@ def layout_problem(ds):
         return f"layout_version={version}: unknown (this gyrolab reads {', '.join(map(str, KNOWN_LAYOUTS))})"
     if "scene" not in ds.attrs:
         return "not a gyrolab results file (no scene attr)"
-    for name, dims in LAYOUT_DIMS.items():
+    held = held_variables(ds, version)
+    expected = {name: dims for name, dims in LAYOUT_DIMS.items() if name not in SAMPLE_VARIABLES or name in held}
+    for name, dims in expected.items():
         if name not in ds.data_vars:
             return f"no variable {name!r} (not a complete gyrolab results file)"
         if ds[name].dims != dims:
@@ -137,7 +140,7 @@ def layout_problem(ds):
     for name in RUN_VARIABLES:
         if ds[name].dtype.kind not in "iu" and name != "wall_time":
             return f"variable {name} has dtype {ds[name].dtype}, expected integers"
-    foreign = sorted(set(ds.data_vars) - set(LAYOUT_DIMS))
+    foreign = sorted(set(ds.data_vars) - set(expected))
     if foreign:
         return f"variable {foreign[0]!r} is not in the gyrolab layout"
     for dim in GRID_DIMS + ("time",):
@@ -166,6 +169,12 @@ def _plain(value):
 def combine(paths, allow_identical_overlap=False):
     """One Dataset from the results files ``paths`` (see the module docstring)."""
     datasets = [load(path) for path in paths]
+    for ds, path in zip(datasets[1:], paths[1:]):
+        if held_variables(ds) != held_variables(datasets[0]):
+            raise CombineError(
+                f"{path}: holds the variables {', '.join(held_variables(ds))}, {paths[0]} holds "
+                f"{', '.join(held_variables(datasets[0]))}; combine files of the same output.variables"
+            )
     sources = _sources(datasets, paths)
     groups = {}
     for ds, path in zip(datasets, paths):
@@ -202,7 +211,7 @@ def join_tiles(group, allow_identical_overlap=False):
     owner = np.full(shape, -1, dtype=np.int64)
     data = {
         name: np.zeros(shape + first[name].shape[len(GRID_DIMS) :], dtype=first[name].dtype)
-        for name in (*SAMPLE_VARIABLES, *RUN_VARIABLES)
+        for name in (*held_variables(first), *RUN_VARIABLES)
     }
     inputs_shape = tuple(len(axes[d]) for d in INPUT_DIMS)
     inputs = {name: np.full(inputs_shape + first[name].shape[len(INPUT_DIMS) :], np.nan) for name in INPUT_VARIABLES}

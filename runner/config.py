@@ -13,13 +13,15 @@ output.every in seconds.
 import dataclasses
 import hashlib
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Any, List, Optional
 
 from omegaconf import MISSING, OmegaConf
 
 from ..kernels.scenes import SCENES
-from ..layout import RUN_ONLY  # settings that change how a sweep is run, not its data
+from ..layout import RUN_ONLY, drop_neutral_defaults  # settings that change how a sweep is run, not its data
+from .ranges import RESOLVERS, register_resolvers
 
 BACKENDS = ("local", "dask")
 
@@ -43,12 +45,14 @@ class SweepConfig:
 class OutputConfig:
     """every: sample interval (s); path: results file, relative to Hydra's output dir; figures: the
     figure kinds to draw after the sweep (names from analysis/figures.py's registry; true: the
-    default set, false: none)."""
+    default set, false: none); variables: the per-sample variables stored (names of
+    gyrolab/layout.py's SAMPLE_VARIABLES; null: all; per-run status, n_steps, wall_time always)."""
 
     every: float = 1e-3
     path: str = "results.h5"
     overwrite: bool = False
     figures: Any = True
+    variables: Optional[List[str]] = None
 
 
 @dataclass
@@ -92,6 +96,7 @@ def register_configs():
     """Put the schemas into Hydra's ConfigStore (root ``gyrolab_schema``, ``schema/scene/<name>``)."""
     from hydra.core.config_store import ConfigStore
 
+    register_resolvers()
     cs = ConfigStore.instance()
     cs.store(name="gyrolab_schema", node=GyrolabConfig)
     for name, module in SCENES.items():
@@ -112,9 +117,22 @@ def check_figures(setting):
         raise ConfigError(str(err)) from None
 
 
+def check_variables(names):
+    """ConfigError unless ``output.variables`` is null (all) or names each per-sample variable once."""
+    from ..layout import chosen_variables
+
+    if names is None:
+        return
+    try:
+        chosen_variables(list(names))
+    except ValueError as err:
+        raise ConfigError(f"output.variables={_fmt(list(names))}: {err}") from None
+
+
 def check_values(cfg):
     """ConfigError for the first value a type cannot rule out: NaN/inf, empty or
     duplicated axes, non-positive times and sizes, unknown backend, bad threads."""
+    check_resolvable(cfg)
     check_keys(cfg)
     check_finite(OmegaConf.to_container(cfg, resolve=True))
     sweep, output, runner = cfg.sweep, cfg.output, cfg.runner
@@ -145,6 +163,7 @@ def check_values(cfg):
     if sweep.t_end < output.every:
         raise ConfigError(f"sweep.t_end={sweep.t_end}: shorter than the sample interval output.every={output.every}")
     check_sizes(sweep, output)
+    check_variables(output.variables)
     check_figures(output.figures)
     check_scene_options(cfg.scene)
     if not str(output.path).strip():
@@ -223,6 +242,28 @@ def check_cluster(runner):
         raise ConfigError(f"runner.connect_timeout={runner.connect_timeout}: must be > 0 s")
 
 
+def check_resolvable(cfg):
+    """ConfigError naming the key and expression of the first interpolation that does not resolve
+    (a range resolver's bad argument, runner/ranges.py; a list where a number belongs ...)."""
+    from omegaconf.errors import OmegaConfBaseException
+
+    for group in cfg:
+        node = cfg[group]
+        if not OmegaConf.is_config(node):
+            continue
+        raw = OmegaConf.to_container(node, resolve=False)
+        for key in node:
+            try:
+                OmegaConf.to_container(OmegaConf.create({"v": node[key]}), resolve=True)
+            except OmegaConfBaseException as err:
+                text = str(err).splitlines()[0] if str(err) else type(err).__name__
+                text = re.sub(r"^\w+ raised while resolving interpolation: ", "", text)
+                text = re.sub(r"^While dereferencing interpolation '[^']*': ", "", text)
+                if text.startswith("Unsupported interpolation type"):
+                    text += f" (sweep ranges: {', '.join(RESOLVERS)}; runner/ranges.py)"
+                raise ConfigError(f"{group}.{key}={raw[key]}: {text}") from None
+
+
 def check_keys(cfg):
     """ConfigError for keys the schema does not know (``+key=value`` slips past OmegaConf)."""
     groups = {f.name: f.type for f in dataclasses.fields(GyrolabConfig)}
@@ -263,7 +304,7 @@ def data_config(cfg):
     for group, keys in RUN_ONLY.items():
         for key in keys:
             data.get(group, {}).pop(key, None)
-    return data
+    return drop_neutral_defaults(data)
 
 
 def config_hash(cfg):

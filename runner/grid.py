@@ -7,7 +7,6 @@ first.  A chunk is a set of runs of ONE method and ONE step count, so the
 batch kernel's prange hands every thread the same amount of work.
 """
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -17,7 +16,7 @@ from ..kernels.batch import MIN_BLOCK_RUNS, sample_schedule
 from ..kernels.body import N_FIELDS as N_BODY
 from ..kernels.registry import METHODS
 from ..kernels.scenes import SCENES, build_scene
-from ..layout import RAW_PER_SAMPLE, STORED_PER_SAMPLE
+from ..layout import RAW_PER_SAMPLE, SAMPLE_VARIABLES, chosen_variables, stored_per_sample
 from .config import ConfigError, check_values
 
 # Rough steps per second per thread of each method on the development machine
@@ -27,13 +26,20 @@ DEFAULT_STEP_RATE = 5e6
 # Blocks of >= MIN_BLOCK_RUNS runs against one by one, per run (docs/benchmarks.md: 10-22x).
 BLOCK_SPEEDUP = 10
 MAX_CHUNK_BYTES = 256 * 2**20
+# Effective rates of the pipeline around the kernels on the development machine (docs/benchmarks.md,
+# benchmarks/bench_pipeline.py): journal bytes (raw samples) per second, results bytes per second
+# of assembly (journal read, variables derived, file written), and seconds per run of assembly.
+JOURNAL_RATE = 3.0e8
+ASSEMBLY_RATE = 3.5e8
+ASSEMBLY_PER_RUN = 2e-5
 
 
 @dataclass(frozen=True)
 class Grid:
     """All runs of a sweep.  Axes: methods (str), f (Hz), theta0 (deg), dt (s);
     t_end and every (s); strides[l] steps per sample at dt[l]; bodies/omega0/q0
-    of each (f, theta0) as arrays (nf, nt, N_BODY|3|4)."""
+    of each (f, theta0) as arrays (nf, nt, N_BODY|3|4); variables: the per-sample variables
+    the results file holds."""
 
     scene: str
     options: dict
@@ -49,6 +55,7 @@ class Grid:
     bodies: np.ndarray = field(repr=False)
     omega0: np.ndarray = field(repr=False)
     q0: np.ndarray = field(repr=False)
+    variables: tuple = tuple(SAMPLE_VARIABLES)  # the per-sample variables stored (output.variables)
 
     @property
     def shape(self):
@@ -84,11 +91,11 @@ class Grid:
 
     def bytes_stored(self):
         """Size of the per-sample data in the results file (bytes)."""
-        return self.n_runs * self.n_samples * STORED_PER_SAMPLE * 8
+        return self.n_runs * self.n_samples * stored_per_sample(self.variables) * 8
 
     def bytes_per_run(self):
         """Memory of one run's samples while a chunk is integrated and stored (bytes)."""
-        return self.n_samples * (RAW_PER_SAMPLE + STORED_PER_SAMPLE) * 8
+        return self.n_samples * (RAW_PER_SAMPLE + stored_per_sample(self.variables)) * 8
 
 
 def build_grid(cfg):
@@ -133,7 +140,12 @@ def build_grid(cfg):
         bodies=bodies,
         omega0=omega0,
         q0=q0,
+        variables=chosen_variables(_list_or_none(cfg.output.variables)),
     )
+
+
+def _list_or_none(node):
+    return None if node is None else list(node)
 
 
 def _prefix_sweep(message):
@@ -208,12 +220,33 @@ def _pool(grid, runs, rate, threads, chunk_seconds, max_bytes):
     return chunks
 
 
+def step_rate(method, n_runs):
+    """Estimated steps per second per thread of ``method`` in a chunk of ``n_runs`` runs: STEP_RATE,
+    times BLOCK_SPEEDUP when the batch kernels run the chunk in vectorised blocks."""
+    from ..kernels.registry import get_method, uses_blocks
+
+    rate = STEP_RATE.get(method, DEFAULT_STEP_RATE)
+    if n_runs >= MIN_BLOCK_RUNS and uses_blocks(get_method(method)):
+        rate *= BLOCK_SPEEDUP
+    return rate
+
+
 def estimate_seconds(grid, chunks, threads):
-    """Estimated compute time (s) of the chunks from STEP_RATE, JIT compile not included."""
+    """Estimated integration wall time (s) of the chunks, JIT compile not included: each chunk's
+    runs' steps (every run counted, at its own dt) at ``step_rate``, shared among ``threads``, and
+    never less than its longest run."""
     total = 0.0
     for chunk in chunks:
         method = grid.methods[int(grid.index(chunk[:1])[0][0])]
-        rate = STEP_RATE.get(method, DEFAULT_STEP_RATE)
-        per_thread = math.ceil(len(chunk) / threads)
-        total += per_thread * int(grid.steps(chunk[:1])[0]) / rate
+        steps = grid.steps(chunk)
+        rate = step_rate(method, len(chunk))
+        total += max(float(steps.sum()) / min(threads, len(chunk)), float(steps.max())) / rate
     return total
+
+
+def estimate_writing_seconds(grid):
+    """Estimated wall time (s) of writing the journal (raw samples, checksummed, fsync) and assembling
+    the results file, at the effective rates JOURNAL_RATE and ASSEMBLY_RATE (bytes/s) measured by
+    benchmarks/bench_pipeline.py, plus ASSEMBLY_PER_RUN seconds per run."""
+    raw = grid.n_runs * grid.n_samples * RAW_PER_SAMPLE * 8
+    return raw / JOURNAL_RATE + grid.bytes_stored() / ASSEMBLY_RATE + grid.n_runs * ASSEMBLY_PER_RUN

@@ -22,6 +22,7 @@ import hashlib
 import json
 import os
 import shutil
+import time
 from pathlib import Path
 
 import numpy as np
@@ -36,10 +37,12 @@ from ..layout import (
     RUN_VARIABLES,
     SAMPLE_VARIABLES,
     VARIABLE_ATTRS,
+    VARIABLES_ATTR,
     WALL_TIME_NOTE,
     sample_dims,
     sample_variables,
 )
+from .assembly import JournalChunk, MemoryChunk, box_runs, boxes, chunk_layout, gather, max_runs
 from .config import ConfigError
 
 
@@ -203,6 +206,7 @@ class Journal:
         self.manifest_path = self.dir / "manifest.json"
         self.rejected_dir = self.dir / "rejected"
         self._manifest = None
+        self.write_seconds = 0.0  # wall time (s) spent in write_chunk by this object
 
     def exists(self):
         return self.manifest_path.exists()
@@ -254,9 +258,11 @@ class Journal:
         def write(fh):
             np.savez(fh, runs=runs, samples=samples, status=status, n_steps=n_steps, wall_time=wall_time)
 
+        start = time.perf_counter()
         path = self.dir / f"chunk-{number:05d}.npz"
         atomic_write(path, write)
         self.record_chunk(path, len(runs))
+        self.write_seconds += time.perf_counter() - start
 
     def record_chunk(self, path, n_runs):
         """Add a chunk file written by this or another process to the manifest."""
@@ -384,7 +390,8 @@ def _chunk_problem(path, listed, n_runs, n_samples, seen):
     return None
 
 
-# Test hook: seconds to sleep after each chunk copied into the results file being assembled.
+# Test hook: seconds to sleep after each journal chunk's part of a box copied into the results file
+# being assembled.
 ASSEMBLY_DELAY_ENV = "GYROLAB_TEST_ASSEMBLY_DELAY"
 
 
@@ -400,28 +407,40 @@ def assemble(out, grid, journal, attrs, before_replace=None):
             str(out),
         )
     delay = float(os.environ.get(ASSEMBLY_DELAY_ENV, "0") or 0)
-    chunks = journal.chunks() if not delay else _slowly(journal.chunks(), delay)
-    atomic_replace(out, lambda tmp: write_results(tmp, grid, chunks, attrs), before_replace)
+    after_read = None
+    if delay:
+        after_read = lambda: time.sleep(delay)  # noqa: E731
+    sources = [JournalChunk(path, grid.n_samples, RAW_PER_SAMPLE) for path in journal.chunk_files()]
+    atomic_replace(out, lambda tmp: write_results(tmp, grid, sources, attrs, after_read), before_replace)
 
 
-def _slowly(chunks, delay):
-    import time
+def write_results(path, grid, chunks, attrs, after_read=None):
+    """Write the results file at ``path`` (netCDF4/HDF5 via h5netcdf) from finished chunks: dicts as
+    ``execute.run_chunk`` returns them, or runner/assembly.py sources (``JournalChunk``).
 
-    for chunk in chunks:
-        yield chunk
-        time.sleep(delay)
-
-
-def write_results(path, grid, chunks, attrs):
-    """Write the results file at ``path`` (netCDF4/HDF5 via h5netcdf) from chunk dicts.
-
-    One chunk is in memory at a time; each run is one HDF5 chunk per variable.
-    """
+    The per-sample variables are written box by box, each variable's box as one hyperslab
+    (runner/assembly.py: chunk shapes, bounded memory); ``after_read()`` runs after each chunk's
+    part of a box is read (a test hook)."""
     import h5netcdf
     import h5py
 
+    sources = [c if hasattr(c, "read_rows") else MemoryChunk(c) for c in chunks]
     shape = grid.shape
     ns = grid.n_samples
+    owner = np.full(grid.n_runs, -1, dtype=np.int64)
+    row = np.zeros(grid.n_runs, dtype=np.int64)
+    per_run = {name: np.zeros(grid.n_runs, dtype=dtype) for name, (dtype, _) in RUN_VARIABLES.items()}
+    for c, source in enumerate(sources):
+        runs = np.asarray(source.runs, dtype=np.int64)
+        if (owner[runs] >= 0).any() or np.unique(runs).size != runs.size:
+            raise RuntimeError(f"runs stored twice in the journal; cannot assemble {path}")
+        owner[runs], row[runs] = c, np.arange(runs.size)
+        for name in per_run:
+            per_run[name][runs] = source.per_run(name)
+    missing = int((owner < 0).sum())
+    if missing:
+        raise RuntimeError(f"{missing} of {grid.n_runs} runs missing from the journal; cannot assemble {path}")
+    box, time_chunk = chunk_layout(shape, ns, max_runs(grid.bytes_per_run()))
     with h5netcdf.File(path, "w") as nc:
         fixed = {d: np.array(v, dtype=object) for d, v in FIXED_COORDS.items()}
         nc.dimensions = dict(zip(GRID_DIMS, shape)) | {"time": ns} | {d: len(v) for d, v in fixed.items()}
@@ -438,9 +457,9 @@ def write_results(path, grid, chunks, attrs):
             var = nc.create_variable(name, (name,), dtype, data=values)
             var.attrs.update(COORD_ATTRS[name])
         variables = {}
-        for name in SAMPLE_VARIABLES:
+        for name in grid.variables:
             dims = GRID_DIMS + sample_dims(name)
-            chunking = (1,) * len(GRID_DIMS) + (ns,) + ((3,) if len(dims) > len(GRID_DIMS) + 1 else ())
+            chunking = box + (time_chunk,) + ((3,) if len(dims) > len(GRID_DIMS) + 1 else ())
             variables[name] = nc.create_variable(name, dims, np.float64, chunks=chunking)
         for name, (dtype, _) in RUN_VARIABLES.items():
             variables[name] = nc.create_variable(name, GRID_DIMS, dtype)
@@ -450,20 +469,15 @@ def write_results(path, grid, chunks, attrs):
         for name, var in variables.items():
             var.attrs.update(VARIABLE_ATTRS[name])
         variables["wall_time"].attrs["description"] = WALL_TIME_NOTE
-        per_run = {name: np.zeros(shape, dtype=variables[name].dtype) for name in RUN_VARIABLES}
-        written = np.zeros(shape, dtype=bool)
-        for chunk in chunks:
-            index = grid.index(chunk["runs"])
-            for name, values in sample_variables(chunk["samples"]).items():
-                var = variables[name]
-                for i, at in enumerate(zip(*index)):
-                    var[at] = values[i]
-            for name in per_run:
-                per_run[name][index] = chunk[name]
-            written[index] = True
-        if not written.all():
-            missing = int((~written).sum())
-            raise RuntimeError(f"{missing} of {grid.n_runs} runs missing from the journal; cannot assemble {path}")
+        for where in boxes(shape, box):
+            runs = box_runs(shape, where)
+            raw = gather(sources, owner, row, runs, (ns, RAW_PER_SAMPLE), after_read)
+            lengths = tuple(s.stop - s.start for s in where)
+            for name, values in sample_variables(raw, grid.variables).items():
+                variables[name][where] = values.reshape(lengths + values.shape[1:])
+            del raw
         for name, values in per_run.items():
-            variables[name][...] = values
+            variables[name][...] = values.reshape(shape)
         nc.attrs.update(attrs)
+        if set(grid.variables) != set(SAMPLE_VARIABLES):
+            nc.attrs[VARIABLES_ATTR] = " ".join(grid.variables)

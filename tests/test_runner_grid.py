@@ -116,3 +116,39 @@ def test_build_grid_names_key_and_value(override, message):
     with pytest.raises(ConfigError) as info:
         grid_of(*GRID, override)
     assert str(info.value).startswith(message)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_the_time_estimate_counts_every_run_at_its_own_dt(threads):
+    """sweep.dt=[1e-3,1e-5]: a chunk pooling runs of both dts used to be costed at its first run's
+    steps (120x too low); the estimate now follows the total number of steps."""
+    from gyrolab.runner.grid import STEP_RATE, estimate_seconds, step_rate
+
+    common = ("sweep.method=[seed_next]", "sweep.f=[1,10,50]", "sweep.theta0=[45]", "sweep.t_end=1")
+    mixed, coarse = grid_of(*common, "sweep.dt=[1e-3,1e-5]"), grid_of(*common, "sweep.dt=[1e-3]")
+    assert mixed.total_steps == 3 * (1000 + 100000) and coarse.total_steps == 3000
+    for grid in (mixed, coarse):
+        chunks = plan_chunks(grid, np.arange(grid.n_runs), threads, chunk_seconds=10.0)
+        assert all(len(c) < MIN_BLOCK_RUNS for c in chunks) and step_rate("seed_next", 1) == STEP_RATE["seed_next"]
+        seconds = estimate_seconds(grid, chunks, threads)
+        lower = grid.total_steps / STEP_RATE["seed_next"] / threads  # every step, perfectly shared
+        upper = grid.total_steps / STEP_RATE["seed_next"]  # every step on one thread
+        assert lower * (1 - 1e-12) <= seconds <= upper * (1 + 1e-12)
+        if threads == 1:
+            assert seconds == pytest.approx(grid.total_steps / STEP_RATE["seed_next"], rel=1e-12)
+
+    def one_thread(grid):
+        return estimate_seconds(grid, plan_chunks(grid, np.arange(grid.n_runs), 1, 10.0), 1)
+
+    ratio = one_thread(mixed) / one_thread(coarse)
+    assert ratio == pytest.approx(mixed.total_steps / coarse.total_steps, rel=1e-12)  # 101x
+
+
+def test_the_writing_estimate_follows_the_bytes():
+    from gyrolab.runner.grid import estimate_writing_seconds
+
+    common = ("sweep.method=[seed_next]", "sweep.f=[1,10]", "sweep.theta0=[45]", "sweep.dt=[1e-3]")
+    short, long = grid_of(*common, "sweep.t_end=1"), grid_of(*common, "sweep.t_end=100")
+    few = grid_of(*common, "sweep.t_end=100", "output.variables=[theta]")
+    assert estimate_writing_seconds(long) > 50 * estimate_writing_seconds(short)
+    assert estimate_writing_seconds(few) < estimate_writing_seconds(long)

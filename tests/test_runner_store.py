@@ -115,3 +115,113 @@ def test_stale_result_temporaries_are_removed(tmp_path):
     removed = remove_stale_temporaries(out)
     assert sorted(p.name for p in removed) == [".results.h5.tmp123", ".results.h5.tmp9"]
     assert sorted(p.name for p in tmp_path.iterdir()) == [".other.h5.tmp5", ".results.h5.tmpx"]
+
+
+# --------------------------------------------------------------------------- assembly (runner/assembly.py)
+
+
+def test_chunk_layout_balances_one_run_against_one_time_within_the_memory_bound():
+    from gyrolab.runner.assembly import CHUNK_ELEMENTS, chunk_layout
+
+    # the issue's 8000-run sweep: 4 methods x 100 f x 5 theta0 x 4 dt, 1001 samples
+    box, tc = chunk_layout((4, 100, 5, 4), 1001, max_runs=10**6)
+    runs = int(np.prod(box))
+    assert box[3] == 4 and box[2] == 5 and box[0] == 1  # taken from the trailing grid dims
+    assert runs * tc <= CHUNK_ELEMENTS and runs * tc > CHUNK_ELEMENTS / 2
+    one_run, one_time = runs * 1001, 8000 * tc  # values read for one run's series / one time
+    assert 0.5 < one_run / one_time < 2
+    box, tc = chunk_layout((4, 100, 5, 4), 1001, max_runs=50)
+    assert int(np.prod(box)) <= 50 and int(np.prod(box)) * tc <= CHUNK_ELEMENTS
+    box, tc = chunk_layout((1, 1, 1, 1), 10**6, max_runs=1)
+    assert box == (1, 1, 1, 1) and CHUNK_ELEMENTS / 2 <= tc <= CHUNK_ELEMENTS and 10**6 % tc == 0  # no waste
+
+
+def test_chunks_waste_little_at_the_edges():
+    """HDF5 allocates edge chunks whole: chunk lengths are chosen so that they tile each axis closely."""
+    import math
+
+    from gyrolab.runner.assembly import chunk_layout
+
+    for shape, ns, budget in [((4, 100, 5, 4), 1001, 270), ((4, 100, 25, 10), 11, 10**5), ((3, 7, 1, 3), 997, 5)]:
+        box, tc = chunk_layout(shape, ns, max_runs=budget)
+        allocated = math.prod(-(-n // b) * b for n, b in zip(shape, box)) * (-(-ns // tc) * tc)
+        assert allocated <= 1.02 * math.prod(shape) * ns, (shape, box, tc)
+    assert chunk_layout((1, 1, 1, 2), 3, max_runs=10) == ((1, 1, 1, 2), 3)
+
+
+def test_boxes_tile_the_grid_once():
+    from gyrolab.runner.assembly import box_runs, boxes
+
+    shape = (2, 3, 5, 4)
+    seen = np.concatenate([box_runs(shape, where) for where in boxes(shape, (1, 2, 2, 4))])
+    np.testing.assert_array_equal(np.sort(seen), np.arange(np.prod(shape)))
+
+
+def test_assembly_from_the_journal_in_boxes_gives_the_same_data(tmp_path, grid, monkeypatch):
+    """Journal chunks in any order and any mix of runs, boxes with ragged edges, rows read range by
+    range from the chunk files: every value, dim, dtype and attr is what the in-memory layout gives."""
+    from gyrolab.layout import RUN_VARIABLES, to_dataset
+    from gyrolab.runner import assembly, store
+
+    runs = np.random.default_rng(1).permutation(grid.n_runs)
+    pieces = [np.sort(runs[:3]), np.sort(runs[3:4]), np.sort(runs[4:])]
+    journal = Journal(tmp_path / "results.h5")
+    journal.create({"config_hash": "abc"})
+    chunks = [run_chunk(grid, p, 1) for p in pieces]
+    for number, chunk in enumerate(chunks):
+        journal.write_chunk(number, **chunk)
+    monkeypatch.setattr(assembly, "CHUNK_ELEMENTS", 60)  # boxes of 2 runs, 3 time chunks of 17 samples
+    store.assemble(journal.dir.parent / "results.h5", grid, journal, {"scene": "heavy_top"})
+    raw = np.empty((grid.n_runs, grid.n_samples, chunks[0]["samples"].shape[-1]))
+    per_run = {name: np.empty(grid.n_runs, dtype=dtype) for name, (dtype, _) in RUN_VARIABLES.items()}
+    for chunk in chunks:
+        raw[chunk["runs"]] = chunk["samples"]
+        for name in per_run:
+            per_run[name][chunk["runs"]] = chunk[name]
+    coords = {"method": list(grid.methods), "f": list(grid.f), "theta0": list(grid.theta0), "dt": list(grid.dt)}
+    coords["time"] = np.arange(grid.n_samples) * grid.every
+    expected = to_dataset(
+        raw.reshape(grid.shape + raw.shape[1:]),
+        {k: v.reshape(grid.shape) for k, v in per_run.items()},
+        coords,
+        {"body": grid.bodies, "omega0": grid.omega0, "q0": grid.q0},
+    )
+    with xr.open_dataset(tmp_path / "results.h5", engine="h5netcdf") as ds:
+        assert set(ds.data_vars) == set(expected.data_vars)
+        for name in expected.data_vars:
+            assert ds[name].dims == expected[name].dims and ds[name].dtype == expected[name].dtype, name
+            np.testing.assert_array_equal(ds[name].values, expected[name].values, err_msg=name)
+    import h5py
+
+    with h5py.File(tmp_path / "results.h5") as fh:
+        assert fh["theta"].chunks == (1, 1, 1, 2, 17) and fh["axis"].chunks == (1, 1, 1, 2, 17, 3)
+    # boxes across runs of different journal chunks, time chunks ragged at the end (51 = 20 + 20 + 11)
+    monkeypatch.setattr(store, "chunk_layout", lambda shape, ns, most: ((1, 2, 1, 1), 20))
+    store.assemble(tmp_path / "ragged.h5", grid, journal, {"scene": "heavy_top"})
+    with xr.open_dataset(tmp_path / "ragged.h5", engine="h5netcdf") as ds:
+        for name in expected.data_vars:
+            np.testing.assert_array_equal(ds[name].values, expected[name].values, err_msg=name)
+
+
+def test_journal_chunk_reads_rows_in_any_order(tmp_path, grid):
+    from gyrolab.runner.assembly import JournalChunk
+
+    journal = Journal(tmp_path / "results.h5")
+    journal.create({"config_hash": "abc"})
+    chunk = run_chunk(grid, np.array([0, 1, 2, 5, 6]), threads=1)
+    journal.write_chunk(0, **chunk)
+    source = JournalChunk(journal.chunk_files()[0], grid.n_samples, chunk["samples"].shape[-1])
+    for rows in ([0, 1, 2, 3, 4], [4, 0, 3], [2], []):
+        np.testing.assert_array_equal(source.read_rows(np.array(rows, dtype=int)), chunk["samples"][rows])
+
+
+def test_results_file_opens_with_netcdf_c(tmp_path, grid):
+    """The file is netCDF-4 for netCDF-C too (engine="netcdf4", when the netCDF4 package is installed)."""
+    pytest.importorskip("netCDF4")
+    path = tmp_path / "r.h5"
+    write_results(path, grid, [run_chunk(grid, np.arange(grid.n_runs), 2)], {"scene": "heavy_top"})
+    with xr.open_dataset(path, engine="netcdf4") as c, xr.open_dataset(path, engine="h5netcdf") as h:
+        assert set(c.data_vars) == set(h.data_vars) and dict(c.sizes) == dict(h.sizes)
+        for name in h.data_vars:
+            np.testing.assert_array_equal(c[name].values, h[name].values, err_msg=name)
+        assert c.attrs["scene"] == "heavy_top"
