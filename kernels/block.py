@@ -29,7 +29,7 @@ import numpy as np
 from numba import njit
 
 from .body import N_FIELDS as N_BODY
-from .body import body_lane, body_lane_with_moments
+from .body import body_lane, body_lane_free, body_lane_symmetric_top
 from .driver import STATUS_OK, _diverged, _record
 from .lanes import ieee_step, lane_step
 from .rigid_body import kinetic_energy, potential_scale
@@ -47,13 +47,30 @@ WIDE_FRACTION = 4
 WIDE_INTERVALS = 7
 
 
+# Lane-pass modes: what every lane of a block shares, as a compile-time constant of its pass
+# (_make_pass).  GENERAL: anything; SYMMETRIC_TOP: I1 == I2 != 0 and the centre of mass on e3
+# (the heavy top, the free disc); FREE: no gravity (mgl = mgc1 = mgc2 = 0), any moments.
+GENERAL, SYMMETRIC_TOP, FREE = 0, 1, 2
+
+
+@njit(cache=True, error_model="numpy")
+def block_mode(B, n):
+    """The pass mode (GENERAL, SYMMETRIC_TOP or FREE) that lanes 0 .. n − 1 of B all allow."""
+    symmetric, free = True, True
+    for j in range(n):
+        axial = B[4, j] == 0.0 and B[5, j] == 0.0
+        symmetric = symmetric and B[0, j] == B[1, j] and B[0, j] != 0.0 and axial
+        free = free and axial and B[3, j] == 0.0
+    return SYMMETRIC_TOP if symmetric else FREE if free else GENERAL
+
+
 def make_block_steps(step):
-    """``steps(W, Q, B, DT, S, BAD, n_lanes, m, symmetric, wide) -> wide``: m steps of ``step`` on
+    """``steps(W, Q, B, DT, S, BAD, n_lanes, m, mode, wide) -> wide``: m steps of ``step`` on
     lanes 0 .. n_lanes − 1.
 
     W (3, ≥ n_lanes) body ω (rad/s), Q (4, ·) quaternions, updated in place;
     B (N_BODY, ·) bodies, DT (·,) steps (s); S (7, ·) float and BAD (·,) uint8
-    scratch.  ``symmetric`` promises I1 == I2 ≠ 0 on every lane (_make_pass).
+    scratch.  ``mode`` (block_mode) promises what every lane shares (_make_pass).
 
     The m steps run unchecked with ``lane_step``; a lane that ends non-finite
     is redone from its state before them with ``ieee_step``.  That catches
@@ -62,31 +79,33 @@ def make_block_steps(step):
     next).  Checking once per m steps instead of after each one saves ~20 %.
     When many lanes need libm (large rotations per step), all lanes are redone
     with the vectorised libm pass, which is used for the next intervals too
-    (``wide`` counts them down).
+    (``wide`` counts them down; it has a SYMMETRIC_TOP and a GENERAL pass only).
     """
     fast, exact, libm = lane_step(step), ieee_step(step), ieee_step(step, inline=True)
-    general, symmetric_pass = _make_pass(fast, False), _make_pass(fast, True)
-    general_libm, symmetric_libm = _make_pass(libm, False), _make_pass(libm, True)
+    general, symmetric_pass, free_pass = (_make_pass(fast, mode) for mode in (GENERAL, SYMMETRIC_TOP, FREE))
+    general_libm, symmetric_libm = _make_pass(libm, GENERAL), _make_pass(libm, SYMMETRIC_TOP)
 
     @njit(error_model="numpy")
-    def with_libm(W, Q, B, DT, n_lanes, m, symmetric):
+    def with_libm(W, Q, B, DT, n_lanes, m, mode):
         for _ in range(m):
-            if symmetric:
+            if mode == SYMMETRIC_TOP:
                 symmetric_libm(W, Q, B, DT, n_lanes)
             else:
                 general_libm(W, Q, B, DT, n_lanes)
 
     @njit(error_model="numpy")
-    def steps(W, Q, B, DT, S, BAD, n_lanes, m, symmetric, wide):
+    def steps(W, Q, B, DT, S, BAD, n_lanes, m, mode, wide):
         if wide > 0:
-            with_libm(W, Q, B, DT, n_lanes, m, symmetric)
+            with_libm(W, Q, B, DT, n_lanes, m, mode)
             return wide - 1
         for j in range(n_lanes):
             S[0, j], S[1, j], S[2, j] = W[0, j], W[1, j], W[2, j]
             S[3, j], S[4, j], S[5, j], S[6, j] = Q[0, j], Q[1, j], Q[2, j], Q[3, j]
         for _ in range(m):
-            if symmetric:
+            if mode == SYMMETRIC_TOP:
                 symmetric_pass(W, Q, B, DT, n_lanes)
+            elif mode == FREE:
+                free_pass(W, Q, B, DT, n_lanes)
             else:
                 general(W, Q, B, DT, n_lanes)
         n_bad = 0
@@ -99,7 +118,7 @@ def make_block_steps(step):
             for j in range(n_lanes):
                 W[0, j], W[1, j], W[2, j] = S[0, j], S[1, j], S[2, j]
                 Q[0, j], Q[1, j], Q[2, j], Q[3, j] = S[3, j], S[4, j], S[5, j], S[6, j]
-            with_libm(W, Q, B, DT, n_lanes, m, symmetric)
+            with_libm(W, Q, B, DT, n_lanes, m, mode)
             return WIDE_INTERVALS
         if n_bad:
             for j in range(n_lanes):
@@ -115,32 +134,32 @@ def make_block_steps(step):
     return steps
 
 
-def _make_pass(fast, symmetric):
+def _make_pass(fast, mode):
     """One step of every lane with ``fast``.
 
-    The step's branches on the body (I1 == I2 in free_flow) are data to LLVM, so
-    the vectorised loop computes both sides.  With ``symmetric`` (a compile-time
-    constant) the loop passes the body as (I1, I1, I3, …), I1 made provably
-    not NaN: LLVM then folds I1 == I2 to true and drops the asymmetric free
-    flow (lie_poisson: 11.5 → 3.4 ns/step).  Bit for bit the same when every
-    lane has I1 == I2 ≠ 0 (so that not even the sign of a zero differs).
+    The step's branches on the body (I1 == I2 in free_flow, the centre of mass
+    on e3 and M g c = 0 in gravity_torque) are data to LLVM, so the vectorised
+    loop computes both sides.  ``mode`` (a compile-time constant) passes what
+    every lane shares as constants, so LLVM folds those branches:
+    SYMMETRIC_TOP passes the body as (I1, I1, I3, mgl, 0.0, 0.0), I1 made
+    provably not NaN, and drops the asymmetric free flow (lie_poisson: 11.5 →
+    3.4 ns/step) and the general torque; FREE passes (I1, I2, I3, 0.0, 0.0, 0.0)
+    and drops the torque.  Bit for bit the same as GENERAL on the lanes the mode
+    admits (so that not even the sign of a zero differs: the folded branches are
+    the ones those lanes take, and they never read the replaced fields).
     """
 
     @njit(error_model="numpy", forceinline=True)
     def lane_pass(W, Q, B, DT, n_lanes):
         for j in range(n_lanes):
-            I1 = B[0, j]
-            if symmetric:
-                I1 = I1 if I1 == I1 else 1.0
-                I2 = I1
+            if mode == SYMMETRIC_TOP:
+                I1 = B[0, j]
+                body = body_lane_symmetric_top(B, j, I1 if I1 == I1 else 1.0)
+            elif mode == FREE:
+                body = body_lane_free(B, j)
             else:
-                I2 = B[1, j]
-            w, q = fast(
-                (W[0, j], W[1, j], W[2, j]),
-                (Q[0, j], Q[1, j], Q[2, j], Q[3, j]),
-                DT[j],
-                body_lane_with_moments(B, j, I1, I2),
-            )
+                body = body_lane(B, j)
+            w, q = fast((W[0, j], W[1, j], W[2, j]), (Q[0, j], Q[1, j], Q[2, j], Q[3, j]), DT[j], body)
             W[0, j], W[1, j], W[2, j] = w
             Q[0, j], Q[1, j], Q[2, j], Q[3, j] = q
 
@@ -181,15 +200,13 @@ def make_advance_block(step):
             TOL[j] = threshold * (kinetic_energy(w, body) + potential_scale(body))
             status[i] = STATUS_OK
             n_steps[i] = 0
-        symmetric, wide = True, 0
-        for j in range(size):
-            symmetric = symmetric and B[0, j] == B[1, j] and B[0, j] != 0.0
+        mode, wide = block_mode(B, size), 0
         active = n if out.shape[1] > 1 else 0
         while active > 0:
             m = LEFT[0]
             for j in range(1, active):
                 m = min(m, LEFT[j])
-            wide = steps(W, Q, B, DT, S, BAD, -(-active // VECTOR) * VECTOR, m, symmetric, wide)
+            wide = steps(W, Q, B, DT, S, BAD, -(-active // VECTOR) * VECTOR, m, mode, wide)
             j = 0
             while j < active:
                 LEFT[j] -= m

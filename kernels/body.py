@@ -38,6 +38,13 @@ def body_lane(B, j):
 
 
 @njit(cache=True, error_model="numpy")
-def body_lane_with_moments(B, j, I1, I2):
-    """``body_lane(B, j)`` with I1 and I2 replaced (block.py's symmetric pass)."""
-    return Body(I1, I2, B[2, j], B[3, j], B[4, j], B[5, j])
+def body_lane_symmetric_top(B, j, I1):
+    """``body_lane(B, j)`` of a body with I1 = I2 and its centre of mass on e3, I1 given and
+    mgc1 = mgc2 = 0.0 as constants (block.py's symmetric pass: LLVM folds the branches on them)."""
+    return Body(I1, I1, B[2, j], B[3, j], 0.0, 0.0)
+
+
+@njit(cache=True, error_model="numpy")
+def body_lane_free(B, j):
+    """``body_lane(B, j)`` of a free body, with mgl = mgc1 = mgc2 = 0.0 as constants (block.py's FREE pass)."""
+    return Body(B[0, j], B[1, j], B[2, j], 0.0, 0.0, 0.0)

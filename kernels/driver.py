@@ -26,7 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .body import body_row
+from .body import Body, body_row
 from .rigid_body import axis_lab, energy, kinetic_energy, lab_momentum, potential_scale
 from .rotation import lab_up_in_body
 
@@ -90,16 +90,8 @@ def make_advance(step):
     energy scale T0 + |M g c| (so a top released at θ0 = 90°, E0 = T0, is fine).
     """
 
-    @njit(error_model="numpy")
-    def advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
-        body = body_row(bodies, i)
-        w = (w0[i, 0], w0[i, 1], w0[i, 2])
-        q = (q0[i, 0], q0[i, 1], q0[i, 2], q0[i, 3])
-        dt = dts[i]
-        stride = strides[i]
-        _record(out, i, 0, w, q, body)
-        tolerance = threshold * (kinetic_energy(w, body) + potential_scale(body))
-        status[i] = STATUS_OK
+    @njit(error_model="numpy", forceinline=True)
+    def steps_and_samples(i, w, q, dt, stride, body, tolerance, out, status):
         done = 0
         for k in range(1, out.shape[1]):
             for _ in range(stride):
@@ -108,6 +100,24 @@ def make_advance(step):
             _record(out, i, k, w, q, body)
             if _diverged(out, i, k, tolerance, status):
                 break
+        return done
+
+    @njit(error_model="numpy")
+    def advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
+        body = body_row(bodies, i)
+        w = (w0[i, 0], w0[i, 1], w0[i, 2])
+        q = (q0[i, 0], q0[i, 1], q0[i, 2], q0[i, 3])
+        _record(out, i, 0, w, q, body)
+        tolerance = threshold * (kinetic_energy(w, body) + potential_scale(body))
+        status[i] = STATUS_OK
+        # Two inlined copies of the loop: in the first the centre of mass is on e3 as a constant, so
+        # the general branch of gravity_torque is folded away (a loop-invariant branch costs rk4's
+        # four torque evaluations a step about 10 ns otherwise).  Same bits either way.
+        if body[4] == 0.0 and body[5] == 0.0:
+            axial = Body(body[0], body[1], body[2], body[3], 0.0, 0.0)
+            done = steps_and_samples(i, w, q, dts[i], strides[i], axial, tolerance, out, status)
+        else:
+            done = steps_and_samples(i, w, q, dts[i], strides[i], body, tolerance, out, status)
         n_steps[i] = done
 
     return advance_run
