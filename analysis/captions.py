@@ -20,7 +20,7 @@ from . import yardstick
 from .io import invariant_error, open_results, relative_error
 
 
-def _worst(ds, quantity, **at):
+def worst_error(ds, quantity, **at):
     """max_t relative error of ``quantity`` of one run (inf when it diverged)."""
     run = ds.sel(at)
     err = invariant_error(run, quantity) if quantity != "energy" else relative_error(run.energy.values)
@@ -28,7 +28,7 @@ def _worst(ds, quantity, **at):
     return float(finite.max()) if finite.size and int(run.status) == 0 else math.inf
 
 
-def _g(x, digits=2):
+def fmt_error(x, digits=2):
     return "diverged" if not math.isfinite(x) else f"{x:.{digits}g}"
 
 
@@ -87,7 +87,7 @@ def energy_caption(path):
     lines = []
     for f in ds.f.values:
         vals = ", ".join(
-            f"{m} {_g(_worst(ds, 'energy', method=m, f=f, dt=dt, **_run_at(ds)))}" for m in ds.method.values
+            f"{m} {fmt_error(worst_error(ds, 'energy', method=m, f=f, dt=dt, **_run_at(ds)))}" for m in ds.method.values
         )
         lines.append(f"f = {f:g} Hz: {vals}")
     return (
@@ -109,7 +109,7 @@ def invariants_caption(path):
         q
         for q in qs
         if all(
-            _worst(ds, q, method=m, f=f, dt=d, **_run_at(ds)) == 0
+            worst_error(ds, q, method=m, f=f, dt=d, **_run_at(ds)) == 0
             for m in ds.method.values
             for f in ds.f.values
             for d in ds.dt.values
@@ -117,7 +117,9 @@ def invariants_caption(path):
     ]
     f = 10.0 if 10.0 in ds.f.values else float(ds.f.values[0])
     lz = (
-        ", ".join(f"{m} {_g(_worst(ds, 'Lz', method=m, f=f, dt=dt, **_run_at(ds)))}" for m in ds.method.values)
+        ", ".join(
+            f"{m} {fmt_error(worst_error(ds, 'Lz', method=m, f=f, dt=dt, **_run_at(ds)))}" for m in ds.method.values
+        )
         if "Lz" in qs
         else ""
     )
@@ -137,7 +139,9 @@ def work_precision_caption(path):
     key = max(data)
     dts = sorted({p[0] for pts in data[key]["methods"].values() for p in pts})
     dt = min(dts, key=lambda d: abs(math.log10(d / 1e-4)))
-    errs = ", ".join(f"{m} {_g(next(p[3] for p in pts if p[0] == dt))} rad" for m, pts in data[key]["methods"].items())
+    errs = ", ".join(
+        f"{m} {fmt_error(next(p[3] for p in pts if p[0] == dt))} rad" for m, pts in data[key]["methods"].items()
+    )
     return (
         f"`gyrolab experiment=work_precision` ({ds.method.size} methods, f = "
         f"{', '.join(f'{v:g}' for v in ds.f.values)} Hz, dt = {dts[0]:g} … {dts[-1]:g} s, "
@@ -193,8 +197,8 @@ def seed_captions(directory):
     for name, (ds, f) in jobs.items():
         at = {"f": f, "theta0": float(ds.theta0.values[0])}
         vals = ", ".join(
-            f"dt = {d:g} s: seed_next {_g(_worst(ds, 'energy', method='seed_next', dt=d, **at))}, "
-            f"seed_prev {_g(_worst(ds, 'energy', method='seed_prev', dt=d, **at))}"
+            f"dt = {d:g} s: seed_next {fmt_error(worst_error(ds, 'energy', method='seed_next', dt=d, **at))}, "
+            f"seed_prev {fmt_error(worst_error(ds, 'energy', method='seed_prev', dt=d, **at))}"
             for d in ds.dt.values
         )
         lines.append(f"{name} ({f:g} Hz): {vals}")

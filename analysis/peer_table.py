@@ -12,26 +12,11 @@ Diverged runs read "diverged".
 """
 
 import argparse
-import math
 from pathlib import Path
 
-import numpy as np
-
-from .io import drawable_invariants, invariant_error, open_results, scene_name, scene_options
+from .captions import fmt_error, worst_error
+from .io import drawable_invariants, open_results, scene_name, scene_options
 from .work_precision import reference_name, work_precision_data
-
-
-def _g(x):
-    return "diverged" if not math.isfinite(x) else f"{x:.2g}"
-
-
-def _worst(ds, name, **at):
-    run = ds.sel(at)
-    if int(run.status) != 0:
-        return math.inf
-    err = invariant_error(run, name)
-    finite = err[np.isfinite(err)]
-    return float(finite.max()) if finite.size else math.inf
 
 
 def file_section(path):
@@ -54,13 +39,13 @@ def file_section(path):
         for m, pts in entry["methods"].items():
             errs = {p[0]: p[3] for p in pts}
             status = {d: int(ds.status.sel({"method": m, "f": f, "theta0": th, "dt": d})) for d in dts}
-            cells = [_g(errs[d]) if status[d] == 0 else "diverged" for d in dts]
+            cells = [fmt_error(errs[d]) if status[d] == 0 else "diverged" for d in dts]
             lines.append(f"| `{m}` | " + " | ".join(cells) + " |")
         for q in drawable_invariants(ds):
             lines += ["", f"Worst relative error of {q} over the run:", "", header, rule]
             for m in entry["methods"]:
                 at = {"method": m, "f": f, "theta0": th}
-                lines.append(f"| `{m}` | " + " | ".join(_g(_worst(ds, q, dt=d, **at)) for d in dts) + " |")
+                lines.append(f"| `{m}` | " + " | ".join(fmt_error(worst_error(ds, q, dt=d, **at)) for d in dts) + " |")
     return "\n".join(lines)
 
 
