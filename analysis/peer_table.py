@@ -12,10 +12,11 @@ Diverged runs read "diverged".
 """
 
 import argparse
+import sys
 from pathlib import Path
 
 from .captions import fmt_error, worst_error
-from .io import drawable_invariants, open_results, scene_name, scene_options
+from .io import SelectionError, drawable_invariants, open_results, scene_name, scene_options
 from .work_precision import reference_name, work_precision_data
 
 
@@ -59,9 +60,14 @@ def main(argv=None):
     p.add_argument("files", nargs="+", help="results files of pinned experiments")
     p.add_argument("-o", "--output", default="docs/peer_problems.md")
     args = p.parse_args(argv)
+    try:
+        sections = [file_section(f) for f in args.files]  # every file read before anything is written
+    except SelectionError as err:
+        sys.stderr.write(f"peer_table: error: {' '.join(str(err).split())}\n")
+        return 2
     text = (
         "# Peer problems (generated)\n\nWritten by `python -m gyrolab.analysis.peer_table`; every number is read "
-        "from the results file named in its heading.\n\n" + "\n\n".join(file_section(f) for f in args.files) + "\n"
+        "from the results file named in its heading.\n\n" + "\n\n".join(sections) + "\n"
     )
     Path(args.output).write_text(text)
     print(f"peer_table: wrote {args.output}")
@@ -69,4 +75,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

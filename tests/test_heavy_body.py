@@ -147,3 +147,12 @@ def test_peer_table_reads_every_declared_invariant_from_the_file(tmp_path):
     k_table = text.split("Worst relative error of kovalevskaya over the run:")[1]
     rk4_row = next(line for line in k_table.splitlines() if line.startswith("| `rk4`"))
     assert rk4_row.split("|")[2].strip() == f"{worst:.2g}"  # the dt = 1e-3 column
+
+
+def test_peer_table_refuses_a_missing_file_in_one_line_and_writes_nothing(tmp_path, capsys):
+    from gyrolab.analysis import peer_table
+
+    out = tmp_path / "peer.md"
+    assert peer_table.main([str(tmp_path / "absent.h5"), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no such results file" in err and not out.exists()
