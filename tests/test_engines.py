@@ -204,20 +204,26 @@ def mujoco():
     )
 
 
-def top_xml(dt, integrator):
-    """Ball joint at the pivot; the disc's inertia about its centre, the centre at l e3; only rigid-body dynamics."""
-    ixx, izz = M * R_DISC**2 / 4, M * R_DISC**2 / 2
+def ball_joint_xml(dt, integrator, g, inertial):
+    """One body on a ball joint at the pivot under gravity g (m/s²) along −z, only rigid-body dynamics;
+    ``inertial`` is the body's MJCF <inertial> attributes (mass, centre of mass, inertia about it)."""
     return f"""<mujoco>
-  <option timestep="{dt!r}" gravity="0 0 {-G!r}" integrator="{integrator}">
+  <option timestep="{dt!r}" gravity="0 0 {-g!r}" integrator="{integrator}">
     <flag contact="disable" constraint="disable" spring="disable" damper="disable" actuation="disable"/>
   </option>
   <worldbody>
-    <body name="top">
+    <body name="pivoted">
       <joint type="ball" damping="0" armature="0" frictionloss="0"/>
-      <inertial pos="0 0 {ARM!r}" mass="{M!r}" diaginertia="{ixx!r} {ixx!r} {izz!r}"/>
+      <inertial {inertial}/>
     </body>
   </worldbody>
 </mujoco>"""
+
+
+def top_xml(dt, integrator):
+    """The write-up's top: the disc's inertia about its centre, the centre at l e3."""
+    ixx, izz = M * R_DISC**2 / 4, M * R_DISC**2 / 2
+    return ball_joint_xml(dt, integrator, G, f'pos="0 0 {ARM!r}" mass="{M!r}" diaginertia="{ixx!r} {ixx!r} {izz!r}"')
 
 
 def free_xml(dt, integrator, body):
@@ -339,24 +345,14 @@ def test_mujoco_conformance_tennis_racket(mujoco, integrator, dt):
 
 
 def heavy_body_xml(dt, integrator, body, M_body, g):
-    """Ball joint at the pivot; a body whose centre of mass sits off every axis (gyrolab's heavy_body):
+    """A body whose centre of mass sits off every axis (gyrolab's heavy_body):
     MJCF wants the inertia about the centre of mass, diag(I_pivot) − M (|c|² 1 − c cᵀ) by the
     parallel-axis theorem, as a full tensor in the body frame."""
     c = np.array([body.mgc1, body.mgc2, body.mgl]) / (M_body * g)
     about_com = np.diag(body[:3]) - M_body * (c @ c * np.eye(3) - np.outer(c, c))
     full = " ".join(repr(float(about_com[i, j])) for i, j in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)))
     pos = " ".join(repr(float(x)) for x in c)
-    return f"""<mujoco>
-  <option timestep="{dt!r}" gravity="0 0 {-g!r}" integrator="{integrator}">
-    <flag contact="disable" constraint="disable" spring="disable" damper="disable" actuation="disable"/>
-  </option>
-  <worldbody>
-    <body name="heavy">
-      <joint type="ball" damping="0" armature="0" frictionloss="0"/>
-      <inertial pos="{pos}" mass="{M_body!r}" fullinertia="{full}"/>
-    </body>
-  </worldbody>
-</mujoco>"""
+    return ball_joint_xml(dt, integrator, g, f'pos="{pos}" mass="{M_body!r}" fullinertia="{full}"')
 
 
 @pytest.mark.parametrize("integrator", MJ_INTEGRATOR)
