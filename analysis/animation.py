@@ -20,11 +20,11 @@ def animate(ds, out, sel=None, seconds=None, fps=20, max_frames=120):
     """Write a GIF of one run (first method/f/θ0 and smallest dt of ``sel``); return its path."""
     sel = sel or {}
     sub = select(ds, sel)
-    method = pick(sub, "method")
+    method = pick(sub, "integrator")
     f = pick(sub, "f")
     th = pick(sub, "theta0")
     dt = pick(sub, "dt", prefer="min")
-    run = sub.sel({"method": method, "f": f, "theta0": th, "dt": dt})
+    run = sub.sel({"integrator": method, "f": f, "theta0": th, "dt": dt})
     time = sub.time.values
     seconds = min(float(time[-1]), 2.0) if seconds is None else float(seconds)
     n = int(np.searchsorted(time, seconds, side="right"))

@@ -45,8 +45,8 @@ def nutation_caption(path):
         if nut is None:
             continue
         th = (
-            np.degrees(ds.theta.sel({"method": "seed_prev", "f": f, "dt": dt, **_run_at(ds)}).values)
-            if "seed_prev" in ds.method.values
+            np.degrees(ds.theta.sel({"integrator": "seed_prev", "f": f, "dt": dt, **_run_at(ds)}).values)
+            if "seed_prev" in ds.integrator.values
             else None
         )
         out = "" if th is None else (f"; seed_prev spans {np.nanmin(th):.1f}°–{np.nanmax(th):.1f}° over the run")
@@ -87,11 +87,12 @@ def energy_caption(path):
     lines = []
     for f in ds.f.values:
         vals = ", ".join(
-            f"{m} {fmt_error(worst_error(ds, 'energy', method=m, f=f, dt=dt, **_run_at(ds)))}" for m in ds.method.values
+            f"{m} {fmt_error(worst_error(ds, 'energy', integrator=m, f=f, dt=dt, **_run_at(ds)))}"
+            for m in ds.integrator.values
         )
         lines.append(f"f = {f:g} Hz: {vals}")
     return (
-        f"`gyrolab-plot energy {Path(path).name}` ({ds.method.size} methods × f = "
+        f"`gyrolab-plot energy {Path(path).name}` ({ds.integrator.size} methods × f = "
         f"{', '.join(f'{v:g}' for v in ds.f.values)} Hz × dt = {', '.join(f'{v:g}' for v in ds.dt.values)} s, "
         f"{float(ds.time[-1]):g} s). Running maximum of |E(t) − E0|/|E0|; worst values at dt = {dt:g} s: "
         + "; ".join(lines)
@@ -109,8 +110,8 @@ def invariants_caption(path):
         q
         for q in qs
         if all(
-            worst_error(ds, q, method=m, f=f, dt=d, **_run_at(ds)) == 0
-            for m in ds.method.values
+            worst_error(ds, q, integrator=m, f=f, dt=d, **_run_at(ds)) == 0
+            for m in ds.integrator.values
             for f in ds.f.values
             for d in ds.dt.values
         )
@@ -118,7 +119,8 @@ def invariants_caption(path):
     f = 10.0 if 10.0 in ds.f.values else float(ds.f.values[0])
     lz = (
         ", ".join(
-            f"{m} {fmt_error(worst_error(ds, 'Lz', method=m, f=f, dt=dt, **_run_at(ds)))}" for m in ds.method.values
+            f"{m} {fmt_error(worst_error(ds, 'Lz', integrator=m, f=f, dt=dt, **_run_at(ds)))}"
+            for m in ds.integrator.values
         )
         if "Lz" in qs
         else ""
@@ -143,7 +145,7 @@ def work_precision_caption(path):
         f"{m} {fmt_error(next(p[3] for p in pts if p[0] == dt))} rad" for m, pts in data[key]["methods"].items()
     )
     return (
-        f"`gyrolab experiment=work_precision` ({ds.method.size} methods, f = "
+        f"`gyrolab experiment=work_precision` ({ds.integrator.size} methods, f = "
         f"{', '.join(f'{v:g}' for v in ds.f.values)} Hz, dt = {dts[0]:g} … {dts[-1]:g} s, "
         f"{float(ds.time[-1]):g} s). Error = max deviation of the axis from {reference_name(ds)}; cost "
         "re-timed on one thread after JIT warm-up; scipy DOP853 and RK45 as peers. Right panels: method steps "
@@ -160,10 +162,10 @@ def stability_caption(paths):
         ds = open_results(path)
         th = float(ds.theta0.values[0])
         measure = default_measure(ds)
-        bad = {str(m): int((ds.status.sel({"method": m, "theta0": th}) != 0).sum()) for m in ds.method.values}
+        bad = {str(m): int((ds.status.sel({"integrator": m, "theta0": th}) != 0).sum()) for m in ds.integrator.values}
         maps = {
-            str(m): _logerr(ds.sel({"method": m, "theta0": th}).sortby("f").sortby("dt"), th, measure, ds)
-            for m in ds.method.values
+            str(m): _logerr(ds.sel({"integrator": m, "theta0": th}).sortby("f").sortby("dt"), th, measure, ds)
+            for m in ds.integrator.values
         }
         same = sorted(
             {
@@ -197,8 +199,8 @@ def seed_captions(directory):
     for name, (ds, f) in jobs.items():
         at = {"f": f, "theta0": float(ds.theta0.values[0])}
         vals = ", ".join(
-            f"dt = {d:g} s: seed_next {fmt_error(worst_error(ds, 'energy', method='seed_next', dt=d, **at))}, "
-            f"seed_prev {fmt_error(worst_error(ds, 'energy', method='seed_prev', dt=d, **at))}"
+            f"dt = {d:g} s: seed_next {fmt_error(worst_error(ds, 'energy', integrator='seed_next', dt=d, **at))}, "
+            f"seed_prev {fmt_error(worst_error(ds, 'energy', integrator='seed_prev', dt=d, **at))}"
             for d in ds.dt.values
         )
         lines.append(f"{name} ({f:g} Hz): {vals}")

@@ -1,17 +1,30 @@
 """``gyrolab-plot KIND FILE [KEY=VALUE ...]``: figures from a stored results file.
 
     gyrolab-plot nutation results.h5 f=10,50 dt=1e-4       # θ(t) per method, closed-form bounds
-    gyrolab-plot tip results.h5 method=seed_next f=50      # tip locus seen from above
+    gyrolab-plot tip results.h5 integrator=seed_next f=50  # tip locus seen from above
     gyrolab-plot energy results.h5 --quantity Lz           # relative drift of E, Lz or L3
     gyrolab-plot invariants results.h5                     # E, Lz and L3 together
     gyrolab-plot work-precision work_precision.h5          # error vs cost, DOP853 as a peer
     gyrolab-plot stability stability.h5                    # log10 max energy error over dt x f
-    gyrolab-plot animation results.h5 method=rk4 f=50      # GIF of the top
+    gyrolab-plot animation results.h5 integrator=rk4 f=50  # GIF of the top
     gyrolab-plot seed multirun/<date>/<time>               # the write-up's figures from a seed_figures multirun
     gyrolab-plot standard results.h5                       # what the runner writes after a sweep
+    gyrolab-plot energy combined.h5 scene=heavy_top        # one scene of a gyrolab-combine file
 
-A selection is KEY=VALUE[,VALUE...] with KEY in method, f (Hz), theta0 (deg),
-dt (s).  Output: -o PATH (default ``<kind>.png`` next to FILE); --format png
+A selection is KEY=VALUE[,VALUE...] with KEY in integrator (``method`` is read
+as integrator, the name of the dim before layout 3), f (Hz), theta0 (deg),
+dt (s).
+
+A combined file (gyrolab-combine: its members stacked along a leading ``scene``
+or ``job`` dim) takes one more key, ``scene=NAME`` or ``job=K`` (K from 0),
+which draws that member with its own scene options and declarations.  Without
+one, every member is drawn, each into its own file with the member in the
+name (``energy_heavy_top.png``, ``energy_job1.png``; ``standard`` into
+``figures/<member>/``): the user asked for the file's figure, and one figure
+per member is what the separate files would have given (members differ in
+scene, options and invariants, so no figure could share their panels).
+
+Output: -o PATH (default ``<kind>.png`` next to FILE); --format png
 svg pdf for several.  Only ``work-precision`` runs anything (its DOP853 peer,
 scipy, at several tolerances); every other kind reads the stored samples.
 When a figure cannot draw every value of the grid it says which it drew, in
@@ -69,6 +82,9 @@ def build_parser():
     _common(p, many=True)
     p = sub.add_parser("standard", help="the figures the file's study asks for (output.figures) into a directory")
     p.add_argument("file", metavar="FILE")
+    p.add_argument(
+        "selection", nargs="*", metavar="scene=NAME|job=K", help="the member of a combined file (default: each)"
+    )
     p.add_argument("-o", "--output", help="output directory (default: figures/ next to FILE)")
     p.add_argument("--parents", action="store_true", help="create -o's missing parent directories")
     return parser
@@ -91,20 +107,49 @@ def _check_output(args):
             raise ValueError(f"-o {args.output}: directory {parent} does not exist (create it, or pass --parents)")
 
 
+def _member_tag(ds):
+    """The member of a combined file's slice as output names carry it: heavy_top, job1."""
+    dim, _, label = ds.attrs["combined_member"].partition("=")
+    return label if dim == "scene" else f"{dim}{label}"
+
+
+def _member_path(path, ds):
+    """``path`` with the member in its name: energy.png -> energy_heavy_top.png / energy_job1.png."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}_{_member_tag(ds)}{path.suffix}")
+
+
+def _split_member(words):
+    """(member selection {scene|job: value}, grid selection) of the KEY=VALUE words."""
+    from .io import MEMBER_DIMS, parse_selection
+
+    sel = parse_selection(words, members=True)
+    member = {k: sel.pop(k)[0] for k in MEMBER_DIMS if k in sel}
+    return member, sel
+
+
 def run(args, notes=None):
     """Make the figure ``args.kind``; return the written path(s).  ``notes`` (a list) receives the
-    figure's selection notes, with FILE replaced by the file's path."""
+    figure's selection notes, with FILE replaced by the file's path (and member selection)."""
     from .figures import FIGURES
-    from .io import SelectionError, open_results, parse_selection
+    from .io import SelectionError, open_members
 
     kind = args.kind
     _check_output(args)
     if kind == "standard":
         from .figures import standard_figures
 
-        out = args.output or Path(args.file).parent / "figures"
-        open_results(args.file)  # a clear error before anything is written
-        paths = standard_figures(args.file, out, log=lambda line: print(line.replace("gyrolab:", "gyrolab-plot:", 1)))
+        member, grid = _split_member(args.selection)
+        if grid:
+            raise SelectionError(f"{' '.join(args.selection)}: standard takes only scene=NAME or job=K")
+        out = Path(args.output or Path(args.file).parent / "figures")
+        members = open_members(args.file, member)  # a clear error before anything is written
+        paths = []
+        log = lambda line: print(line.replace("gyrolab:", "gyrolab-plot:", 1))  # noqa: E731
+        for label, ds in members:
+            where = out if label is None or len(members) == 1 else out / _member_tag(ds)
+            source = args.file if label is None else f"{args.file} {ds.attrs['combined_member']}"
+            paths += standard_figures(args.file, where, log=log, ds=ds, label=source)
         if not paths:  # every figure failed (each said why on stderr): not a success
             raise SelectionError(f"FILE={args.file}: no figure could be drawn from it")
         return paths
@@ -116,18 +161,28 @@ def run(args, notes=None):
         out = Path(args.output or (first.parent if first.is_file() else first) / "seed_figures.png")
         return seed_figures(args.file, out, formats=args.format)
     figure = FIGURES[kind]  # argparse has already refused anything else
-    ds = open_results(args.file)
-    sel = parse_selection(args.selection)
+    member, sel = _split_member(args.selection)
+    members = open_members(args.file, member)
     default = Path(args.file).with_name(f"{kind.replace('-', '_')}.png")
     out = Path(args.output) if args.output else default
     options = {
         flag.lstrip("-").replace("-", "_"): getattr(args, flag.lstrip("-").replace("-", "_")) for flag in figure.options
     }
-    drawn = []
-    path = figure.write(ds, out, sel, formats=args.format, notes=drawn, **options)
-    if notes is not None:
-        notes.extend(n.replace("FILE", str(args.file)) for n in drawn)
-    return [path]
+    paths = []
+    for label, ds in members:
+        drawn = []
+        if label is None:
+            where, source = out, str(args.file)
+        else:
+            where = out if args.output and len(members) == 1 else _member_path(out, ds)
+            source = f"{args.file} {ds.attrs['combined_member']}"
+        try:
+            paths.append(figure.write(ds, where, sel, formats=args.format, notes=drawn, **options))
+        except (SelectionError, ValueError) as err:
+            raise type(err)(f"{source}: {err}" if label is not None else str(err)) from None
+        if notes is not None:
+            notes.extend(n.replace("FILE", source) for n in drawn)
+    return paths
 
 
 def main(argv=None):

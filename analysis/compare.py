@@ -13,10 +13,13 @@ of any units and scene.  ``status`` and ``n_steps`` are compared
 exactly; ``wall_time`` is ignored (timing, not physics).  Tolerances default to
 0: without options the files must be bit-identical.
 
-The runs (method, f, theta0, dt) are matched by label, in any order; the files
+The runs (integrator, f, theta0, dt) are matched by label, in any order; the files
 must hold the same runs (``--shared-runs``: only those in both) and the same
-time samples.  Differences in gyrolab/numba/numpy version or in the
-data-relevant config are printed before the table.
+time samples.  Files of every layout compare with each other (an older layout's ``method`` dim
+is read as ``integrator``).  Two combined files (gyrolab-combine) compare member by member, the
+members (``scene`` or ``job``) matched by label like the runs; ``gyrolab-compare combined.h5
+scene=heavy_top one.h5`` compares one member with a one-scene file.  Differences in
+gyrolab/numba/numpy version or in the data-relevant config are printed before the table.
 
 Exit status: 0 within tolerance, 1 not, 2 the files cannot be compared
 (one line on stderr saying why).
@@ -137,7 +140,7 @@ def _detail(name, ratio, rel, absolute):
 
 
 def _where(labels, run_only=False):
-    keys = RUN_DIMS if run_only else RUN_DIMS + ("time", "xyz")
+    keys = ("scene", "job") + RUN_DIMS + (() if run_only else ("time", "xyz"))
     parts = []
     for k in keys:
         if k in labels:
@@ -175,9 +178,15 @@ def parse_tolerances(items, option):
 # --------------------------------------------------------------------------- opening and matching
 
 
-def open_results(path, label):
-    """Open a results file fully loaded (xarray, h5netcdf); CompareError if unreadable."""
+def open_results(path, label, member=None):
+    """Open a results file fully loaded (xarray, h5netcdf) with today's names (layout.current: the
+    ``method`` dim of a file from before layout 3 is ``integrator``); CompareError if unreadable.
+    A combined file (gyrolab-combine) opens whole, its members along a leading ``scene``/``job``
+    dim, or as the one member ``member`` names ({"scene": NAME} or {"job": K})."""
     import xarray as xr
+
+    from ..layout import current, file_layout_version, member_dim, member_labels
+    from ..layout import member as member_of
 
     try:
         with xr.open_dataset(path, engine="h5netcdf") as ds:
@@ -188,16 +197,30 @@ def open_results(path, label):
         raise CompareError(
             f"{label}: {path}: not a readable results file ({type(err).__name__}: {' '.join(str(err).split())[:120]})"
         ) from None
+    ds = current(ds)
     missing = [d for d in RUN_DIMS + ("time",) if d not in ds.coords]
     if missing:
         raise CompareError(f"{label}: {path}: not a gyrolab results file (no coordinate {missing[0]})")
-    from ..layout import file_layout_version, with_current_body
-
     if file_layout_version(ds) is None:
         raise CompareError(f"{label}: {path}: not a gyrolab results file (no layout_version attr)")
     if "status" not in ds.data_vars:
         raise CompareError(f"{label}: {path}: not a complete gyrolab results file (no variable 'status')")
-    return with_current_body(ds)
+    for key, value in (member or {}).items():
+        dim = member_dim(ds)
+        if dim is None:
+            raise CompareError(f"{label}: {key}={value}: {path} is not a combined file")
+        if key != dim or str(value) not in member_labels(ds):
+            raise CompareError(f"{label}: {key}={value}: not in {path} ({dim} has {', '.join(member_labels(ds))})")
+        ds = member_of(ds, value)
+    return ds
+
+
+def run_dims(ds):
+    """The dims that label a run: a combined file's member dim (``scene``/``job``), then RUN_DIMS."""
+    from ..layout import member_dim
+
+    dim = member_dim(ds)
+    return ((dim,) if dim else ()) + RUN_DIMS
 
 
 def _match(values_a, values_b):
@@ -227,7 +250,7 @@ def align(da, db, shared_runs=False):
     CompareError when the runs or the time samples differ (or share nothing)."""
     dropped = []
     sel_a, sel_b = {}, {}
-    for dim in RUN_DIMS:
+    for dim in run_dims(da):
         va, vb = [v.item() for v in da[dim].values], [v.item() for v in db[dim].values]
         ia, ib = _match(va, vb), _match(vb, va)
         if None in ia or None in ib:
@@ -343,10 +366,10 @@ def _first_largest(key, tiebreak):
     return int(np.flatnonzero((key == key[top]) & (tiebreak == tiebreak[top]))[0])
 
 
-def compare_variable(name, a, b, rtol, atol, exact, dims, coords):
+def compare_variable(name, a, b, rtol, atol, exact, dims, coords, n_run_dims=len(RUN_DIMS)):
     """VariableDiff of one variable from aligned arrays a, b with dims ``dims``; also the per-run
-    maxima (|a−b| / tolerance, relative difference, |a−b|) as arrays over RUN_DIMS and the
-    per-run flag "some point out of tolerance"."""
+    maxima (|a−b| / tolerance, relative difference, |a−b|) as arrays over the run dims (the first
+    ``n_run_dims`` of ``dims``) and the per-run flag "some point out of tolerance"."""
     vd = VariableDiff(name, rtol, atol, exact)
     d, rel, scale, one_nan = _diff_block(a, b, exact)
     bound = np.zeros_like(d) if exact else atol + rtol * scale
@@ -363,7 +386,7 @@ def compare_variable(name, a, b, rtol, atol, exact, dims, coords):
     if d.size and d.max() > 0:
         at = np.unravel_index(_first_largest(ratio, rel), d.shape)
         vd.worst = {dim: coords[dim][i] for dim, i in zip(dims, at)}
-    sample_axes = tuple(range(len(RUN_DIMS), d.ndim))
+    sample_axes = tuple(range(n_run_dims, d.ndim))
     run_ratio = ratio.max(axis=sample_axes) if sample_axes else ratio
     run_rel = rel.max(axis=sample_axes) if sample_axes else rel
     run_bad = bad.any(axis=sample_axes) if sample_axes else bad
@@ -373,18 +396,35 @@ def compare_variable(name, a, b, rtol, atol, exact, dims, coords):
 
 def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, scaled=None, names=("A", "B")):
     """Compare two opened results Datasets; see ``compare_files``."""
-    from ..layout import with_current_body
+    from ..layout import current, member_dim, member_labels
 
-    da, db = with_current_body(da), with_current_body(db)
+    da, db = current(da), current(db)
     ignored = dict(IGNORED)
     ignored.update({name: "asked" for name in ignore})
+    dims = [member_dim(d) for d in (da, db)]
+    if dims[0] != dims[1]:
+        if dims[0] and dims[1]:
+            raise CompareError(f"A is combined along {dims[0]} and B along {dims[1]}: compare one member of each")
+        k = 0 if dims[0] else 1
+        whole, one = (da, db) if k == 0 else (db, da)
+        words = list(names)
+        words.insert(k + 1, f"{dims[k]}={member_labels(whole)[0]}")
+        raise CompareError(
+            f"{'AB'[k]} is a combined file of {dims[k]}s {', '.join(member_labels(whole))}, {'AB'[1 - k]} "
+            f"one scene ({one.attrs.get('scene')}): select a member after its file, "
+            f"gyrolab-compare {' '.join(map(str, words))}"
+        )
     if da.attrs.get("scene") != db.attrs.get("scene"):
         raise CompareError(f"different scenes: {da.attrs.get('scene')} in A and {db.attrs.get('scene')} in B")
+    keys = run_dims(da)
     versions, configs = version_notes(da, db), config_notes(da, db)
     da, db, dropped = align(da, db, shared_runs)
     # The runs' inputs (body, initial state) are not results: a difference is a provenance note, and
     # files written before they were stored compare with files that have them.
     inputs = input_notes(da, db)
+    # A combined file's provenance of its inputs (source_* along ``source``) is not results either.
+    for d in (da, db):
+        ignored.update({v: "provenance of the combined files" for v in d.data_vars if "source" in d[v].dims})
     va = [v for v in da.data_vars if v not in ignored and v not in INPUT_VARIABLES]
     vb = [v for v in db.data_vars if v not in ignored and v not in INPUT_VARIABLES]
     from ..layout import ABSENT_BEFORE, SAMPLE_VARIABLES, file_layout_version, held_variables
@@ -415,10 +455,11 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
             if key in EXACT:
                 raise OptionError(f"{option} {key}={tol[key]}: {key} is compared exactly")
     coords = {d: [x.item() for x in da[d].values] for d in da.dims}
-    shape = tuple(da.sizes[d] for d in RUN_DIMS)
+    shape = tuple(da.sizes[d] for d in keys)
+    scene = da.attrs.get("scene") or "combined"
     grid = (
-        f"scene {da.attrs.get('scene', '?')}; "
-        + " x ".join(f"{n} {d}" for d, n in zip(RUN_DIMS, shape))
+        f"scene {scene}; "
+        + " x ".join(f"{n} {d}" for d, n in zip(keys, shape))
         + f" = {int(np.prod(shape))} runs; {da.sizes['time']} samples, t = 0 to {coords['time'][-1]:g} s"
     )
     report = Report(
@@ -437,12 +478,20 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
     any_bad = np.zeros(shape, dtype=bool)
     for name in va:
         xa, xb = da[name], db[name]
-        if set(xa.dims) != set(xb.dims) or tuple(xa.dims[:4]) != RUN_DIMS:
+        if set(xa.dims) != set(xb.dims) or tuple(xa.dims[: len(keys)]) != keys:
             raise CompareError(f"different layout: {name} has dims {xa.dims} in A and {xb.dims} in B")
         a, b = xa.values, xb.transpose(*xa.dims).values
         exact = name in EXACT or not np.issubdtype(a.dtype, np.floating)
         vd, per_run, run_bad = compare_variable(
-            name, a, b, tolerance_for(rtol, name), variable_atol(atol, scaled, name, b), exact, xa.dims, coords
+            name,
+            a,
+            b,
+            tolerance_for(rtol, name),
+            variable_atol(atol, scaled, name, b),
+            exact,
+            xa.dims,
+            coords,
+            len(keys),
         )
         report.variables.append(vd)
         better = (per_run[0] > best[0]) | ((per_run[0] == best[0]) & (per_run[1] > best[1]))
@@ -454,7 +503,7 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
     k = _first_largest(best[0], best[1])
     if best[0].ravel()[k] > 0:
         at = np.unravel_index(k, shape)
-        report.worst_run = {d: coords[d][i] for d, i in zip(RUN_DIMS, at)}
+        report.worst_run = {d: coords[d][i] for d, i in zip(keys, at)}
         report.worst_run_detail = _detail(best_var[at], *(x[at] for x in best))
     return report
 
@@ -484,7 +533,7 @@ def variable_atol(atol, scaled, name, reference):
     return value
 
 
-def compare_files(a, b, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, scaled=None):
+def compare_files(a, b, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, scaled=None, members=(None, None)):
     """Compare results files ``a`` and ``b`` (paths) variable by variable.
 
     rtol, atol: a number for every variable or a dict {variable: value, "*": default};
@@ -492,12 +541,35 @@ def compare_files(a, b, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, scaled
     ``scaled``: atol of each variable not named in ``atol`` becomes at least ``scaled`` × its
     largest |value| in b.
     ``ignore``: more variables to skip (wall_time always is).  ``shared_runs``: compare only
-    the runs present in both files.  Returns a Report; raises CompareError (one-line
-    message) when the files cannot be compared.
+    the runs present in both files.  ``members``: for a combined file, the member to compare
+    ({"scene": NAME} or {"job": K}; None: the whole file, its members matched by label).
+    Returns a Report; raises CompareError (one-line message) when the files cannot be compared.
     """
-    da = open_results(a, "A")
-    db = open_results(b, "B")
-    return compare_datasets(da, db, rtol, atol, ignore, shared_runs, scaled, names=(str(a), str(b)))
+    da = open_results(a, "A", members[0])
+    db = open_results(b, "B", members[1])
+    names = [f"{p} {' '.join(f'{k}={v}' for k, v in (m or {}).items())}".strip() for p, m in zip((a, b), members)]
+    return compare_datasets(da, db, rtol, atol, ignore, shared_runs, scaled, names=tuple(names))
+
+
+def operands(words):
+    """[(path, member)] of the command line's FILE [scene=NAME | job=K] FILE [...]: a member
+    selection applies to the file before it (a word that is an existing file is a file)."""
+    from pathlib import Path
+
+    out = []
+    for word in words:
+        key, eq, value = word.partition("=")
+        if eq and key in ("scene", "job") and not Path(word).exists():
+            if not out:
+                raise OptionError(f"{word}: a member selection follows the combined file it selects from")
+            if out[-1][1]:
+                raise OptionError(f"{word}: one member per file ({out[-1][0]} has {out[-1][1]})")
+            out[-1] = (out[-1][0], {key: value})
+        else:
+            out.append((word, None))
+    if len(out) != 2:
+        raise OptionError(f"{' '.join(words)}: give two files, A and B (each may be followed by scene=NAME or job=K)")
+    return out
 
 
 # --------------------------------------------------------------------------- command line
@@ -526,8 +598,13 @@ def build_parser():
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="exit status: 0 within tolerance, 1 out of tolerance, 2 cannot compare",
     )
-    p.add_argument("a", help="results file A (e.g. a fresh run)")
-    p.add_argument("b", help="results file B (e.g. the stored reference)")
+    p.add_argument(
+        "files",
+        nargs="+",
+        metavar="A [scene=NAME|job=K] B [scene=NAME|job=K]",
+        help="results files A (e.g. a fresh run) and B (e.g. the stored reference); after a combined file "
+        "(gyrolab-combine), scene=NAME or job=K compares that member only",
+    )
     p.add_argument(
         "--rtol",
         action="append",
@@ -554,17 +631,24 @@ def build_parser():
         help="skip a variable (repeatable); wall_time is always skipped",
     )
     p.add_argument(
-        "--shared-runs", action="store_true", help="compare only the runs (method, f, theta0, dt) present in both files"
+        "--shared-runs",
+        action="store_true",
+        help="compare only the runs (integrator, f, theta0, dt) present in both files",
     )
     return p
 
 
 def main(argv=None):
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        (a, ma), (b, mb) = operands(args.files)
+    except OptionError as err:  # a usage error, like argparse's own
+        parser.error(str(err))
     try:
         rtol = parse_tolerances(args.rtol, "--rtol")
         atol = parse_tolerances(args.atol, "--atol")
-        report = compare_files(args.a, args.b, rtol, atol, args.ignore, args.shared_runs, args.scaled)
+        report = compare_files(a, b, rtol, atol, args.ignore, args.shared_runs, args.scaled, members=(ma, mb))
     except CompareError as err:
         kind = "error" if isinstance(err, OptionError) else "cannot compare"
         sys.stderr.write(f"gyrolab-compare: {kind}: {err}\n")

@@ -35,11 +35,11 @@ def drift_table(ds, quantity="energy", sel=None):
     """{(method, f, theta0, dt): (max, final) relative error of ``quantity``} over each run."""
     sub = select(ds, sel)
     out = {}
-    for m in sub.method.values:
+    for m in sub.integrator.values:
         for f in sub.f.values:
             for th in sub.theta0.values:
                 for dt in sub.dt.values:
-                    run = sub[quantity].sel({"method": m, "f": f, "theta0": th, "dt": dt}).values
+                    run = sub[quantity].sel({"integrator": m, "f": f, "theta0": th, "dt": dt}).values
                     err = relative_error(run)
                     finite = err[np.isfinite(err)]
                     final = err[-1] if np.isfinite(err[-1]) else np.inf
@@ -65,9 +65,9 @@ def _check_quantity(ds, quantity):
 def _series(sub, quantity, f, th, envelope):
     """{(method, dt): error series} of one panel; the running maximum when ``envelope``."""
     out = {}
-    for m in sub.method.values:
+    for m in sub.integrator.values:
         for dt in sub.dt.values:
-            err = invariant_error(sub.sel({"method": m, "f": f, "theta0": th, "dt": dt}), quantity)
+            err = invariant_error(sub.sel({"integrator": m, "f": f, "theta0": th, "dt": dt}), quantity)
             out[(str(m), float(dt))] = np.fmax.accumulate(err) if envelope else err
     return out
 
@@ -91,7 +91,7 @@ def _panel(ax, sub, quantity, f, th, envelope=True):
     any_zero = False
     for (m, dt), err in series.items():
         k = list(sub.dt.values).index(dt)
-        run = sub.sel({"method": m, "f": f, "theta0": th, "dt": dt})
+        run = sub.sel({"integrator": m, "f": f, "theta0": th, "dt": dt})
         any_zero |= bool(np.all(err[np.isfinite(err)] == 0))
         label = f"{m}" + (f", {fmt_dt(dt)}" if sub.dt.size > 1 else "")
         if int(run.status) != 0:
@@ -188,8 +188,8 @@ def invariants_figure(ds, sel=None, envelope=True):
     exact, rows = [], []
     for q in quantities:
         errs = [
-            invariant_error(sub.sel({"method": m, "f": f, "theta0": th, "dt": dt}), q)
-            for m in sub.method.values
+            invariant_error(sub.sel({"integrator": m, "f": f, "theta0": th, "dt": dt}), q)
+            for m in sub.integrator.values
             for f, th in panels
             for dt in sub.dt.values
         ]

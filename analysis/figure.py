@@ -82,11 +82,11 @@ def subplots(n, width=4.6, height=3.6, max_cols=MAX_COLS, **kwargs):
 
 
 def _fmt(key, v):
-    return str(v) if key == "method" else f"{float(v):g}"
+    return str(v) if key == "integrator" else f"{float(v):g}"
 
 
-UNITS = {"f": " Hz", "theta0": "°", "dt": " s", "method": ""}
-NAMES = {"f": "f", "theta0": "θ0", "dt": "dt", "method": "method"}
+UNITS = {"f": " Hz", "theta0": "°", "dt": " s", "integrator": ""}
+NAMES = {"f": "f", "theta0": "θ0", "dt": "dt", "integrator": "integrator"}
 
 
 def limit(ds, key, n, prefer=None):
@@ -107,14 +107,14 @@ def limit(ds, key, n, prefer=None):
 def select_note(kind, kept, dropped):
     """One line: which values were drawn and the command that draws the others; None if nothing dropped.
 
-    kind: the figure kind, optionally followed by selections the command keeps ("tip method=rk4");
+    kind: the figure kind, optionally followed by selections the command keeps ("tip integrator=rk4");
     kept, dropped: {key: [values]}."""
     dropped = {k: v for k, v in dropped.items() if len(v)}
     if not dropped:
         return None
     drew = "; ".join(f"{NAMES[k]} = {', '.join(_fmt(k, v) for v in kept[k])}{UNITS[k]}" for k in dropped)
     rest = " ".join(f"{k}={','.join(_fmt(k, v) for v in vals)}" for k, vals in dropped.items())
-    kind, _, fixed = kind.partition(" ")  # "tip method=rk4": the kind, then selections it keeps
+    kind, _, fixed = kind.partition(" ")  # "tip integrator=rk4": the kind, then selections it keeps
     return f"drawn: {drew}; the others: gyrolab-plot {kind} FILE {(fixed + ' ') if fixed else ''}{rest}"
 
 
@@ -160,7 +160,7 @@ def choose(ds, kind, max_methods=MAX_METHODS, max_dt=MAX_DT, max_panels=MAX_PANE
     """(sub-Dataset, note) keeping at most max_* methods, dt values and f × θ0 panels of ``ds``;
     the note (None when all is drawn) says what was drawn and how to draw the rest (select_note)."""
     kept, dropped = {}, {}
-    kept["method"], dropped["method"] = limit(ds, "method", max_methods, prefer=_preferred_methods(ds))
+    kept["integrator"], dropped["integrator"] = limit(ds, "integrator", max_methods, prefer=_preferred_methods(ds))
     if dt_prefer == "min":
         dts = sorted(ds.dt.values)
         kept["dt"], dropped["dt"] = dts[:max_dt], dts[max_dt:]
@@ -179,7 +179,7 @@ def _preferred_methods(ds):
         from ..kernels.registry import METHODS
     except ImportError:  # pragma: no cover
         return None
-    own = [str(m) for m in ds.method.values if not getattr(METHODS.get(str(m)), "REPRODUCES", "")]
+    own = [str(m) for m in ds.integrator.values if not getattr(METHODS.get(str(m)), "REPRODUCES", "")]
     return own or None
 
 

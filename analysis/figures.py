@@ -78,11 +78,14 @@ def requested_figures(ds):
         return DEFAULT
 
 
-def standard_figures(results_path, out_dir, names=None, log=print):
+def standard_figures(results_path, out_dir, names=None, log=print, ds=None, label=None):
     """Write the figures ``names`` (default: those the file's config asks for) of ``results_path``
-    into ``out_dir`` (created); return the written paths.  One progress line per figure through ``log``
-    (and each figure's selection note, with the file's path in its command)."""
-    ds = open_results(results_path)
+    (or of its opened Dataset ``ds``: one member of a combined file) into ``out_dir`` (created);
+    return the written paths.  One progress line per figure through ``log`` (and each figure's
+    selection note, with ``label``, default the file's path, in its command)."""
+    ds = open_results(results_path) if ds is None else ds
+    which = "" if label is None else f" ({label})"
+    label = str(results_path) if label is None else label
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     names = requested_figures(ds) if names is None else figure_names(names)
@@ -94,14 +97,14 @@ def standard_figures(results_path, out_dir, names=None, log=print):
         try:
             path = figure.write(ds, out_dir / (figure.file_name or f"{name.replace('-', '_')}.png"), notes=notes)
         except MissingVariableError as err:
-            print(f"gyrolab: figure {name} skipped: {err}", file=sys.stderr)
+            print(f"gyrolab: figure {name} skipped{which}: {err}", file=sys.stderr)
             continue
         except Exception as err:  # a figure must never cost the user the results
-            print(f"gyrolab: figure {name} skipped: {type(err).__name__}: {err}", file=sys.stderr)
+            print(f"gyrolab: figure {name} skipped{which}: {type(err).__name__}: {err}", file=sys.stderr)
             continue
         paths.append(path)
         if log is not None:
             log(f"gyrolab: figure {k}/{len(names)} {name}: {path} ({time.perf_counter() - started:.1f} s)")
             for note in notes:
-                log(f"gyrolab:   {name}: {note.replace('FILE', str(results_path))}")
+                log(f"gyrolab:   {name}: {note.replace('FILE', label)}")
     return paths

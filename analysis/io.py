@@ -1,8 +1,9 @@
 """Reading stored results and choosing runs: the helpers every figure shares.
 
 A results file (gyrolab/layout.py) opens as an xarray Dataset with dims
-``method, f, theta0, dt, time, xyz``.  A *selection* is a dict (or the CLI
-text ``method=seed_next,rk4 f=10 dt=1e-4``) of coordinate values; numbers
+``integrator, f, theta0, dt, time, xyz`` (``open_results`` renames the ``method`` dim
+of files from before layout 3).  A *selection* is a dict (or the CLI
+text ``integrator=seed_next,rk4 f=10 dt=1e-4``) of coordinate values; numbers
 match their coordinate to a relative 1e-9, so ``dt=1e-4`` finds 0.0001.
 """
 
@@ -16,7 +17,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 
-from ..layout import GRID_DIMS  # noqa: E402
+from ..layout import GRID_DIMS, MEMBER_DIMS, member_dim, member_labels  # noqa: E402
+from ..layout import member as member_of  # noqa: E402
 
 FORMATS = ("png", "svg", "pdf")
 # Fixed colours of the first methods and the peers; any other method gets one from PALETTE
@@ -66,14 +68,15 @@ def missing_variable_error(ds, name, figure):
     )
 
 
-def open_results(path):
-    """The results Dataset of ``path`` loaded into memory (file closed afterwards).
+# The grid dim's old name, still accepted in a selection (``method=rk4``: gyrolab-plot commands and
+# scripts written before layout 3; the sweep's config key is still ``sweep.method``).
+SELECTION_ALIASES = {"method": "integrator"}
 
-    SelectionError (one line naming the file) for a missing, unreadable, damaged or foreign
-    file: anything h5py/h5netcdf/xarray raise while reading, no layout version (layout 0, files from
-    before the attr, are read), a grid
-    dimension or a layout variable missing or on the wrong dims (gyrolab/layout.py)."""
-    from ..layout import LAYOUT_VERSION, file_layout_version, required_variables, with_current_body
+
+def _load(path):
+    """The Dataset of ``path`` in memory with today's names (layout.current), and its layout version
+    (None: not a gyrolab file); SelectionError (one line) for a missing or unreadable file."""
+    from ..layout import current, file_layout_version
 
     path = Path(path)
     if not path.is_file():
@@ -84,10 +87,18 @@ def open_results(path):
     except Exception as err:  # h5py/h5netcdf/xarray raise many kinds on damaged or foreign files
         text = " ".join(str(err).split())[:120]
         raise SelectionError(f"FILE={path}: not a readable results file ({type(err).__name__}: {text})") from None
+    version = file_layout_version(ds)
+    return current(ds), version  # an older layout's ``method`` is ``integrator``, its body today's
+
+
+def _check(path, ds, version):
+    """``ds`` (one scene's results) if it is a gyrolab results file this gyrolab reads, else
+    SelectionError (one line naming the file and the first problem)."""
+    from ..layout import LAYOUT_VERSION, required_variables
+
     missing = [d for d in GRID_DIMS + ("time",) if d not in ds.dims]
     if missing:
         raise SelectionError(f"FILE={path}: not a gyrolab results file (no dimension {missing[0]!r})")
-    version = file_layout_version(ds)
     if version is None:
         raise SelectionError(f"FILE={path}: not a gyrolab results file (no layout_version attr)")
     if version > LAYOUT_VERSION:
@@ -100,21 +111,74 @@ def open_results(path):
             raise SelectionError(f"FILE={path}: not a complete gyrolab results file (no variable {name!r})")
         if ds[name].dims != dims:
             raise SelectionError(f"FILE={path}: variable {name} has dims {ds[name].dims}, expected {dims}")
-    return with_current_body(ds)
+    return ds
 
 
-def parse_selection(words):
-    """``["method=seed_next,rk4", "f=10"]`` -> {"method": ["seed_next", "rk4"], "f": [10.0]}."""
+def open_members(path, member=None):
+    """[(label, Dataset)] of the results file ``path``: [(None, ds)] for a one-scene file; for a
+    combined file (a leading ``scene`` or ``job`` dim) each member, or the one ``member`` names
+    ({"scene": "heavy_top"} or {"job": "1"}), as a one-scene Dataset with its own attrs.
+    SelectionError (one line) for a file no reader can open or a member it does not have."""
+    ds, version = _load(path)
+    dim = member_dim(ds)
+    member = {k: v for k, v in (member or {}).items() if v is not None}
+    if dim is None:
+        for key, value in member.items():
+            value = value[0] if isinstance(value, (list, tuple)) else value
+            if not (key == "scene" and str(value) == scene_name(ds)):
+                raise SelectionError(f"{key}={value}: FILE={path} is not a combined file (one scene, {scene_name(ds)})")
+        return [(None, _check(path, ds, version))]
+    labels = member_labels(ds)
+    for key in member:
+        if key != dim:
+            raise SelectionError(f"{key}=: FILE={path} is combined along {dim} ({dim} has {', '.join(labels)})")
+    wanted = member.get(dim, labels)
+    wanted = [str(v) for v in (wanted if isinstance(wanted, (list, tuple)) else [wanted])]
+    for label in wanted:
+        if label not in labels:
+            raise SelectionError(f"{dim}={label}: not in FILE={path} ({dim} has {', '.join(labels)})")
+    return [(label, _check(f"{path} {dim}={label}", member_of(ds, label), version)) for label in wanted]
+
+
+def open_results(path, member=None):
+    """The results Dataset of ``path`` loaded into memory (file closed afterwards), as today's layout
+    names it (layout.current: an older layout's ``method`` dim is ``integrator``).
+
+    SelectionError (one line naming the file) for a missing, unreadable, damaged or foreign
+    file: anything h5py/h5netcdf/xarray raise while reading, no layout version (layout 0, files from
+    before the attr, are read), a grid dimension or a layout variable missing or on the wrong dims
+    (gyrolab/layout.py).  A combined file (gyrolab-combine) opens as the one member ``member``
+    names ({"scene": NAME} or {"job": K}; see ``open_members``); without one, SelectionError naming
+    its members and the selection that picks one."""
+    members = open_members(path, member)
+    if len(members) > 1:
+        ds, _ = _load(path)
+        dim = member_dim(ds)
+        raise SelectionError(
+            f"FILE={path}: a combined file of {len(members)} {dim}s ({', '.join(l for l, _ in members)}); "
+            f"choose one with {dim}={members[0][0]}"
+        )
+    return members[0][1]
+
+
+def parse_selection(words, members=False):
+    """``["integrator=seed_next,rk4", "f=10"]`` -> {"integrator": ["seed_next", "rk4"], "f": [10.0]}
+    (``method=`` is read as ``integrator=``).  With ``members``, also ``scene=NAME`` / ``job=K``
+    (a combined file's member, MEMBER_DIMS)."""
+    keys = GRID_DIMS + (MEMBER_DIMS if members else ())
     sel = {}
     for word in words or ():
         for item in str(word).split():
             key, eq, value = item.partition("=")
-            if not eq or key not in GRID_DIMS:
-                raise SelectionError(f"{item}: a selection is KEY=VALUE[,VALUE...] with KEY in {', '.join(GRID_DIMS)}")
+            key = SELECTION_ALIASES.get(key, key)
+            if not eq or key not in keys:
+                raise SelectionError(f"{item}: a selection is KEY=VALUE[,VALUE...] with KEY in {', '.join(keys)}")
             values = [v for v in value.split(",") if v]
             if not values:
                 raise SelectionError(f"{item}: no value given for {key}")
-            if key != "method":
+            if key in MEMBER_DIMS and len(values) > 1:
+                raise SelectionError(f"{item}: one {key} at a time")
+            if key not in ("integrator",) + MEMBER_DIMS:
                 try:
                     values = [float(v) for v in values]
                 except ValueError:
@@ -128,12 +192,12 @@ def _match(coord, wanted, key):
     out = []
     have = coord.values
     for w in wanted:
-        if key == "method":
+        if key == "integrator":
             hits = [v for v in have if str(v) == str(w)]
         else:
             hits = [v for v in have if math.isclose(float(v), float(w), rel_tol=1e-9, abs_tol=1e-12)]
         if not hits:
-            shown = ", ".join(f"{v:g}" if key != "method" else str(v) for v in have)
+            shown = ", ".join(f"{v:g}" if key != "integrator" else str(v) for v in have)
             raise SelectionError(f"{key}={w}: not in this file ({key} has {shown})")
         out.extend(hits)
     return out
@@ -144,6 +208,7 @@ def select(ds, sel=None):
     sel = sel or {}
     idx = {}
     for key, wanted in sel.items():
+        key = SELECTION_ALIASES.get(key, key)
         if wanted is None:
             continue
         if key not in GRID_DIMS:

@@ -53,9 +53,9 @@ def _theta_panel(ax, sub, f, th, lo, hi, exact_t, exact_theta, nut, flips):
     time = sub.time.values
     mask = (time >= lo - 1e-12) & (time <= hi + 1e-12)
     series = {}
-    for m in sub.method.values:
+    for m in sub.integrator.values:
         for k, dt in enumerate(sub.dt.values):
-            run = sub.sel({"method": m, "f": f, "theta0": th, "dt": dt})
+            run = sub.sel({"integrator": m, "f": f, "theta0": th, "dt": dt})
             label = f"{m}" + (f", {fmt_dt(dt)}" if sub.dt.size > 1 else "")
             if int(run.status) != 0:
                 label += " (diverged)"
@@ -174,7 +174,7 @@ def _tip_window(sub, f, th, t_max):
 
 def _tip_note(ds, method, dt):
     """What the tip figure drew (one method, one dt) and how to draw another; None when that is all."""
-    methods = [str(m) for m in ds.method.values if str(m) != str(method)]
+    methods = [str(m) for m in ds.integrator.values if str(m) != str(method)]
     dts = [f"{v:g}" for v in ds.dt.values if not math.isclose(float(v), float(dt))]
     if not methods and not dts:
         return None
@@ -185,7 +185,7 @@ def _tip_note(ds, method, dt):
     )
     return (
         f"drawn: {method} at dt = {float(dt):g} s (one method and dt per figure); also in the file: {other}: "
-        f"gyrolab-plot tip FILE method=M dt=DT"
+        f"gyrolab-plot tip FILE integrator=M dt=DT"
     )
 
 
@@ -198,26 +198,26 @@ def tip_locus_figure(ds, method=None, f=None, theta0=None, dt=None, t_max=None):
     the horizon the panel says so and draws the horizon.  Free bodies: the
     exact trace, dashed.  ``t_max`` (s) limits the trace (default: _tip_window).
     """
-    method = pick(ds, "method", method)
+    method = pick(ds, "integrator", method)
     dt = pick(ds, "dt", dt, prefer="min")
     fixed = _tip_note(ds, method, dt)
     sub = select(
         ds,
         {
-            "method": [method],
+            "integrator": [method],
             "dt": [dt],
             "f": None if f is None else [f],
             "theta0": None if theta0 is None else [theta0],
         },
     )
-    sub, note = choose(sub, f"tip method={method} dt={dt:g}", max_panels=9)
+    sub, note = choose(sub, f"tip integrator={method} dt={dt:g}", max_panels=9)
     panels = [(fv, th) for fv in sub.f.values for th in sub.theta0.values]
     fig, axes = subplots(len(panels), width=4.0, height=4.1)
     time = sub.time.values
     circle = np.linspace(0, 2 * math.pi, 361)
     handles = {}
     for ax, (fv, th) in zip(axes, panels):
-        run = sub.sel({"method": method, "dt": dt, "f": fv, "theta0": th})
+        run = sub.sel({"integrator": method, "dt": dt, "f": fv, "theta0": th})
         nut = yardstick.nutation(sub, fv, th)
         tm = _tip_window(sub, fv, th, t_max)
         mask = time <= tm + 1e-12
@@ -291,18 +291,18 @@ def _tip(ds, sel=None, t_max=None):
         return values[0] if len(values) == 1 else None
 
     sub = select(ds, {k: v for k, v in sel.items() if k in ("f", "theta0")})
-    return tip_locus_figure(sub, one("method"), None, None, one("dt"), t_max=t_max)
+    return tip_locus_figure(sub, one("integrator"), None, None, one("dt"), t_max=t_max)
 
 
 def _best_method(ds):
     """The method drawn in the single-run figures: seed_next when present (the write-up's scheme)."""
-    methods = [str(m) for m in ds.method.values]
+    methods = [str(m) for m in ds.integrator.values]
     return "seed_next" if "seed_next" in methods else methods[0]
 
 
 def _standard_tip(ds, sel=None, t_max=None):
-    if not (sel or {}).get("method"):
-        sel = {**(sel or {}), "method": [_best_method(ds)]}
+    if not (sel or {}).get("integrator"):
+        sel = {**(sel or {}), "integrator": [_best_method(ds)]}
     return _tip(ds, sel, t_max)
 
 

@@ -39,13 +39,13 @@ def file_section(path):
         ]
         for m, pts in entry["methods"].items():
             errs = {p[0]: p[3] for p in pts}
-            status = {d: int(ds.status.sel({"method": m, "f": f, "theta0": th, "dt": d})) for d in dts}
+            status = {d: int(ds.status.sel({"integrator": m, "f": f, "theta0": th, "dt": d})) for d in dts}
             cells = [fmt_error(errs[d]) if status[d] == 0 else "diverged" for d in dts]
             lines.append(f"| `{m}` | " + " | ".join(cells) + " |")
         for q in drawable_invariants(ds):
             lines += ["", f"Worst relative error of {q} over the run:", "", header, rule]
             for m in entry["methods"]:
-                at = {"method": m, "f": f, "theta0": th}
+                at = {"integrator": m, "f": f, "theta0": th}
                 lines.append(f"| `{m}` | " + " | ".join(fmt_error(worst_error(ds, q, dt=d, **at)) for d in dts) + " |")
     return "\n".join(lines)
 

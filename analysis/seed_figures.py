@@ -79,7 +79,7 @@ def load_jobs(paths):
 
 
 def _tip(ax, ds, f, method, dt, t_max, **style):
-    run = ds.sel({"method": method, "f": f, "theta0": ds.theta0.values[0], "dt": dt})
+    run = ds.sel({"integrator": method, "f": f, "theta0": ds.theta0.values[0], "dt": dt})
     mask = ds.time.values <= t_max + 1e-12
     xy = run.axis.values[mask]
     ax.plot(xy[:, 0], xy[:, 1], **style)
@@ -99,7 +99,7 @@ def regimes_figure(jobs):
         dt = float(ds.dt.values.min())
         nut = closed_form_nutation(ds, f, th)
         t_max = min(float(ds.time[-1]), 1.02 * 2 * math.pi / abs(nut.precession_rate))
-        methods = [str(m) for m in ds.method.values]
+        methods = [str(m) for m in ds.integrator.values]
         if "lie_poisson4" in methods:
             _tip(
                 ax, ds, f, "lie_poisson4", dt, t_max, color="k", lw=2.6, alpha=0.25, label=f"lie_poisson4, {fmt_dt(dt)}"
@@ -167,7 +167,7 @@ def remark1_figure(ds, fs=(1.0, 10.0, 50.0), method="seed_next"):
     fig, axes = plt.subplots(2, len(fs), figsize=(4.3 * len(fs), 8.0), squeeze=False)
     time = ds.time.values
     for c, f in enumerate(fs):
-        run = ds.sel({"method": method, "f": f, "theta0": th, "dt": dt})
+        run = ds.sel({"integrator": method, "f": f, "theta0": th, "dt": dt})
         nut = closed_form_nutation(ds, f, th)
         ratio = I3 * 2 * math.pi * f * f / (mgl * math.sin(math.radians(th)))
         mask = time <= 2.0
@@ -217,7 +217,7 @@ def next_vs_prev_figure(jobs):
         ax = axes[0, c]
         for m in ("seed_next", "seed_prev"):
             for k, dt in enumerate(ds.dt.values):
-                e = relative_error(ds.energy.sel({"method": m, "f": f, "theta0": th, "dt": dt}).values)
+                e = relative_error(ds.energy.sel({"integrator": m, "f": f, "theta0": th, "dt": dt}).values)
                 ax.plot(
                     tp,
                     np.maximum(np.fmax.accumulate(e), FLOOR),
@@ -234,9 +234,9 @@ def next_vs_prev_figure(jobs):
         ax = axes[1, c]
         dt = float(ds.dt.values.max())
         for m, lw in (("lie_poisson4", 2.4), ("seed_prev", 0.6), ("seed_next", 0.6)):
-            if m not in ds.method.values:
+            if m not in ds.integrator.values:
                 continue
-            th_t = np.degrees(ds.theta.sel({"method": m, "f": f, "theta0": th, "dt": dt}).values)
+            th_t = np.degrees(ds.theta.sel({"integrator": m, "f": f, "theta0": th, "dt": dt}).values)
             ax.plot(
                 t,
                 th_t,

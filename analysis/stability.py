@@ -65,7 +65,7 @@ def _logerr(run, theta0, measure, full):
 
 
 def _panel(ax, sub, method, theta0, measure="energy"):
-    run = sub.sel({"method": method, "theta0": theta0})  # dims f, dt (time)
+    run = sub.sel({"integrator": method, "theta0": theta0})  # dims f, dt (time)
     run = run.sortby("f").sortby("dt")
     logerr = _logerr(run, theta0, measure, sub)
     status = run.status.transpose("f", "dt").values
@@ -133,7 +133,7 @@ def stability_figure(ds, sel=None, theta0=None, measure=None):
         raise ValueError(f"measure={measure}: choose from energy, axis")
     if measure == "axis" and default_measure(sub) != "axis":
         raise ValueError(f"measure=axis: the scene {scene_label(sub)} has no exact motion to measure against")
-    methods = [str(m) for m in sub.method.values]
+    methods = [str(m) for m in sub.integrator.values]
     if extra:
         parts = [(v, sub.sel({extra[0]: v})) for v in sub[extra[0]].values]
         cells = [(r, c, label, part, m) for r, (label, part) in enumerate(parts) for c, m in enumerate(methods)]

@@ -96,19 +96,21 @@ def find_files(paths):
 
 def load(paths):
     """[(path, Dataset)] of gyrolab results files (layout_version ≥ 1); VerdictError otherwise."""
-    from .io import SelectionError, open_results
+    from .io import SelectionError, open_members
 
     out = []
     for path in find_files(paths):
         try:
-            ds = open_results(path)
+            members = open_members(path)  # a combined file: each scene (or job) on its own
         except SelectionError as err:
             raise VerdictError(str(err)) from None
-        if int(ds.attrs.get("layout_version", 0)) < 1 or "status" not in ds:
-            raise VerdictError(f"FILE={path}: not a gyrolab results file (no layout_version >= 1)")
-        if ds.sizes.get("method", 0) == 0 or int((ds["status"] >= 0).sum()) == 0:
-            raise VerdictError(f"FILE={path}: holds no runs")
-        out.append((path, ds))
+        for label, ds in members:
+            name = path if label is None else f"{path} {ds.attrs['combined_member']}"
+            if int(ds.attrs.get("layout_version", 0)) < 1 or "status" not in ds:
+                raise VerdictError(f"FILE={name}: not a gyrolab results file (no layout_version >= 1)")
+            if ds.sizes.get("integrator", 0) == 0 or int((ds["status"] >= 0).sum()) == 0:
+                raise VerdictError(f"FILE={name}: holds no runs")
+            out.append((name, ds))
     return out
 
 
@@ -180,9 +182,9 @@ class References:
         if self.how in ("auto", "yardstick"):
             best = None
             for name in YARDSTICKS:
-                if name not in ds.method.values:
+                if name not in ds.integrator.values:
                     continue
-                runs = ds.sel({"method": name, "f": f, "theta0": theta0}).isel(time=-1)
+                runs = ds.sel({"integrator": name, "f": f, "theta0": theta0}).isel(time=-1)
                 ok = sorted(float(dt) for dt in runs.dt.values if int(runs.status.sel(dt=dt)) == 0)
                 if len(ok) < 2:
                     continue
@@ -223,8 +225,8 @@ def order_records(ds, refs):
         for th in ds.theta0.values:
             ref_axis, ref_omega, label, own = refs.get(ds, f, th)
             omega0 = float(np.linalg.norm(ds["omega0"].sel(f=f, theta0=th).values))
-            for m in ds.method.values:
-                runs = ds.sel({"method": m, "f": f, "theta0": th}).isel(time=-1)
+            for m in ds.integrator.values:
+                runs = ds.sel({"integrator": m, "f": f, "theta0": th}).isel(time=-1)
                 dts, errs = [], []
                 for dt in runs.dt.values:
                     if own == (str(m), float(dt)):
@@ -294,12 +296,12 @@ def drift_records(ds):
     t = np.asarray(ds.time.values, dtype=float)
     out = []
     names = [q for q in conserved(ds) if has_invariant(ds, q)]
-    for m in ds.method.values:
+    for m in ds.integrator.values:
         declared = declared_preserves(m)
         for f in ds.f.values:
             for th in ds.theta0.values:
                 for dt in ds.dt.values:
-                    run = ds.sel({"method": m, "f": f, "theta0": th, "dt": dt})
+                    run = ds.sel({"integrator": m, "f": f, "theta0": th, "dt": dt})
                     n_steps = int(run.n_steps)
                     for q in names:
                         e = signed_error(invariant(run, q).values)
@@ -350,7 +352,7 @@ def threshold_records(datasets, t_end, rtol=1e-3):
 
     done, out = set(), []
     for _, ds in datasets:
-        for m in ds.method.values:
+        for m in ds.integrator.values:
             key = (scene_key(ds), str(m))
             if key in done or declared_order(m) is None:
                 continue
@@ -401,7 +403,7 @@ def summaries(datasets, orders, runs, thresholds):
         for q in conserved(ds):
             if q not in scenes[scene_name(ds)]:
                 scenes[scene_name(ds)].append(q)
-        for m in ds.method.values:
+        for m in ds.integrator.values:
             scenes.setdefault(("methods", scene_name(ds)), [])
             if str(m) not in scenes[("methods", scene_name(ds))]:
                 scenes[("methods", scene_name(ds))].append(str(m))

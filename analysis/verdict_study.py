@@ -104,7 +104,7 @@ def _drift_panel(ax, q, runs, datasets):
         ds = next((d for d in datasets if _has_run(d, r)), None)
         if ds is None:
             continue
-        run = ds.sel({"method": r["method"], "f": r["f"], "theta0": r["theta0"], "dt": r["dt"]})
+        run = ds.sel({"integrator": r["method"], "f": r["f"], "theta0": r["theta0"], "dt": r["dt"]})
         t = ds.time.values
         e = np.abs(signed_error(invariant(run, q).values))
         idx = np.unique(np.geomspace(1, t.size - 1, 300).astype(int))
@@ -134,7 +134,7 @@ def _has_run(ds, r):
 
     return (
         scene_name(ds) == r["scene"]
-        and r["method"] in ds.method.values
+        and r["method"] in ds.integrator.values
         and ds.sizes["time"] > 2
         and np.any(np.isclose(ds.dt.values, r["dt"]))
         and np.any(np.isclose(ds.f.values, r["f"]))

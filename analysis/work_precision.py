@@ -121,10 +121,10 @@ def work_precision_data(ds, sel=None, retime=True, peers=True, repeats=3):
             if ref is None:
                 ref = reference_axis(scene, t_end, every)
             methods = {}
-            for m in sub.method.values:
+            for m in sub.integrator.values:
                 pts = []
                 for dt in sorted(sub.dt.values):
-                    run = sub.sel({"method": m, "f": f, "theta0": th, "dt": dt})
+                    run = sub.sel({"integrator": m, "f": f, "theta0": th, "dt": dt})
                     err = axis_error(run.axis.values, ref)
                     if retime and math.isfinite(err):
                         wall = time_method(str(m), scene, float(dt), t_end, every, repeats)

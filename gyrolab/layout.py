@@ -3,7 +3,8 @@
 A results file (netCDF4/HDF5, written with h5netcdf, read by xarray and by
 netCDF-C) holds, for a grid of runs over ``GRID_DIMS``:
 
-- coordinates ``method`` (str), ``f`` (Hz), ``theta0`` (deg), ``dt`` (s),
+- coordinates ``integrator`` (str: the sweep's ``sweep.method`` values), ``f`` (Hz),
+  ``theta0`` (deg), ``dt`` (s),
   ``time`` (s), ``xyz`` (vector components), ``quat`` (a, b, c, d) and
   ``body_param`` (the fields of kernels/body.py's Body);
 - per sample ``SAMPLE_VARIABLES`` (dims GRID_DIMS + time [+ xyz]), derived
@@ -18,11 +19,17 @@ netCDF-C) holds, for a grid of runs over ``GRID_DIMS``:
   resolved config as YAML and the provenance of the code
   (runner/provenance.py).
 
+Files of older layouts open with every reader through ``current``: layouts 0 to 2 called the
+grid dim ``integrator`` ``method``, a keyword of xarray's ``.sel`` (``ds.sel(method="rk4")``
+silently selected every method), and they lack what ``ABSENT_BEFORE`` lists.
+
 Adding a per-sample variable: a field in kernels/driver.py (``FIELDS`` and
 ``_record``) if the kernels must compute it, and one entry in
 ``SAMPLE_VARIABLES`` here; every writer, reader and size estimate follows.
 """
 
+import json
+import math
 from dataclasses import dataclass
 from typing import Callable
 
@@ -33,8 +40,8 @@ from .kernels.body import UNITS as BODY_UNITS
 from .kernels.driver import FIELDS as RAW_FIELDS
 from .kernels.driver import STATUS_LEGEND
 
-LAYOUT_VERSION = 2
-GRID_DIMS = ("method", "f", "theta0", "dt")
+LAYOUT_VERSION = 3
+GRID_DIMS = ("integrator", "f", "theta0", "dt")
 INPUT_DIMS = ("f", "theta0")  # a run's body and initial state depend on these only
 RAW_PER_SAMPLE = len(RAW_FIELDS)
 
@@ -108,6 +115,9 @@ RUN_VARIABLES = {
     "n_steps": (np.int64, {"units": "1", "long_name": "time steps taken"}),
     "wall_time": (np.float64, {"units": "s", "long_name": "wall-clock time of the run"}),
 }
+# Status of a grid point that a combined file's member does not have (gyrolab-combine fills the union
+# grid of its members; their data there is NaN).
+STATUS_ABSENT = -1
 INPUT_VARIABLES = {
     "body": (
         "body_param",
@@ -120,7 +130,7 @@ INPUT_VARIABLES = {
     "q0": ("quat", {"units": "1", "long_name": "initial orientation quaternion (a, b, c, d), body to lab"}),
 }
 COORD_ATTRS = {
-    "method": {"long_name": "integration method"},
+    "integrator": {"long_name": "integration method (sweep.method)"},
     "f": {"units": "Hz", "long_name": "spin frequency (w3 = 2 pi f)"},
     "theta0": {"units": "deg", "long_name": "initial tilt"},
     "dt": {"units": "s", "long_name": "time step"},
@@ -211,6 +221,9 @@ def drop_neutral_defaults(data):
 # stored run inputs.  Layout 1: no gamma, and a body of four fields (I1, I2, I3, mgl: the centre of
 # mass on e3), read as today's Body with mgc1 = mgc2 = 0.
 ABSENT_BEFORE = {0: ("L", "gamma"), 1: ("gamma",)}
+# Dims renamed at a layout: {layout: {old name: new name}}, applied to files of every earlier layout.
+# Layout 3: ``method`` -> ``integrator`` (``method`` is a keyword of xarray's .sel).
+RENAMED_AT = {3: {"method": "integrator"}}
 
 
 def file_layout_version(ds):
@@ -234,6 +247,81 @@ def with_current_body(ds):
     if known != list(BODY_FIELDS[: len(known)]):
         return ds  # not an older gyrolab body: leave it for the reader's checks to name
     return ds.reindex(body_param=list(BODY_FIELDS), fill_value=0.0)
+
+
+def with_current_dims(ds, version=None):
+    """``ds`` with the dims (and their coordinates) of an older layout renamed as RENAMED_AT says
+    (a layout-2 file's ``method`` becomes ``integrator``).  Files of today's layout, and files that
+    are not gyrolab's (no layout version), come back unchanged."""
+    version = file_layout_version(ds) if version is None else version
+    if version is None:
+        return ds
+    renames = {
+        old: new
+        for since, names in RENAMED_AT.items()
+        if version < since
+        for old, new in names.items()
+        if old in ds.dims and new not in ds.variables
+    }
+    return ds.rename(renames) if renames else ds
+
+
+def current(ds):
+    """``ds`` as today's layout names it: renamed dims (``with_current_dims``) and today's body
+    (``with_current_body``).  Every reader opens files through this, so analysis code speaks only
+    today's names; what an older layout lacks stays absent (``ABSENT_BEFORE``)."""
+    return with_current_body(with_current_dims(ds))
+
+
+# The leading dim gyrolab-combine stacks files along (runner/combine.py): one scene per member, or
+# jobs of one scene with different options.  A selection ``scene=NAME`` / ``job=K`` picks a member.
+MEMBER_DIMS = ("scene", "job")
+
+
+def member_dim(ds):
+    """The dim a combined file stacks its members along (``scene`` or ``job``), or None."""
+    return next((d for d in MEMBER_DIMS if d in ds.dims and "combined_from" in ds.attrs), None)
+
+
+def member_labels(ds):
+    """The members of a combined file as a selection names them: scene names, or job indices."""
+    dim = member_dim(ds)
+    if dim == "scene":
+        return [str(v) for v in ds["scene"].values]
+    return [str(k) for k in range(ds.sizes[dim])] if dim else []
+
+
+def member(ds, label):
+    """Member ``label`` (member_labels) of the combined ``ds`` as a one-scene results Dataset: the attrs that
+    differed between members (stored by gyrolab-combine as coordinates along ``dim``: scene options,
+    conserved, closed_form, t_end, ...) are its attrs again, and the grid values, times and run
+    inputs that only other members have (status -1, NaN) are left out."""
+    dim = member_dim(ds)
+    k = member_labels(ds).index(str(label))
+    one = ds.isel({dim: k})
+    attrs = dict(one.attrs)
+    for name in [c for c in one.coords if c != dim and ds[c].dims == (dim,)]:
+        value = one[name].values.item() if one[name].ndim == 0 else one[name].values
+        if one[name].attrs.get("encoding") == "json":
+            value = np.asarray(json.loads(value)) if value else ""
+        if isinstance(value, bytes):
+            value = value.decode()
+        if not (isinstance(value, str) and value == "") and not (isinstance(value, float) and math.isnan(value)):
+            attrs[name] = value
+        one = one.drop_vars(name)
+    if dim == "scene":
+        attrs["scene"] = label
+    one = one.drop_vars([dim], errors="ignore")
+    one = one.drop_vars([v for v in one.data_vars if "source" in one[v].dims])
+    present = one["status"] != STATUS_ABSENT
+    keep = {d: present.any(dim=[o for o in GRID_DIMS if o != d]).values for d in GRID_DIMS}
+    one = one.isel({d: np.flatnonzero(mask) for d, mask in keep.items()})
+    if "t_end" in attrs:  # a member of a shorter sweep: its own samples only
+        one = one.isel(time=np.flatnonzero(one["time"].values <= float(attrs["t_end"]) * (1 + 1e-12)))
+    for name, dtype in (("status", np.int8), ("n_steps", np.int64)):
+        one[name] = one[name].astype(dtype)
+    attrs["combined_member"] = f"{dim}={label}"
+    return one.assign_attrs(attrs)
 
 
 def required_variables(version, ds=None):

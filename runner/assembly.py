@@ -1,9 +1,9 @@
 """Assembly of the results file from finished chunks: HDF5 chunk shapes and whole-hyperslab writes.
 
-The per-sample variables (gyrolab/layout.py) have dims (method, f, theta0,
+The per-sample variables (gyrolab/layout.py) have dims (integrator, f, theta0,
 dt, time[, xyz]).  ``chunk_layout`` picks one HDF5 chunk shape for all of
 them: a *box* of runs taken from the trailing grid dims (dt first, then
-theta0, f, method) times ``time_chunk`` samples, about CHUNK_ELEMENTS float64
+theta0, f, integrator) times ``time_chunk`` samples, about CHUNK_ELEMENTS float64
 values per vector component (256 KiB; 768 KiB for a vector, inside HDF5's
 default 1 MiB chunk cache).  Box and time chunk are balanced so that reading
 one run's time series and reading one time across all runs touch the same
@@ -36,7 +36,7 @@ ASSEMBLY_BLOCK_BYTES = 64 * 2**20  # bytes of raw + derived samples of one box h
 
 
 def chunk_layout(shape, n_samples, max_runs):
-    """(box, time_chunk): the runs per HDF5 chunk along the grid dims ``shape`` (method, f, theta0, dt)
+    """(box, time_chunk): the runs per HDF5 chunk along the grid dims ``shape`` (integrator, f, theta0, dt)
     and the samples per chunk along time.  ``max_runs`` bounds the runs of a box (memory)."""
     n_runs = math.prod(shape)
     balanced = math.sqrt(CHUNK_ELEMENTS * n_runs / n_samples)

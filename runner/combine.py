@@ -10,8 +10,12 @@ journal ``*.partial`` or a lock next to where a results file belongs) unless
 ``--skip-unfinished``.  Each refusal is one line naming the file and the
 reason, exit status 2, and the output is not touched.
 
+Files of every layout are read as today's (gyrolab/layout.py ``current``: the ``method`` dim of
+layouts before 3 is ``integrator``, a four-field body gains mgc1 = mgc2 = 0) and the combined file
+is of today's layout (a variable an older layout lacks is left out of its ``variables`` attr).
+
 Files made with the same scene, scene options, t_end, output.every and
-divergence threshold are joined along the grid axes (method, f, theta0, dt):
+divergence threshold are joined along the grid axes (integrator, f, theta0, dt):
 their grids must tile the union grid without overlap; with
 ``--allow-identical-overlap`` runs present in several files are accepted when
 they are bit-identical (wall_time aside).  The run inputs (body, omega0, q0
@@ -19,13 +23,17 @@ over f, theta0) must agree wherever tiles share an (f, theta0).  Groups that
 differ in those attrs are stacked along a new dimension: ``scene`` when each
 group is a different scene, else ``job``; the attrs that differ become
 coordinates along it, and points missing from a group's grid are NaN with
-status -1.  Each input file's provenance (config, git commit, creation time,
+status -1; every other attr that differs between the groups (``conserved``, ``closed_form``,
+``config``, ...) becomes such a coordinate too (a vector scene option as JSON text, coordinate
+attr ``encoding: json``), so that a member read back (analysis/io.py ``open_members``) carries
+its own attrs.  Each input file's provenance (config, git commit, creation time,
 path) is kept in variables along a ``source`` dimension.  The inputs are
 loaded into memory; the output is written through a temporary file, fsync
 and rename (store.atomic_replace).
 """
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -40,7 +48,11 @@ from ..layout import (
     LAYOUT_VERSION,
     RUN_VARIABLES,
     SAMPLE_VARIABLES,
+    STATUS_ABSENT,
     VARIABLE_ATTRS,
+    VARIABLES_ATTR,
+    current,
+    file_layout_version,
     held_variables,
     sample_dims,
 )
@@ -48,11 +60,10 @@ from .config import ConfigError
 from .provenance import VOLATILE_ATTRS
 from .store import OutputLock, atomic_replace, remove_stale_temporaries
 
-KNOWN_LAYOUTS = (LAYOUT_VERSION,)
+KNOWN_LAYOUTS = tuple(range(LAYOUT_VERSION + 1))
 IDENTITY_PREFIXES = ("scene",)
 IDENTITY_KEYS = ("t_end", "every", "divergence_threshold")
 PROVENANCE = ("config", "git_commit", "created", "gyrolab_version")
-STATUS_ABSENT = -1
 LAYOUT_DIMS = {name: GRID_DIMS + sample_dims(name) for name in SAMPLE_VARIABLES}
 LAYOUT_DIMS.update({name: GRID_DIMS for name in RUN_VARIABLES})
 LAYOUT_DIMS.update({name: INPUT_DIMS + (own,) for name, (own, _) in INPUT_VARIABLES.items()})
@@ -110,15 +121,22 @@ def load(path):
     except Exception as err:  # h5py/h5netcdf/xarray raise many kinds on damaged or foreign files
         text = " ".join(str(err).split())[:120]
         raise CombineError(f"{path}: not a readable results file ({type(err).__name__}: {text})") from None
-    problem = layout_problem(ds)
+    version = file_layout_version(ds)
+    ds = current(ds)
+    problem = layout_problem(ds, version)
     if problem:
         raise CombineError(f"{path}: {problem}")
+    held = held_variables(ds, version)
+    ds.attrs["layout_version"] = LAYOUT_VERSION  # today's names and body now, what it holds named below
+    if held != tuple(SAMPLE_VARIABLES):
+        ds.attrs[VARIABLES_ATTR] = " ".join(held)
     return ds
 
 
-def layout_problem(ds):
-    """Why ``ds`` is not a gyrolab results file of a known layout, or None."""
-    version = _plain(ds.attrs.get("layout_version"))
+def layout_problem(ds, version=None):
+    """Why ``ds`` (renamed by layout.current; ``version``: its file's layout) is not a gyrolab
+    results file of a known layout, or None."""
+    version = file_layout_version(ds) if version is None else version
     if version is None:
         return "not a gyrolab results file (no layout_version attr)"
     if "combined_from" in ds.attrs:
@@ -128,7 +146,11 @@ def layout_problem(ds):
     if "scene" not in ds.attrs:
         return "not a gyrolab results file (no scene attr)"
     held = held_variables(ds, version)
-    expected = {name: dims for name, dims in LAYOUT_DIMS.items() if name not in SAMPLE_VARIABLES or name in held}
+    expected = {
+        name: dims
+        for name, dims in LAYOUT_DIMS.items()
+        if (name not in SAMPLE_VARIABLES or name in held) and not (name in INPUT_VARIABLES and version == 0)
+    }
     for name, dims in expected.items():
         if name not in ds.data_vars:
             return f"no variable {name!r} (not a complete gyrolab results file)"
@@ -157,8 +179,17 @@ def layout_problem(ds):
 def identity(ds):
     """The attrs that must agree for two files to share one grid."""
     return tuple(
-        sorted((k, _plain(v)) for k, v in ds.attrs.items() if k.startswith(IDENTITY_PREFIXES) or k in IDENTITY_KEYS)
+        sorted(
+            (k, _hashable(_plain(v)))
+            for k, v in ds.attrs.items()
+            if k.startswith(IDENTITY_PREFIXES) or k in IDENTITY_KEYS
+        )
     )
+
+
+def _hashable(value):
+    """An attr value as a dict key: a vector (heavy_body's com) as a tuple."""
+    return tuple(np.asarray(value).tolist()) if isinstance(value, np.ndarray) else value
 
 
 def _plain(value):
@@ -192,11 +223,11 @@ def combine(paths, allow_identical_overlap=False):
 
 
 def _union(values_per_tile, dim):
-    """The union grid axis: numbers ascending, methods in order of first appearance."""
+    """The union grid axis: numbers ascending, integrators in order of first appearance."""
     seen = []
     for values in values_per_tile:
         seen.extend(v for v in values.tolist() if v not in seen)
-    return seen if dim == "method" else sorted(seen)
+    return seen if dim == "integrator" else sorted(seen)
 
 
 def join_tiles(group, allow_identical_overlap=False):
@@ -214,7 +245,11 @@ def join_tiles(group, allow_identical_overlap=False):
         for name in (*held_variables(first), *RUN_VARIABLES)
     }
     inputs_shape = tuple(len(axes[d]) for d in INPUT_DIMS)
-    inputs = {name: np.full(inputs_shape + first[name].shape[len(INPUT_DIMS) :], np.nan) for name in INPUT_VARIABLES}
+    stored = [name for name in INPUT_VARIABLES if name in first]  # none in a layout-0 file
+    for ds, path in group[1:]:
+        if [name for name in INPUT_VARIABLES if name in ds] != stored:
+            raise CombineError(f"{path}: stores run inputs and {first_path} does not (or the reverse)")
+    inputs = {name: np.full(inputs_shape + first[name].shape[len(INPUT_DIMS) :], np.nan) for name in stored}
     input_owner = np.full(inputs_shape, -1, dtype=np.int64)
     for t, (ds, path) in enumerate(group):
         at = np.ix_(*[[axes[d].index(v) for v in ds[d].values.tolist()] for d in GRID_DIMS])
@@ -239,7 +274,7 @@ def join_tiles(group, allow_identical_overlap=False):
         owner[at] = np.where(taken, owner[at], t)
         iat = np.ix_(*[[axes[d].index(v) for v in ds[d].values.tolist()] for d in INPUT_DIMS])
         shared = input_owner[iat] >= 0
-        for name in INPUT_VARIABLES:
+        for name in stored:
             if shared.any() and not _same_bits(inputs[name][iat][shared], ds[name].values[shared]):
                 other = group[int(input_owner[iat][shared][0])][1]
                 raise CombineError(f"{path}: run input {name} differs from {other}'s at the same (f, theta0)")
@@ -252,7 +287,8 @@ def join_tiles(group, allow_identical_overlap=False):
             f"files of {first.attrs.get('scene', '?')} do not tile one grid: run ({point}) is "
             f"in none of them ({int((owner < 0).sum())} of {owner.size} runs missing)"
         )
-    coords = {d: (d, np.array(axes[d], dtype=object if d == "method" else float), first[d].attrs) for d in GRID_DIMS}
+    kinds = {d: object if d == "integrator" else float for d in GRID_DIMS}
+    coords = {d: (d, np.array(axes[d], dtype=kinds[d]), first[d].attrs) for d in GRID_DIMS}
     coords.update({d: (d, first[d].values, first[d].attrs) for d in first.coords if d not in GRID_DIMS})
     variables = {name: (first[name].dims, values, first[name].attrs) for name, values in data.items()}
     variables.update({name: (first[name].dims, values, first[name].attrs) for name, values in inputs.items()})
@@ -289,12 +325,16 @@ def _sources(datasets, paths):
 
 
 def _stack(merged, identities):
-    differing = sorted({k for ident in identities for k in ident if len({_plain(i.get(k)) for i in identities}) > 1})
+    attrs = [m.attrs for m in merged]
+    keys = dict.fromkeys(k for a in attrs for k in a)
+    differing = [k for k in keys if not all(k in a and _equal(a[k], attrs[0].get(k)) for a in attrs)]
     scenes = [i.get("scene") for i in identities]
     dim = "scene" if len(set(scenes)) == len(scenes) else "job"
     fill = {"status": STATUS_ABSENT, "n_steps": 0}
+    common = {k: attrs[0][k] for k in keys if k not in differing}
+    shared = [m.drop_attrs(deep=False).assign_attrs(common) for m in merged]
     out = xr.concat(
-        merged,
+        shared,
         dim=dim,
         join="outer",
         fill_value=fill,
@@ -303,10 +343,7 @@ def _stack(merged, identities):
         coords="different",
         compat="equals",
     )
-    labels = {k: (dim, _label([i.get(k) for i in identities])) for k in differing}
-    out = out.assign_coords(labels)
-    for k in differing:
-        out.attrs.pop(k, None)
+    out = out.assign_coords({k: _label([_plain(a.get(k)) for a in attrs], dim) for k in differing})
     if "status" in out:
         out["status"] = out["status"].astype(np.int8)
         legend = out["status"].attrs.get("legend", "")
@@ -314,11 +351,15 @@ def _stack(merged, identities):
     return out
 
 
-def _label(values):
-    """Coordinate values of a differing attr (missing in some groups: "" or NaN)."""
+def _label(values, dim):
+    """The coordinate along ``dim`` of an attr that differs between groups (missing in some: "" or
+    NaN); vectors (a scene option such as heavy_body's com) as JSON text, attr ``encoding: json``."""
+    if any(isinstance(v, (np.ndarray, list, tuple)) for v in values):
+        text = ["" if v is None else json.dumps(np.asarray(v).tolist()) for v in values]
+        return (dim, np.array(text, dtype=object), {"encoding": "json"})
     if any(isinstance(v, str) for v in values):
-        return np.array(["" if v is None else str(v) for v in values], dtype=object)
-    return np.array([np.nan if v is None else v for v in values], dtype=float)
+        return (dim, np.array(["" if v is None else str(v) for v in values], dtype=object))
+    return (dim, np.array([np.nan if v is None else v for v in values], dtype=float))
 
 
 def write(ds, path):

@@ -1,7 +1,8 @@
 """The sweep grid: every run's inputs, checked up front, and its split into chunks.
 
 A run is one point (method, f, theta0, dt) of the Cartesian grid, numbered in
-C order of the results' dims (method, f, theta0, dt).  ``build_grid`` builds
+C order of the results' dims (integrator, f, theta0, dt: the sweep's methods are the
+file's integrator dim).  ``build_grid`` builds
 every scene and every sample schedule before any work, so bad input fails
 first.  A chunk is a set of runs of ONE method and ONE step count, so the
 batch kernel's prange hands every thread the same amount of work.

@@ -445,7 +445,7 @@ def write_results(path, grid, chunks, attrs, after_read=None):
         fixed = {d: np.array(v, dtype=object) for d, v in FIXED_COORDS.items()}
         nc.dimensions = dict(zip(GRID_DIMS, shape)) | {"time": ns} | {d: len(v) for d, v in fixed.items()}
         coords = {
-            "method": np.array(grid.methods, dtype=object),
+            "integrator": np.array(grid.methods, dtype=object),
             "f": np.array(grid.f),
             "theta0": np.array(grid.theta0),
             "dt": np.array(grid.dt),

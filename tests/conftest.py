@@ -85,5 +85,5 @@ def single_run_file(tmp_path_factory):
     from helpers import build_dataset
 
     path = tmp_path_factory.mktemp("analysis1") / "results.h5"
-    build_dataset(path, {"method": ["lie_poisson"], "f": [20.0], "dt": [1e-3]}, t_end=0.5)
+    build_dataset(path, {"integrator": ["lie_poisson"], "f": [20.0], "dt": [1e-3]}, t_end=0.5)
     return path

@@ -144,7 +144,7 @@ def own_methods(known_failures=None):
 CONTROL_FAILURES = {"explicit_euler": "control method: explicit Euler's energy grows exponentially (rate c^2 dt)"}
 
 
-GRID = {"method": ["seed_next", "seed_prev", "rk4"], "f": [10.0, 50.0], "theta0": [45.0], "dt": [1e-3, 5e-4]}
+GRID = {"integrator": ["seed_next", "seed_prev", "rk4"], "f": [10.0, 50.0], "theta0": [45.0], "dt": [1e-3, 5e-4]}
 
 
 def build_dataset(path, grid=None, scene="heavy_top", t_end=1.0, every=1e-3, threshold=10.0, **options):
@@ -167,7 +167,7 @@ def make_dataset(grid=None, scene="heavy_top", t_end=1.0, every=1e-3, threshold=
         sc, dt = scenes[jf][kt], grid["dt"][ld]
         stride = sample_schedule(dt, every, t_end)[0]
         samples, st, ns = integrate(
-            grid["method"][m],
+            grid["integrator"][m],
             np.array([sc.body]),
             np.array([sc.omega0]),
             np.array([sc.q0]),
@@ -189,3 +189,32 @@ def make_dataset(grid=None, scene="heavy_top", t_end=1.0, every=1e-3, threshold=
     }
     coords = {k: np.array(grid[k]) for k in GRID_DIMS} | {"time": np.arange(n_samples) * every}
     return to_dataset(raw, {"status": status, "n_steps": n_steps, "wall_time": np.zeros(shape)}, coords, inputs, attrs)
+
+
+# A small sweep (one method, one theta0 and dt, 20 samples) for make_file's overrides to extend.
+FILE_BASE = [
+    "sweep.method=[seed_next]",
+    "sweep.theta0=[45]",
+    "sweep.dt=[1e-3]",
+    "sweep.t_end=0.02",
+    "output.every=1e-3",
+]
+
+
+def make_file(path, *overrides):
+    """Write the results file of FILE_BASE + ``overrides`` (Hydra overrides) to ``path`` through the
+    runner's own grid, chunk and store (no subprocess); return ``path``."""
+    from hydra import compose, initialize_config_module
+
+    from gyrolab.runner.app import file_attrs
+    from gyrolab.runner.config import config_hash, register_configs
+    from gyrolab.runner.execute import run_chunk
+    from gyrolab.runner.grid import build_grid
+    from gyrolab.runner.store import write_results
+
+    register_configs()
+    with initialize_config_module(config_module="gyrolab.conf", version_base=None):
+        cfg = compose("config", overrides=[*FILE_BASE, *overrides])
+    grid = build_grid(cfg)
+    write_results(path, grid, [run_chunk(grid, np.arange(grid.n_runs), 1)], file_attrs(cfg, grid, 1, config_hash(cfg)))
+    return path

@@ -36,9 +36,9 @@ def close_figures():
 def test_selection_parsing_and_matching(results_file):
     ds = open_results(results_file)
     sel = parse_selection(["method=seed_next,rk4", "dt=5e-4"])
-    assert sel == {"method": ["seed_next", "rk4"], "dt": [5e-4]}
+    assert sel == {"integrator": ["seed_next", "rk4"], "dt": [5e-4]}
     sub = select(ds, sel)
-    assert list(sub.method.values) == ["seed_next", "rk4"] and sub.dt.size == 1
+    assert list(sub.integrator.values) == ["seed_next", "rk4"] and sub.dt.size == 1
     with pytest.raises(SelectionError, match="f=7"):
         select(ds, {"f": [7.0]})
     with pytest.raises(SelectionError, match="KEY=VALUE"):
@@ -52,7 +52,7 @@ def test_theta_figure_lines_and_closed_form_bounds(results_file):
     for row, f in zip(axes, (10.0, 50.0)):
         ax = row[0]
         assert "(deg)" in ax.get_ylabel() and "(s)" in ax.get_xlabel()
-        for m in ds.method.values:
+        for m in ds.integrator.values:
             assert len(lines_of(ax, str(m))) == 1, m  # one line per method at the single dt drawn
         nut = heavy_top_nutation(build_scene("heavy_top", f, 45.0))
         levels = sorted(ln.get_ydata()[0] for ln in ax.get_lines() if len(ln.get_ydata()) == 2)
@@ -75,7 +75,7 @@ def test_tip_locus_is_the_stored_axis(results_file):
     fig = tip_locus_figure(ds, method="rk4", f=50.0, dt=5e-4)
     (ax,) = fig.axes
     (trace,) = lines_of(ax, "rk4")
-    run = ds.sel({"method": "rk4", "f": 50.0, "theta0": 45.0, "dt": 5e-4})
+    run = ds.sel({"integrator": "rk4", "f": 50.0, "theta0": 45.0, "dt": 5e-4})
     n = len(trace.get_xdata())
     np.testing.assert_array_equal(trace.get_xdata(), run.axis.values[:n, 0])
     np.testing.assert_array_equal(trace.get_ydata(), run.axis.values[:n, 1])
@@ -96,7 +96,7 @@ def test_energy_drift_log_scale_lines_per_method_and_dt(results_file):
     for ax in fig.axes:
         assert ax.get_yscale() == "log"
         assert ax.get_xlabel() == "time t (s)"
-        for m in ds.method.values:
+        for m in ds.integrator.values:
             assert len(lines_of(ax, str(m))) == ds.dt.size
     # The write-up's claim as the figure shows it: seed_prev's curve ends far above seed_next's.
     ax = fig.axes[0]
@@ -107,7 +107,7 @@ def test_energy_drift_log_scale_lines_per_method_and_dt(results_file):
 def test_drift_table_matches_stored_energy(results_file):
     ds = open_results(results_file)
     table = drift_table(ds, "energy")
-    e = ds.energy.sel({"method": "rk4", "f": 10.0, "theta0": 45.0, "dt": 1e-3}).values
+    e = ds.energy.sel({"integrator": "rk4", "f": 10.0, "theta0": 45.0, "dt": 1e-3}).values
     worst, final = table[("rk4", 10.0, 45.0, 1e-3)]
     assert worst == pytest.approx(np.abs(e - e[0]).max() / abs(e[0]), rel=1e-12)
     assert final == pytest.approx(abs(e[-1] - e[0]) / abs(e[0]), rel=1e-12)
@@ -132,7 +132,7 @@ def test_standard_figures_default_and_single_run(results_file, single_run_file, 
 def test_limit_keeps_ends_and_choose_says_what_it_drew():
     import xarray as xr
 
-    ds = xr.Dataset(coords={"method": ["rk4"], "f": np.arange(1.0, 13.0), "dt": [1e-3], "theta0": [45.0]})
+    ds = xr.Dataset(coords={"integrator": ["rk4"], "f": np.arange(1.0, 13.0), "dt": [1e-3], "theta0": [45.0]})
     assert [float(v) for v in limit(ds, "f", 4)[0]] == [1.0, 5.0, 8.0, 12.0]
     sub, note = choose(ds, "energy")
     assert sub.f.size == 9 and "gyrolab-plot energy FILE f=" in note

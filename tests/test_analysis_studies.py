@@ -29,24 +29,24 @@ def test_stability_map_cells_and_diverged_marks(tmp_path):
     path = tmp_path / "stability.h5"
     ds = build_dataset(
         path,
-        {"method": ["rk4", "seed_prev"], "f": [2.0, 10.0], "dt": [1e-3, 2e-3]},
+        {"integrator": ["rk4", "seed_prev"], "f": [2.0, 10.0], "dt": [1e-3, 2e-3]},
         t_end=3.0,
         every=1e-2,
         threshold=0.2,
     )
-    assert int(ds.status.sel({"method": "rk4"}).max()) == 0
-    assert int(ds.status.sel({"method": "seed_prev", "f": 10.0}).max()) != 0
+    assert int(ds.status.sel({"integrator": "rk4"}).max()) == 0
+    assert int(ds.status.sel({"integrator": "seed_prev", "f": 10.0}).max()) != 0
     fig = stability_figure(open_results(path))
     ax_rk4, ax_prev = fig.axes[:2]
     assert ax_rk4.get_xscale() == "log" and ax_rk4.get_yscale() == "log"
     assert ax_rk4.get_xlabel() == "time step dt (s)" and ax_rk4.get_ylabel() == "spin f (Hz)"
     mesh = ax_rk4.collections[0]
     values = np.asarray(mesh.get_array()).reshape(2, 2)  # rows f, columns dt
-    e = ds.energy.sel({"method": "rk4", "theta0": 45.0}).values  # (f, dt, time)
+    e = ds.energy.sel({"integrator": "rk4", "theta0": 45.0}).values  # (f, dt, time)
     expected = np.log10(np.abs(e - e[..., :1]).max(axis=-1) / np.abs(e[..., 0]))
     np.testing.assert_allclose(values, expected, rtol=1e-12)
     # diverged cells are marked with a red x, ok cells carry their number
-    n_bad = int((ds.status.sel({"method": "seed_prev"}) != 0).sum())
+    n_bad = int((ds.status.sel({"integrator": "seed_prev"}) != 0).sum())
     crosses = [ln for ln in ax_prev.get_lines() if ln.get_marker() == "x"]
     assert len(crosses) == n_bad and f"({n_bad} diverged)" in ax_prev.get_title()
     assert "log10" in fig.axes[-1].get_ylabel()  # the colour bar says what the colour is
@@ -67,7 +67,7 @@ def test_stability_map_cells_and_diverged_marks(tmp_path):
 def seed_dir(tmp_path_factory):
     """Four short jobs like experiment=seed_figures (cusp, loop, wave, steady at 22.1 Hz)."""
     root = tmp_path_factory.mktemp("seed")
-    grid = {"method": ["seed_next", "seed_prev", "lie_poisson4"], "f": [1.0, 10.0, 20.0, 22.1, 50.0], "dt": [1e-3]}
+    grid = {"integrator": ["seed_next", "seed_prev", "lie_poisson4"], "f": [1.0, 10.0, 20.0, 22.1, 50.0], "dt": [1e-3]}
     for i, phidot0 in enumerate((0.0, -3.0, 3.0, 10.973050677702307)):
         (root / str(i)).mkdir()
         build_dataset(root / str(i) / "seed.h5", grid, t_end=0.6, init="precession", phidot0=phidot0)
@@ -100,7 +100,7 @@ def test_seed_figures_content(seed_dir, tmp_path):
 def test_work_precision_lines_and_peers(tmp_path):
     path = tmp_path / "work_precision.h5"
     build_dataset(
-        path, {"method": ["rk4", "lie_poisson"], "f": [10.0], "dt": [1e-3, 5e-4, 2.5e-4]}, t_end=0.2, every=1e-2
+        path, {"integrator": ["rk4", "lie_poisson"], "f": [10.0], "dt": [1e-3, 5e-4, 2.5e-4]}, t_end=0.2, every=1e-2
     )
     ds = open_results(path)
     data = work_precision_data(ds, retime=False)
@@ -128,7 +128,7 @@ def test_animation_writes_gif_frames(results_file, tmp_path):
     out = animate(
         open_results(results_file),
         tmp_path / "top.gif",
-        {"method": ["rk4"], "f": [50.0]},
+        {"integrator": ["rk4"], "f": [50.0]},
         seconds=0.2,
         fps=10,
         max_frames=12,

@@ -48,7 +48,11 @@ def config_text(scene="heavy_top", t_end=0.1, path="results.h5", **scene_options
 def assemble(scene="heavy_top", t_end=0.1, every=0.01, **scene_options):
     """Results Dataset (gyrolab/layout.py) of METHODS x F x [45 deg] x DT, built by helpers.make_dataset."""
     ds = make_dataset(
-        {"method": list(METHODS), "f": list(F), "theta0": [45.0], "dt": list(DT)}, scene, t_end, every, **scene_options
+        {"integrator": list(METHODS), "f": list(F), "theta0": [45.0], "dt": list(DT)},
+        scene,
+        t_end,
+        every,
+        **scene_options,
     )
     ds.attrs.update(
         {
@@ -91,9 +95,9 @@ def pair(base, tmp_path):
 def test_assembled_file_has_the_results_layout(pair):
     a, _ = pair
     with xr.open_dataset(a, engine="h5netcdf") as ds:
-        assert ds["axis"].dims == ("method", "f", "theta0", "dt", "time", "xyz")
-        assert ds["status"].dims == ("method", "f", "theta0", "dt")
-        assert list(ds["method"].values) == list(METHODS)
+        assert ds["axis"].dims == ("integrator", "f", "theta0", "dt", "time", "xyz")
+        assert ds["status"].dims == ("integrator", "f", "theta0", "dt")
+        assert list(ds["integrator"].values) == list(METHODS)
         assert ds.sizes["time"] == 11
 
 
@@ -110,7 +114,7 @@ def test_identical_files_pass_with_zero_tolerance(pair):
 
 def _bump_energy(ds, rel=1e-6):
     """Energy of run (lie_poisson, f=20, dt=5e-4) at t = 0.05 s times (1 + rel)."""
-    sel = {"method": "lie_poisson", "f": 20.0, "dt": 5e-4, "time": 0.05}
+    sel = {"integrator": "lie_poisson", "f": 20.0, "dt": 5e-4, "time": 0.05}
     ds["energy"].loc[sel] = ds["energy"].loc[sel] * (1 + rel)
     return ds
 
@@ -123,13 +127,13 @@ def test_one_changed_value_is_found_with_its_run_and_time(base, pair):
     energy = next(v for v in report.variables if v.name == "energy")
     assert energy.n_bad == 1
     assert energy.max_rel == pytest.approx(1e-6 / (1 + 1e-6), rel=1e-9)  # |a-b| / max(|a|, |b|)
-    e = float(base["energy"].loc[{"method": "lie_poisson", "f": 20.0, "dt": 5e-4, "time": 0.05}].squeeze())
+    e = float(base["energy"].loc[{"integrator": "lie_poisson", "f": 20.0, "dt": 5e-4, "time": 0.05}].squeeze())
     assert energy.max_abs == pytest.approx(abs(e) * 1e-6, rel=1e-6)
-    assert energy.worst == {"method": "lie_poisson", "f": 20.0, "theta0": 45.0, "dt": 5e-4, "time": 0.05}
+    assert energy.worst == {"integrator": "lie_poisson", "f": 20.0, "theta0": 45.0, "dt": 5e-4, "time": 0.05}
     assert report.failed() == ["energy"] and report.bad_runs == 1
-    assert report.worst_run == {"method": "lie_poisson", "f": 20.0, "theta0": 45.0, "dt": 5e-4}
+    assert report.worst_run == {"integrator": "lie_poisson", "f": 20.0, "theta0": 45.0, "dt": 5e-4}
     text = report.text()
-    assert "run differing most: method=lie_poisson f=20 theta0=45 dt=0.0005 (energy" in text
+    assert "run differing most: integrator=lie_poisson f=20 theta0=45 dt=0.0005 (energy" in text
     assert text.splitlines()[-1] == "RESULT: DIFFERENT, energy out of tolerance in 1 of 8 runs"
 
 
@@ -156,7 +160,7 @@ def test_comparison_is_symmetric(pair):
 
 def test_nan_in_both_is_equal_nan_against_number_is_not(pair):
     a, variant = pair
-    at = {"method": "seed_next", "f": 10.0, "dt": 1e-3}
+    at = {"integrator": "seed_next", "f": 10.0, "dt": 1e-3}
 
     def diverge(ds):  # a run that diverged at t = 0.07 s: NaN afterwards
         ds["theta"].loc[at] = np.where(ds["time"] >= 0.07, np.nan, ds["theta"].loc[at])
@@ -176,7 +180,7 @@ def test_status_and_n_steps_are_exact_wall_time_ignored(pair):
     a, variant = pair
 
     def fail_one(ds):
-        ds["status"].loc[{"method": "seed_next", "f": 10.0, "dt": 1e-3}] = 2
+        ds["status"].loc[{"integrator": "seed_next", "f": 10.0, "dt": 1e-3}] = 2
         return ds
 
     report = compare_files(a, variant(fail_one), rtol=10.0, atol=10.0)
@@ -191,7 +195,7 @@ def test_status_and_n_steps_are_exact_wall_time_ignored(pair):
 
 def test_runs_match_by_label_not_position(pair):
     a, variant = pair
-    b = variant(lambda ds: ds.isel(method=[1, 0], dt=[1, 0]))
+    b = variant(lambda ds: ds.isel(integrator=[1, 0], dt=[1, 0]))
     assert compare_files(a, b).ok
 
 

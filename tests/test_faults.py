@@ -406,7 +406,7 @@ def test_identical_overlap_is_accepted_with_the_flag_and_tiles_method_splits(tmp
     )
     assert status == 0, err
     with xr.open_dataset(tmp_path / "o.h5", engine="h5netcdf") as ds, xr.open_dataset(a, engine="h5netcdf") as one:
-        assert list(ds["f"].values) == [10, 50] and list(ds["method"].values) == ["seed_next", "rk4"]
+        assert list(ds["f"].values) == [10, 50] and list(ds["integrator"].values) == ["seed_next", "rk4"]
         assert ds["body"].dims == ("f", "theta0", "body_param")  # run inputs keep their dims
         np.testing.assert_array_equal(ds["body"].values, one["body"].values)
         assert ds["status"].dtype == np.int8 and ds["n_steps"].dtype == np.int64

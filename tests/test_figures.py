@@ -19,10 +19,10 @@ from gyrolab.kernels.scenes import SCENES  # noqa: E402
 from helpers import build_dataset  # noqa: E402
 
 SHAPES = {  # name: grid (method, f, theta0, dt)
-    "1x1": {"method": ["rk4"], "f": [10.0], "theta0": [45.0], "dt": [1e-3]},
-    "theta0x3": {"method": ["seed_next", "rk4"], "f": [10.0], "theta0": [30.0, 45.0, 60.0], "dt": [1e-3]},
+    "1x1": {"integrator": ["rk4"], "f": [10.0], "theta0": [45.0], "dt": [1e-3]},
+    "theta0x3": {"integrator": ["seed_next", "rk4"], "f": [10.0], "theta0": [30.0, 45.0, 60.0], "dt": [1e-3]},
     "fx6": {
-        "method": ["seed_next", "lie_poisson"],
+        "integrator": ["seed_next", "lie_poisson"],
         "f": [2.0, 5.0, 10.0, 20.0, 50.0, 80.0],
         "theta0": [45.0],
         "dt": [1e-3, 5e-4],
@@ -217,9 +217,9 @@ def test_many_methods_are_selected_and_named():
     from gyrolab.analysis.figure import choose
     from gyrolab.kernels.registry import METHODS
 
-    ds = xr.Dataset(coords={"method": list(METHODS), "f": [10.0], "theta0": [45.0], "dt": [1e-3]})
+    ds = xr.Dataset(coords={"integrator": list(METHODS), "f": [10.0], "theta0": [45.0], "dt": [1e-3]})
     sub, note = choose(ds, "energy")
-    drawn = [str(m) for m in sub.method.values]
+    drawn = [str(m) for m in sub.integrator.values]
     assert len(drawn) == 8 and not any(getattr(METHODS[m], "REPRODUCES", "") for m in drawn)  # own schemes first
     rest = [m for m in METHODS if m not in drawn]
-    assert note.endswith("gyrolab-plot energy FILE method=" + ",".join(rest))
+    assert note.endswith("gyrolab-plot energy FILE integrator=" + ",".join(rest))

@@ -134,7 +134,7 @@ def test_peer_table_reads_every_declared_invariant_from_the_file(tmp_path):
     from helpers import build_dataset
 
     path = tmp_path / "kov.h5"
-    grid = {"method": ["rk4", "lie_poisson4"], "f": [3.0], "theta0": [40.0], "dt": [2e-3, 1e-3]}
+    grid = {"integrator": ["rk4", "lie_poisson4"], "f": [3.0], "theta0": [40.0], "dt": [2e-3, 1e-3]}
     build_dataset(path, grid, scene="kovalevskaya", t_end=0.4, every=2e-2, omega1=2.0, omega2=1.0)
     out = tmp_path / "peer.md"
     assert peer_table.main([str(path), "-o", str(out)]) == 0
@@ -142,7 +142,7 @@ def test_peer_table_reads_every_declared_invariant_from_the_file(tmp_path):
     for q in ("energy", "Lz", "kovalevskaya"):
         assert f"Worst relative error of {q} over the run:" in text
     ds = open_results(path)
-    run = ds.sel({"method": "rk4", "f": 3.0, "theta0": 40.0, "dt": 1e-3})
+    run = ds.sel({"integrator": "rk4", "f": 3.0, "theta0": 40.0, "dt": 1e-3})
     worst = float(np.nanmax(invariant_error(run, "kovalevskaya")))
     k_table = text.split("Worst relative error of kovalevskaya over the run:")[1]
     rk4_row = next(line for line in k_table.splitlines() if line.startswith("| `rk4`"))

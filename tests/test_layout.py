@@ -1,5 +1,6 @@
-"""The results layout: files of the current layout, of layout 1 (before heavy bodies: no gamma, a
-four-field body) and of layout 0 (before layout_version) open with every reader; foreign files are
+"""The results layout: files of the current layout (3: the grid dim is ``integrator``), of layout 2
+(the dim called ``method``), of layout 1 (before heavy bodies: no gamma, a four-field body) and of
+layout 0 (before layout_version) open with every reader, as today's names; foreign files are
 refused."""
 
 import subprocess
@@ -22,11 +23,11 @@ def files(tmp_path_factory):
     """(current, layout 0) files of the same runs: layout 0 is gyrolab at c0ed527 (no layout_version,
     no L, no stored run inputs)."""
     root = tmp_path_factory.mktemp("layout")
-    ds = make_dataset({"method": ["rk4", "lie_poisson"], "f": [10.0], "dt": [1e-3]}, t_end=0.2, every=1e-2)
+    ds = make_dataset({"integrator": ["rk4", "lie_poisson"], "f": [10.0], "dt": [1e-3]}, t_end=0.2, every=1e-2)
     ds.attrs.update(gyrolab_version="0.1.0", config="sweep:\n  t_end: 0.2\n")
     new, old = root / "new.h5", root / "old.h5"
     ds.to_netcdf(new, engine="h5netcdf")
-    legacy = ds.drop_vars(["L", "gamma", "body", "omega0", "q0"])
+    legacy = ds.drop_vars(["L", "gamma", "body", "omega0", "q0"]).rename(integrator="method")
     legacy.attrs = {k: v for k, v in ds.attrs.items() if k not in ("layout_version", "conserved", "closed_form")}
     legacy.to_netcdf(old, engine="h5netcdf")
     return new, old
@@ -38,11 +39,106 @@ def layout_1(files, tmp_path_factory):
     import xarray as xr
 
     ds = xr.open_dataset(files[0], engine="h5netcdf").load()
-    one = ds.drop_vars("gamma").isel(body_param=slice(0, 4))
+    one = ds.drop_vars("gamma").isel(body_param=slice(0, 4)).rename(integrator="method")
     one.attrs["layout_version"] = 1
     path = tmp_path_factory.mktemp("layout1") / "v1.h5"
     one.to_netcdf(path, engine="h5netcdf")
     return path
+
+
+@pytest.fixture(scope="module")
+def layout_2(files, tmp_path_factory):
+    """The current file as layout 2 wrote it: the grid dim called ``method``."""
+    import xarray as xr
+
+    ds = xr.open_dataset(files[0], engine="h5netcdf").load().rename(integrator="method")
+    ds.attrs["layout_version"] = 2
+    path = tmp_path_factory.mktemp("layout2") / "v2.h5"
+    ds.to_netcdf(path, engine="h5netcdf")
+    return path
+
+
+@pytest.fixture(scope="module")
+def fresh(tmp_path_factory):
+    """A results file written by the runner (runner/store.py) of two integrators."""
+    from hydra import compose, initialize_config_module
+
+    from gyrolab.runner.app import file_attrs
+    from gyrolab.runner.config import config_hash, register_configs
+    from gyrolab.runner.execute import run_chunk
+    from gyrolab.runner.grid import build_grid
+    from gyrolab.runner.store import write_results
+
+    register_configs()
+    overrides = ["sweep.method=[rk4,lie_poisson]", "sweep.f=[10]", "sweep.theta0=[45]", "sweep.dt=[1e-3]"]
+    with initialize_config_module(config_module="gyrolab.conf", version_base=None):
+        cfg = compose("config", overrides=[*overrides, "sweep.t_end=0.02", "output.every=1e-3"])
+    grid = build_grid(cfg)
+    chunks = [run_chunk(grid, np.arange(m * grid.n_runs // 2, (m + 1) * grid.n_runs // 2), 1) for m in range(2)]
+    path = tmp_path_factory.mktemp("fresh") / "results.h5"
+    write_results(path, grid, chunks, file_attrs(cfg, grid, 1, config_hash(cfg)))
+    return path
+
+
+def test_a_fresh_file_selects_one_integrator_with_sel_and_opens_with_netcdf_c(fresh):
+    """Layout 3: ``ds.sel(integrator="rk4")`` selects exactly rk4 (with the dim called ``method``,
+    ``ds.sel(method="rk4")`` was .sel's own keyword and silently kept every method); netCDF-C reads
+    the same file with the same dims."""
+    import xarray as xr
+
+    with xr.open_dataset(fresh, engine="h5netcdf") as ds:
+        assert ds.attrs["layout_version"] == LAYOUT_VERSION == 3
+        assert list(ds["integrator"].values) == ["rk4", "lie_poisson"] and "method" not in ds.dims
+        rk4 = ds.sel(integrator="rk4")
+        assert "integrator" not in rk4.dims and str(rk4["integrator"].values) == "rk4"
+        assert rk4["energy"].dims == ("f", "theta0", "dt", "time")
+        both = ds.sel(integrator=["rk4", "lie_poisson"])
+        assert not np.array_equal(both["omega"].values[0], both["omega"].values[1])
+        h5 = ds.load()
+    with xr.open_dataset(fresh, engine="netcdf4") as c:
+        assert c["energy"].dims == ("integrator", "f", "theta0", "dt", "time")
+        assert list(c["integrator"].values) == ["rk4", "lie_poisson"]
+        np.testing.assert_array_equal(
+            c.sel(integrator="lie_poisson")["energy"].values, h5.sel(integrator="lie_poisson")["energy"].values
+        )
+
+
+def test_older_layouts_open_with_integrator_not_method(files, layout_1, layout_2):
+    """Every older layout (0, 1, 2 and the stored regression data) reads with the dim ``integrator``:
+    the rename happens once, when the file is opened (layout.current)."""
+    import xarray as xr
+
+    from gyrolab.layout import current
+
+    stored = DATA / "regression" / "heavy_top_release" / "rk4.h5"
+    for path in (files[1], layout_1, layout_2, stored):
+        with xr.open_dataset(path, engine="h5netcdf") as raw:
+            assert "method" in raw.dims and file_layout_version(raw) < 3
+            assert "integrator" in current(raw).dims and "method" not in current(raw).dims
+        ds = open_results(path)
+        assert "integrator" in ds.dims and "method" not in ds.dims and "method" not in ds.variables
+        assert ds["energy"].dims[0] == "integrator"
+    assert list(open_results(layout_2)["integrator"].values) == ["rk4", "lie_poisson"]
+    assert open_results(stored)["integrator"].values.tolist() == ["rk4"]
+
+
+def test_compare_a_layout_2_file_with_a_layout_3_file(files, layout_2):
+    report = compare_files(layout_2, files[0])
+    assert report.ok and not report.dropped, report.text()
+    assert report.n_runs == 2
+    done = subprocess.run([str(BIN / "gyrolab-compare"), str(layout_2), str(files[0])], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert "RESULT: OK" in done.stdout and "2 integrator" in done.stdout
+
+
+def test_selection_by_the_old_name_method_still_works(layout_2, tmp_path):
+    done = subprocess.run(
+        [str(BIN / "gyrolab-plot"), "energy", str(layout_2), "method=rk4", "-o", str(tmp_path / "e.png")],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "e.png").stat().st_size > 0
 
 
 def test_layout_1_file_opens_with_the_body_it_meant(files, layout_1):

@@ -28,7 +28,7 @@ from gyrolab.analysis.compare import compare_datasets, compare_files
 from gyrolab.kernels.batch import sample_schedule
 from gyrolab.kernels.registry import METHODS
 from gyrolab.kernels.scenes import SCENES, build_scene
-from gyrolab.layout import sample_variables
+from gyrolab.layout import current, sample_variables
 
 from helpers import CONTROL_FAILURES
 
@@ -46,7 +46,7 @@ def one_method(path, method):
     on the other runs of its sweep (tests/test_block.py, tests/test_runner_cli.py)."""
     with xr.open_dataset(path, engine="h5netcdf") as ds:
         ds = ds.load()
-    part = ds.sel({"method": [method]})
+    part = ds.sel({"integrator": [method]})
     config = yaml.safe_load(ds.attrs["config"])
     config["sweep"]["method"] = [method]
     return part.assign_attrs(config=yaml.safe_dump(config, sort_keys=False))
@@ -182,7 +182,8 @@ def test_stored_datasets_open_are_small_and_cover_every_scene_and_method():
             with xr.open_dataset(path, engine="h5netcdf") as ds:
                 config = yaml.safe_load(ds.attrs["config"])
                 assert ds.attrs["scene"] == config["scene"]["name"]
-                assert ds["method"].values.tolist() == [method], path
+                assert ds["method"].values.tolist() == [method], path  # stored before layout 3 named the dim method
+                assert current(ds)["integrator"].values.tolist() == [method], path
                 if not (getattr(METHODS[method], "REPRODUCES", "") or method in CONTROL_FAILURES):
                     assert (ds["status"].values == 0).all(), f"{path}: a run diverged"
                 assert ds.attrs["gyrolab_version"] and ds.attrs["numba_version"] and ds.attrs["git_commit"]
@@ -204,7 +205,7 @@ def overwrite_method(path, method, run_batch):
 
     with xr.open_dataset(path, engine="h5netcdf") as ds:
         config = yaml.safe_load(ds.attrs["config"])
-        methods = ds["method"].values.tolist()
+        methods = current(ds)["integrator"].values.tolist()  # a stored file of layout 1 calls it method
         fs, thetas, dts = ds["f"].values, ds["theta0"].values, ds["dt"].values
     options = dict(config["scene"])
     name = options.pop("name")
@@ -247,7 +248,7 @@ def test_coefficient_change_fails_with_a_readable_message(tmp_path):
     message = str(failure.value)
     print(message)  # what a developer sees (pytest -s)
     assert "regression heavy_top_release/lie_poisson4: fresh run differs from the stored dataset" in message
-    assert "run differing most: method=lie_poisson4" in message
+    assert "run differing most: integrator=lie_poisson4" in message
     assert "out of tolerance in 2 of 2 runs" in message  # both dt
     assert "python tests/data/regenerate.py --write heavy_top_release:lie_poisson4" in message
     report = compare_files(copy, stored, scaled=regen.SCALED_TOL)

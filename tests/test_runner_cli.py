@@ -39,14 +39,14 @@ def reference(tmp_path_factory):
 def test_tiny_sweep_file_opens_with_xarray_and_matches_simulate(reference):
     with xr.open_dataset(reference, engine="h5netcdf") as ds:
         assert {k: ds.sizes[k] for k in GRID_DIMS + ("time", "xyz")} == {
-            "method": 2,
+            "integrator": 2,
             "f": 2,
             "theta0": 2,
             "dt": 2,
             "time": 101,
             "xyz": 3,
         }
-        assert list(ds["method"].values) == ["seed_next", "lie_poisson"]
+        assert list(ds["integrator"].values) == ["seed_next", "lie_poisson"]
         assert list(ds["f"].values) == [10.0, 50.0] and list(ds["dt"].values) == [1e-3, 1e-4]
         assert ds["f"].attrs["units"] == "Hz" and ds["theta0"].attrs["units"] == "deg"
         assert "legend" in ds["status"].attrs and np.all(ds["status"].values == 0)
@@ -72,12 +72,12 @@ def test_tiny_sweep_file_opens_with_xarray_and_matches_simulate(reference):
         assert "sweep:" in ds.attrs["config"] and ds.attrs["scene"] == "heavy_top"
         assert np.all(ds["wall_time"].values > 0)
         # Every run sits at its coordinates: the same bits as gyrolab.simulate of that point.
-        for method in ds["method"].values:
+        for method in ds["integrator"].values:
             for f in ds["f"].values:
                 for theta0 in ds["theta0"].values:
                     for dt in ds["dt"].values:
                         one = simulate(method=str(method), f=f, theta0=theta0, dt=dt, t_end=0.1, every=1e-3)
-                        run = ds.sel({"method": method, "f": f, "theta0": theta0, "dt": dt})
+                        run = ds.sel({"integrator": method, "f": f, "theta0": theta0, "dt": dt})
                         for name in (*SAMPLE_VARIABLES, "status", "n_steps", "body", "omega0", "q0"):
                             np.testing.assert_array_equal(run[name].values, one[name].values, err_msg=name)
 
@@ -171,7 +171,7 @@ def test_multirun_writes_one_file_per_job_and_combine_merges_them(tmp_path):
     assert combined.returncode == 0, combined.stderr
     with xr.open_dataset(sweep_dir / "combined.h5", engine="h5netcdf") as ds:
         assert list(ds["scene"].values) == ["heavy_top", "free_asymmetric"]
-        assert ds["axis"].dims == ("scene", "method", "f", "theta0", "dt", "time", "xyz")
+        assert ds["axis"].dims == ("scene", "integrator", "f", "theta0", "dt", "time", "xyz")
         for path, scene in zip(files, ("heavy_top", "free_asymmetric")):
             with xr.open_dataset(path, engine="h5netcdf") as one:
                 np.testing.assert_array_equal(ds["energy"].sel(scene=scene).values, one["energy"].values)

@@ -3,25 +3,10 @@
 import numpy as np
 import pytest
 import xarray as xr
-from hydra import compose, initialize_config_module
 
-from gyrolab.runner.app import file_attrs
 from gyrolab.runner.combine import CombineError, combine, main
-from gyrolab.runner.config import config_hash, register_configs
-from gyrolab.runner.execute import run_chunk
-from gyrolab.runner.grid import build_grid
-from gyrolab.runner.store import write_results
 
-register_configs()
-BASE = ["sweep.method=[seed_next]", "sweep.theta0=[45]", "sweep.dt=[1e-3]", "sweep.t_end=0.02", "output.every=1e-3"]
-
-
-def make_file(path, *overrides):
-    with initialize_config_module(config_module="gyrolab.conf", version_base=None):
-        cfg = compose("config", overrides=[*BASE, *overrides])
-    grid = build_grid(cfg)
-    write_results(path, grid, [run_chunk(grid, np.arange(grid.n_runs), 1)], file_attrs(cfg, grid, 1, config_hash(cfg)))
-    return path
+from helpers import make_file
 
 
 def strip(ds):
@@ -81,3 +66,44 @@ def test_cli_writes_the_file_and_refuses_bad_arguments(tmp_path, capsys):
     errors = capsys.readouterr().err.strip().splitlines()
     assert len(errors) == 3 and all(e.startswith("gyrolab-combine: error: ") for e in errors)
     assert "exists" in errors[0] and "no such file" in errors[1] and "-o/--output" in errors[2]
+
+
+def test_files_of_an_older_layout_combine_into_todays(tmp_path):
+    """A layout-2 file (dim ``method``) joins a layout-3 tile: the combined file is layout 3, dim
+    ``integrator``."""
+    from gyrolab.layout import LAYOUT_VERSION
+
+    a = make_file(tmp_path / "a.h5", "sweep.f=[10]")
+    b = make_file(tmp_path / "b.h5", "sweep.f=[50]")
+    with xr.open_dataset(b, engine="h5netcdf") as ds:
+        old = ds.load().rename(integrator="method").assign_attrs(layout_version=2)
+    old.to_netcdf(tmp_path / "b2.h5", engine="h5netcdf")
+    out = combine([a, tmp_path / "b2.h5"])
+    assert out.attrs["layout_version"] == LAYOUT_VERSION and "method" not in out.dims
+    assert out["energy"].dims[:2] == ("integrator", "f") and list(out["f"].values) == [10, 50]
+    xr.testing.assert_equal(strip(out), strip(combine([a, b])))
+
+
+def test_attrs_that_differ_between_scenes_are_kept_along_scene(tmp_path):
+    """conserved and closed_form differ between heavy_top and free_symmetric: kept per scene (the
+    member a reader selects carries them), not dropped as conflicting."""
+    a = make_file(tmp_path / "a.h5", "sweep.f=[10]")
+    b = make_file(tmp_path / "b.h5", "sweep.f=[10]", "scene=free_symmetric")
+    out = combine([a, b])
+    with xr.open_dataset(a, engine="h5netcdf") as one, xr.open_dataset(b, engine="h5netcdf") as two:
+        assert list(out["conserved"].values) == [one.attrs["conserved"], two.attrs["conserved"]]
+        assert list(out["closed_form"].values) == [one.attrs["closed_form"], two.attrs["closed_form"]]
+    assert "conserved" not in out.attrs and out["conserved"].dims == ("scene",)
+
+
+def test_a_vector_scene_option_that_differs_is_kept_as_json(tmp_path):
+    import json
+
+    from gyrolab.layout import member
+
+    a = make_file(tmp_path / "a.h5", "sweep.f=[3]", "scene=heavy_body", "scene.com=[0.02,0,0.1]")
+    b = make_file(tmp_path / "b.h5", "sweep.f=[3]", "scene=heavy_body", "scene.com=[0,0.02,0.1]")
+    out = combine([a, b])
+    assert out["scene_com"].dims == ("job",) and out["scene_com"].attrs["encoding"] == "json"
+    assert json.loads(out["scene_com"].values[1]) == [0.0, 0.02, 0.1]
+    np.testing.assert_array_equal(member(out, "1").attrs["scene_com"], [0.0, 0.02, 0.1])

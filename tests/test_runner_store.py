@@ -62,7 +62,7 @@ def test_results_file_layout_and_attrs(tmp_path, grid):
     write_results(path, grid, chunks, {"scene": "heavy_top", "config": "a: 1\n"})
     with xr.open_dataset(path, engine="h5netcdf") as ds:
         assert dict(ds.sizes) == {
-            "method": 2,
+            "integrator": 2,
             "f": 2,
             "theta0": 1,
             "dt": 2,
@@ -71,9 +71,9 @@ def test_results_file_layout_and_attrs(tmp_path, grid):
             "quat": 4,
             "body_param": len(BODY_FIELDS),
         }
-        assert ds["axis"].dims == ("method", "f", "theta0", "dt", "time", "xyz")
+        assert ds["axis"].dims == ("integrator", "f", "theta0", "dt", "time", "xyz")
         assert ds["status"].dtype == np.int8 and ds["n_steps"].dtype == np.int64
-        assert list(ds["method"].values) == ["seed_next", "seed_prev"]
+        assert list(ds["integrator"].values) == ["seed_next", "seed_prev"]
         np.testing.assert_allclose(ds["time"].values, np.arange(51) * 1e-3)
         for name, attrs in VARIABLE_ATTRS.items():
             assert {k: ds[name].attrs[k] for k in attrs} == attrs
@@ -82,7 +82,7 @@ def test_results_file_layout_and_attrs(tmp_path, grid):
         assert "proportion to their steps" in ds["wall_time"].attrs["description"]
         assert ds.attrs["config"] == "a: 1\n"
         # run 5 = seed_prev, f=10, theta0=45, dt=1e-4
-        run = ds.isel(method=1, f=0, theta0=0, dt=1)
+        run = ds.isel(integrator=1, f=0, theta0=0, dt=1)
         np.testing.assert_array_equal(run["omega"].values, chunks[1]["samples"][1][:, 3:6])
         assert int(run["n_steps"]) == 500
         # each run's inputs are stored: analysis never rebuilds them from today's scene code
@@ -178,7 +178,7 @@ def test_assembly_from_the_journal_in_boxes_gives_the_same_data(tmp_path, grid, 
         raw[chunk["runs"]] = chunk["samples"]
         for name in per_run:
             per_run[name][chunk["runs"]] = chunk[name]
-    coords = {"method": list(grid.methods), "f": list(grid.f), "theta0": list(grid.theta0), "dt": list(grid.dt)}
+    coords = {"integrator": list(grid.methods), "f": list(grid.f), "theta0": list(grid.theta0), "dt": list(grid.dt)}
     coords["time"] = np.arange(grid.n_samples) * grid.every
     expected = to_dataset(
         raw.reshape(grid.shape + raw.shape[1:]),

@@ -28,7 +28,7 @@ def write(ds, path):
 
 @pytest.fixture(scope="module")
 def ladder_file(tmp_path_factory):
-    grid = {"method": list(TRUE_ORDER), "f": [50.0], "theta0": [45.0], "dt": LADDER}
+    grid = {"integrator": list(TRUE_ORDER), "f": [50.0], "theta0": [45.0], "dt": LADDER}
     return write(make_dataset(grid, t_end=1.0, every=1.0), tmp_path_factory.mktemp("v") / "ladder.h5")
 
 
@@ -36,9 +36,11 @@ def ladder_file(tmp_path_factory):
 def drift_files(tmp_path_factory):
     root = tmp_path_factory.mktemp("d")
     a = make_dataset(
-        {"method": ["lie_poisson", "rk4"], "f": [50.0], "theta0": [45.0], "dt": [1e-3]}, t_end=100.0, every=1e-2
+        {"integrator": ["lie_poisson", "rk4"], "f": [50.0], "theta0": [45.0], "dt": [1e-3]}, t_end=100.0, every=1e-2
     )
-    b = make_dataset({"method": ["explicit_euler"], "f": [50.0], "theta0": [45.0], "dt": [1e-5]}, t_end=5.0, every=1e-3)
+    b = make_dataset(
+        {"integrator": ["explicit_euler"], "f": [50.0], "theta0": [45.0], "dt": [1e-5]}, t_end=5.0, every=1e-3
+    )
     return write(a, root / "long.h5"), write(b, root / "euler.h5")
 
 
@@ -127,7 +129,7 @@ def _bad_inputs(tmp_path, ladder_file):
     xr.Dataset({"x": ("n", np.arange(3.0))}).to_netcdf(foreign, engine="h5netcdf")
     empty = tmp_path / "empty.h5"
     with xr.open_dataset(ladder_file, engine="h5netcdf") as ds:
-        ds.load().isel(method=[]).to_netcdf(empty, engine="h5netcdf")
+        ds.load().isel(integrator=[]).to_netcdf(empty, engine="h5netcdf")
     return {
         "missing": [tmp_path / "nope.h5"],
         "unreadable": [tmp_path / "notes.h5"],
@@ -158,7 +160,7 @@ def test_stability_threshold_record(tmp_path):
     """rk4 on the free disc: |c| dt_crit = 2√2 on the imaginary axis (c = ω3 here)."""
     path = write(
         make_dataset(
-            {"method": ["rk4"], "f": [10.0], "theta0": [30.0], "dt": [1e-3]},
+            {"integrator": ["rk4"], "f": [10.0], "theta0": [30.0], "dt": [1e-3]},
             scene="free_symmetric",
             t_end=1.0,
             every=0.1,
@@ -178,7 +180,9 @@ def test_stability_threshold_record(tmp_path):
 def test_seed_next_drift_at_50_hz_is_linear_at_the_issue_rate(tmp_path):
     """Issue 11: heavy top, θ0 = 45°, released, 50 Hz, dt = 1e-3 s, 400 s: linear, −3.2e-6 /s ± 10 %."""
     path = write(
-        make_dataset({"method": ["seed_next"], "f": [50.0], "theta0": [45.0], "dt": [1e-3]}, t_end=400.0, every=0.1),
+        make_dataset(
+            {"integrator": ["seed_next"], "f": [50.0], "theta0": [45.0], "dt": [1e-3]}, t_end=400.0, every=0.1
+        ),
         tmp_path / "seed.h5",
     )
     recs = records([path], tmp_path)

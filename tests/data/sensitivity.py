@@ -37,7 +37,7 @@ def runs(ds):
     config = yaml.safe_load(ds.attrs["config"])
     options = dict(config["scene"])
     name = options.pop("name")
-    for m in ds["method"].values.tolist():
+    for m in ds["integrator"].values.tolist():
         for f in ds["f"].values:
             for theta0 in ds["theta0"].values:
                 for dt in ds["dt"].values:
@@ -78,7 +78,7 @@ def scaled_change(ds, perturb=None, kernel=None, only=None):
                 np.zeros(1, np.int8),
                 np.zeros(1, np.int64),
             )
-        stored = ds.sel({"method": m, "f": f, "theta0": theta0, "dt": dt})
+        stored = ds.sel({"integrator": m, "f": f, "theta0": theta0, "dt": dt})
         for var, values in sample_variables(samples[0]).items():
             change = np.nanmax(np.abs(values - stored[var].values)) / np.nanmax(np.abs(ds[var].values))
             worst[var] = max(worst.get(var, 0.0), change)
@@ -104,7 +104,7 @@ def main():
     for name in DATASETS:
         ds = xr.concat(
             [xr.open_dataset(stored_path(name, m), engine="h5netcdf").load() for m in METHODS],
-            dim="method",
+            dim="integrator",
             data_vars="minimal",
             coords="minimal",
             compat="override",
