@@ -59,6 +59,12 @@ COMPILE_SECONDS = 3.0  # rough JIT time of one method's kernel on a cold numba c
 # Loading one method's kernels from a warm numba cache, the checks and the file's open and close
 # (the "rest" of benchmarks/bench_pipeline.py: 0.5-0.9 s with 2 to 4 methods).
 LOAD_SECONDS = 0.2
+# The figure step (analysis/figures.py standard_figures, in this process after the sweep) loads the
+# whole results file and draws from it: the process's peak RSS is then ~ FIGURE_BASE_BYTES +
+# FIGURE_PER_BYTE x the file's size, fitted to sweeps with the default figures writing 41 MB, 273 MB
+# and 1.09 GB heavy-top files (453, 708, 1673 MB; docs/benchmarks.md).
+FIGURE_BASE_BYTES = 390e6
+FIGURE_PER_BYTE = 1.2
 
 
 def fail(message):
@@ -315,7 +321,13 @@ def describe(grid):
     )
 
 
-def dry_run(grid, out, chunks, threads, peak, state, cluster=None):
+def figure_memory(grid):
+    """Estimated peak memory (bytes) of the sweep's process while it draws the figures of ``grid``'s
+    results file (FIGURE_BASE_BYTES, FIGURE_PER_BYTE)."""
+    return FIGURE_BASE_BYTES + FIGURE_PER_BYTE * grid.bytes_stored()
+
+
+def dry_run(grid, out, chunks, threads, peak, state, cluster=None, figures=True):
     steps = grid.steps(np.arange(grid.n_runs))
     if cluster is not None:
         seconds, where = cluster.estimate_seconds(grid, chunks), cluster.describe()
@@ -330,6 +342,20 @@ def dry_run(grid, out, chunks, threads, peak, state, cluster=None):
         f"~{COMPILE_SECONDS * len(grid.methods):.0f} s of JIT on a cold numba cache; figures extra)"
     )
     print(f"  peak memory: ~{_size(peak)} of samples per chunk (+ ~0.3 GB for Python, numba, xarray)")
+    if figures:
+        need, memory = figure_memory(grid), available_memory()
+        print(
+            f"  figure step: peak memory ~{_size(need)} (the figures load the whole results file: "
+            f"~{_size(FIGURE_BASE_BYTES)} + {FIGURE_PER_BYTE:g} x its {_size(grid.bytes_stored())})"
+            + (
+                f"; more than the {_size(memory)} available: set output.figures=false and draw a selection "
+                "with gyrolab-plot KIND FILE key=..."
+                if memory is not None and need > memory
+                else ""
+            )
+        )
+    else:
+        print("  figure step: none (output.figures=false)")
     print(
         f"  output: {out} ~ {_size(grid.bytes_stored())} (peak disk {_size(disk_needed(grid))} with the partial chunks)"
     )
@@ -392,7 +418,7 @@ def sweep(cfg, run_dir, stack):
         chunks = plan_chunks(grid, np.arange(grid.n_runs), threads, cfg.runner.chunk_seconds)
     peak = check_fits(grid, out, chunks)
     if cfg.runner.dry_run:
-        dry_run(grid, out, chunks, threads, peak, state, cluster)
+        dry_run(grid, out, chunks, threads, peak, state, cluster, figures=bool(cfg.output.figures))
         return None
     if state == "done":
         with OutputLock(out):

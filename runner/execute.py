@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 from ..kernels.batch import MIN_BLOCK_RUNS, integrate
-from .grid import DEFAULT_STEP_RATE, STEP_RATE, plan_chunks
+from .grid import plan_chunks, runs_in_blocks, step_rate
 
 # Test hook: seconds to sleep after each stored chunk, so a test can kill a sweep mid-way.
 DELAY_ENV = "GYROLAB_TEST_CHUNK_DELAY"
@@ -90,12 +90,22 @@ def isolate_seconds():
     return float(os.environ.get(ISOLATE_ENV, "") or ISOLATE_SECONDS)
 
 
-def chunk_estimate(grid, runs, threads, rates):
-    """Estimated seconds of integrating the chunk ``runs`` here (measured rates first)."""
+def rate_key(grid, runs):
+    """(method, block path?) of the chunk ``runs``: measured speeds are kept per path, since the block
+    path runs several times faster per step than one by one (grid.BLOCK_SPEEDUP)."""
     method = grid.methods[int(grid.index(runs[:1])[0][0])]
-    rate = rates.get(method, STEP_RATE.get(method, DEFAULT_STEP_RATE))
-    per_thread = -(-len(runs) // max(threads, 1))
-    return per_thread * float(grid.steps(runs).max()) / rate
+    return method, runs_in_blocks(method, len(runs))
+
+
+def chunk_estimate(grid, runs, threads, rates):
+    """Estimated seconds of integrating the chunk ``runs`` here: its runs' steps, each at its own dt,
+    shared among the threads and never less than its longest run (as grid.estimate_seconds), at the
+    speed measured for its method on its path (``rates``: {rate_key: steps/s per thread}), else at
+    grid.step_rate (the block path's speed-up included)."""
+    method, blocks = rate_key(grid, runs)
+    rate = rates.get((method, blocks)) or step_rate(method, len(runs))
+    steps = grid.steps(runs)
+    return max(float(steps.sum()) / min(max(threads, 1), len(runs)), float(steps.max())) / rate
 
 
 class ChunkWorker:
@@ -191,20 +201,21 @@ def run_missing(grid, journal, todo, threads, chunk_seconds, first_number, progr
 def _run_missing(grid, journal, todo, threads, chunk_seconds, first_number, progress, worker):
     delay = chunk_delay()
     limit = isolate_seconds()
-    rates = {}
+    rates = {}  # measured steps/s per thread by method, for planning (plan_chunks)
+    path_rates = {}  # the same by (method, block path?), for chunk_estimate
     number = first_number
     remaining = np.sort(np.asarray(todo, dtype=np.int64))
     while remaining.size:
         runs = plan_chunks(grid, remaining, threads, chunk_seconds, rates)[0]
-        if chunk_estimate(grid, runs, threads, rates) > limit:
+        if chunk_estimate(grid, runs, threads, path_rates) > limit:
             result = worker.run(runs)
         else:
             result = run_chunk(grid, runs, threads)
         steps = int(result["n_steps"].sum())
         wall = float(result["wall_time"].sum()) / min(threads, len(runs))
         if wall > 0 and steps == int(grid.steps(runs).sum()):  # diverged runs stop early: no speed sample
-            method = grid.methods[int(grid.index(runs[:1])[0][0])]
-            rates[method] = steps / wall / min(threads, len(runs))
+            key = rate_key(grid, runs)
+            rates[key[0]] = path_rates[key] = steps / wall / min(threads, len(runs))
         journal.write_chunk(number, **result)
         number += 1
         remaining = np.setdiff1d(remaining, runs, assume_unique=True)

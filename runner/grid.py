@@ -24,8 +24,24 @@ from .config import ConfigError, check_values
 # (heavy top, warm JIT cache); only used to size chunks and for dry-run estimates.
 STEP_RATE = {"seed_next": 1.2e7, "seed_prev": 1.2e7, "rk4": 1.2e7, "lie_poisson": 1.2e7, "lie_poisson4": 5e6}
 DEFAULT_STEP_RATE = 5e6
-# Blocks of >= MIN_BLOCK_RUNS runs against one by one, per run (docs/benchmarks.md: 10-22x).
-BLOCK_SPEEDUP = 10
+# Speed of the vectorised block path (kernels/block.py; chunks of >= MIN_BLOCK_RUNS runs) over the
+# one-by-one path, per method: ns/step one by one / in blocks, heavy top, 256 runs, 2 threads, the
+# "after" columns of docs/benchmarks.md's centre-of-mass table (bench_methods.py, quiet machine).
+# seed_prev is seed_next's arithmetic; strang_exact and split6_exact take strang_exact4's exact free
+# flow, whose libm-bound elliptic functions the blocks do not speed up.  Any other method: the lowest
+# measured speed-up of a method the blocks do help (mujoco_implicit's).
+BLOCK_SPEEDUP = {
+    "seed_next": 6.9,
+    "seed_prev": 6.9,
+    "rk4": 5.7,
+    "lie_poisson": 6.0,
+    "lie_poisson4": 5.8,
+    "strang_exact": 1.0,
+    "strang_exact4": 1.0,
+    "split6_exact": 1.0,
+    "mujoco_implicit": 2.7,
+}
+DEFAULT_BLOCK_SPEEDUP = 2.7
 MAX_CHUNK_BYTES = 256 * 2**20
 # Effective rates of the pipeline around the kernels on the development machine (docs/benchmarks.md,
 # benchmarks/bench_pipeline.py): journal bytes (raw samples) per second, results bytes per second
@@ -157,16 +173,16 @@ def _prefix_sweep(message):
     return message
 
 
-def chunk_size(steps_per_run, rate, threads, chunk_seconds, bytes_per_run, max_bytes=MAX_CHUNK_BYTES):
+def chunk_size(steps_per_run, rate, threads, chunk_seconds, bytes_per_run, max_bytes=MAX_CHUNK_BYTES, speedup=1.0):
     """Runs per chunk: about ``chunk_seconds`` of work at ``rate`` steps/s per thread,
     a multiple of ``threads`` (so every thread gets equal work), within ``max_bytes``.
 
     Raised to the batch kernels' MIN_BLOCK_RUNS when that many runs would take at
-    most ``chunk_seconds`` in vectorised blocks (BLOCK_SPEEDUP times faster per
-    run than one by one); the measured rate then sizes the next chunks."""
+    most ``chunk_seconds`` in vectorised blocks (``speedup`` times faster per
+    run than one by one: the method's BLOCK_SPEEDUP); the measured rate then sizes the next chunks."""
     by_time = chunk_seconds * rate * threads / max(int(steps_per_run), 1)
     k = max(threads, int(by_time // threads) * threads)
-    if by_time * BLOCK_SPEEDUP >= MIN_BLOCK_RUNS:
+    if by_time * speedup >= MIN_BLOCK_RUNS:
         k = max(k, MIN_BLOCK_RUNS)
     by_memory = max(1, int(max_bytes // max(bytes_per_run, 1)))
     if k > by_memory:
@@ -189,13 +205,14 @@ def plan_chunks(grid, runs, threads, chunk_seconds, rates=None, max_bytes=MAX_CH
     chunks = []
     for m in range(len(grid.methods)):
         rate = rates.get(grid.methods[m], STEP_RATE.get(grid.methods[m], DEFAULT_STEP_RATE))
+        speedup = step_rate(grid.methods[m], MIN_BLOCK_RUNS) / STEP_RATE.get(grid.methods[m], DEFAULT_STEP_RATE)
         leftovers = []
         for l in range(len(grid.dt)):
             group = runs[(im == m) & (ld == l)]
             if group.size == 0:
                 continue
             steps = int(grid.steps(group[:1])[0])
-            k = chunk_size(steps, rate, threads, chunk_seconds, grid.bytes_per_run(), max_bytes)
+            k = chunk_size(steps, rate, threads, chunk_seconds, grid.bytes_per_run(), max_bytes, speedup)
             full = group.size // k * k
             chunks.extend(group[i : i + k] for i in range(0, full, k))
             leftovers.append(group[full:])
@@ -223,13 +240,19 @@ def _pool(grid, runs, rate, threads, chunk_seconds, max_bytes):
 
 def step_rate(method, n_runs):
     """Estimated steps per second per thread of ``method`` in a chunk of ``n_runs`` runs: STEP_RATE,
-    times BLOCK_SPEEDUP when the batch kernels run the chunk in vectorised blocks."""
+    times its BLOCK_SPEEDUP when the batch kernels run the chunk in vectorised blocks."""
+    rate = STEP_RATE.get(method, DEFAULT_STEP_RATE)
+    if runs_in_blocks(method, n_runs):
+        rate *= BLOCK_SPEEDUP.get(method, DEFAULT_BLOCK_SPEEDUP)
+    return rate
+
+
+def runs_in_blocks(method, n_runs):
+    """Whether kernels/batch.py's ``integrate`` runs a chunk of ``n_runs`` runs of ``method`` on the
+    block path (its "auto" rule: the method allows it and there are MIN_BLOCK_RUNS runs or more)."""
     from ..kernels.registry import get_method, uses_blocks
 
-    rate = STEP_RATE.get(method, DEFAULT_STEP_RATE)
-    if n_runs >= MIN_BLOCK_RUNS and uses_blocks(get_method(method)):
-        rate *= BLOCK_SPEEDUP
-    return rate
+    return n_runs >= MIN_BLOCK_RUNS and uses_blocks(get_method(method))
 
 
 def estimate_seconds(grid, chunks, threads):

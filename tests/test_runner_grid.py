@@ -76,7 +76,8 @@ def test_chunk_size_targets_the_time_and_respects_memory():
     # blocks, ~10x faster per run, would take 6.4 s: too long for one chunk)
     assert chunk_size(1e6, 2e6, 2, 1.0, bytes_per_run=1) == 4
     # 1e6 steps/s: 20 runs of 1e5 steps by time, but 64 runs in blocks take ~0.3 s: one block chunk
-    assert chunk_size(1e5, 1e6, 2, 1.0, bytes_per_run=1) == MIN_BLOCK_RUNS
+    assert chunk_size(1e5, 1e6, 2, 1.0, bytes_per_run=1, speedup=10) == MIN_BLOCK_RUNS  # 64 fit in blocks
+    assert chunk_size(1e5, 1e6, 2, 1.0, bytes_per_run=1, speedup=1) == 20  # not without
     assert chunk_size(1e9, 1e6, 2, 1.0, bytes_per_run=1) == 2  # never fewer runs than threads...
     assert chunk_size(1e5, 1e6, 2, 1.0, bytes_per_run=100, max_bytes=1000) == 10  # ...nor over memory
     assert chunk_size(1e5, 1e6, 4, 1.0, bytes_per_run=100, max_bytes=250) == 2
@@ -152,3 +153,28 @@ def test_the_writing_estimate_follows_the_bytes():
     few = grid_of(*common, "sweep.t_end=100", "output.variables=[theta]")
     assert estimate_writing_seconds(long) > 50 * estimate_writing_seconds(short)
     assert estimate_writing_seconds(few) < estimate_writing_seconds(long)
+
+
+def test_block_chunks_are_costed_at_the_block_paths_speed():
+    """A chunk of MIN_BLOCK_RUNS runs or more runs on the vectorised block path, several times faster
+    per step for most methods (docs/benchmarks.md): the dry run's estimate and the runner's
+    chunk_estimate (which sends long chunks to the worker process) both take that speed-up; one
+    chunk of fewer runs, the one-by-one speed."""
+    from gyrolab.runner.execute import chunk_estimate
+    from gyrolab.runner.grid import BLOCK_SPEEDUP, STEP_RATE, estimate_seconds, step_rate
+
+    assert step_rate("seed_next", MIN_BLOCK_RUNS) == STEP_RATE["seed_next"] * BLOCK_SPEEDUP["seed_next"]
+    assert step_rate("seed_next", MIN_BLOCK_RUNS - 1) == STEP_RATE["seed_next"]
+    assert BLOCK_SPEEDUP["strang_exact4"] == 1.0 and BLOCK_SPEEDUP["seed_next"] > 5
+    fs = "sweep.f=[" + ",".join(str(f) for f in range(1, MIN_BLOCK_RUNS + 1)) + "]"
+    grid = grid_of("sweep.method=[seed_next]", fs, "sweep.theta0=[45]", "sweep.dt=[1e-3]", "sweep.t_end=1")
+    runs = np.arange(grid.n_runs)
+    blocks = chunk_estimate(grid, runs, 2, {})
+    assert blocks == pytest.approx(grid.total_steps / 2 / (STEP_RATE["seed_next"] * BLOCK_SPEEDUP["seed_next"]))
+    assert blocks == pytest.approx(estimate_seconds(grid, [runs], 2))
+    one_by_one = sum(chunk_estimate(grid, runs[k : k + 8], 2, {}) for k in range(0, grid.n_runs, 8))
+    assert one_by_one == pytest.approx(BLOCK_SPEEDUP["seed_next"] * blocks)
+    # a speed measured on one path is not used for the other
+    measured = {("seed_next", False): 1e6}
+    assert chunk_estimate(grid, runs, 2, measured) == blocks
+    assert chunk_estimate(grid, runs[:8], 2, measured) == pytest.approx(4 * 1000 / 1e6)
