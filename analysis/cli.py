@@ -31,7 +31,8 @@ When a figure cannot draw every value of the grid it says which it drew, in
 the figure and on a ``gyrolab-plot: note:`` line, with the command that draws
 the others.  -o into a directory that does not exist is refused unless
 --parents.  Bad input: one line on stderr naming the key and value, exit
-status 2, no file written.
+status 2, no file written (of a combined file drawn member by member, the
+members before the one that fails are written; the line names that member).
 """
 
 import argparse
@@ -50,7 +51,8 @@ def _common(p, many=False):
             "selection",
             nargs="*",
             metavar="KEY=VALUE",
-            help="grid values to draw: method=..., f=... (Hz), theta0=... (deg), dt=... (s)",
+            help="grid values to draw: integrator=..., f=... (Hz), theta0=... (deg), dt=... (s); "
+            "a combined file's scene=NAME or job=K",
         )
     p.add_argument("-o", "--output", help="output path (suffix replaced per --format); default next to FILE")
     p.add_argument("--parents", action="store_true", help="create -o's missing parent directories")

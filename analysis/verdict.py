@@ -99,11 +99,14 @@ def load(paths):
     from .io import SelectionError, open_members
 
     out = []
-    for path in find_files(paths):
+    found = find_files(paths)
+    for path in found:
         try:
             members = open_members(path)  # a combined file: each scene (or job) on its own
         except SelectionError as err:
             raise VerdictError(str(err)) from None
+        if members[0][0] is not None and _inputs_found(members[0][1], path, found):
+            continue  # gyrolab-combine's <dir>/combined.h5 next to its job files: judge those once
         for label, ds in members:
             name = path if label is None else f"{path} {ds.attrs['combined_member']}"
             if int(ds.attrs.get("layout_version", 0)) < 1 or "status" not in ds:
@@ -112,6 +115,17 @@ def load(paths):
                 raise VerdictError(f"FILE={name}: holds no runs")
             out.append((name, ds))
     return out
+
+
+def _inputs_found(member, path, found):
+    """Whether every file the combined file ``path`` was made from (its ``source_path``) is among
+    ``found`` too (a directory searched with it), so its runs are judged there."""
+    import xarray as xr
+
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        sources = [str(v) for v in ds["source_path"].values] if "source_path" in ds else []
+    mine = {str(Path(p).resolve()) for p in found}
+    return bool(sources) and all(s in mine for s in sources)
 
 
 def _text(v):

@@ -164,3 +164,13 @@ def test_verdict_judges_each_member(runs):
     assert [name.rsplit(" ", 1)[1] for name, _ in loaded] == ["scene=heavy_top", "scene=free_symmetric"]
     with pytest.raises(SelectionError, match="combined file of 2 scenes .*choose one with scene=heavy_top"):
         open_results(runs["combined"])
+
+
+def test_verdict_of_a_directory_judges_a_combined_file_once(runs):
+    """gyrolab-combine DIR writes DIR/combined.h5 next to the job files: a verdict of DIR judges the
+    job files, not their runs twice."""
+    from gyrolab.analysis.verdict import load
+
+    names = [str(name) for name, _ in load([runs["root"] / "top", runs["root"] / "free", runs["combined"]])]
+    assert names == [str(runs["top"]), str(runs["free"])]
+    assert len(load([runs["combined"]])) == 2  # alone, its members
