@@ -14,7 +14,8 @@ from omegaconf import OmegaConf
 
 from ..kernels.batch import MIN_BLOCK_RUNS, sample_schedule
 from ..kernels.body import N_FIELDS as N_BODY
-from ..kernels.registry import METHODS
+from ..kernels.body import is_driven
+from ..kernels.registry import DRIVEN_REFUSAL, METHODS, driven_methods, sees_time
 from ..kernels.scenes import SCENES, build_scene
 from ..layout import RAW_PER_SAMPLE, SAMPLE_VARIABLES, chosen_variables, stored_per_sample
 from .config import ConfigError, check_values
@@ -125,6 +126,13 @@ def build_grid(cfg):
             except ValueError as err:
                 raise ConfigError(_prefix_sweep(str(err))) from None
             bodies[j, k], omega0[j, k], q0[j, k] = sc.body, sc.omega0, sc.q0
+    if is_driven(bodies):
+        blind = [m for m in sweep.method if not sees_time(METHODS[m])]
+        if blind:
+            raise ConfigError(
+                f"sweep.method={blind[0]}: {DRIVEN_REFUSAL} (scene {name} drives the body); "
+                f"methods that do: {', '.join(driven_methods())}"
+            )
     return Grid(
         scene=name,
         options=scene_cfg,
