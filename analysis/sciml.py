@@ -176,8 +176,9 @@ def sciml_figure(ds, sel=None, retime=True, peers=PEERS, repeats=5, data=None):
     fig.tight_layout()
     add_note(
         fig,
-        f"times: {timing}; gyrolab integrates (ω, q), scipy ω alone (SciML's three equations); "
-        "a gyrolab method's time includes storing its samples",
+        f"times: {timing}; gyrolab integrates (ω, q) compiled (numba) and stores its samples; scipy "
+        "integrates ω alone (SciML's three equations) and pays Python's cost per RHS evaluation, so "
+        "read absolute times within a family and slopes across",
     )
     handles, labels = ax.get_legend_handles_labels()
     legend_below(fig, handles, labels, ncol=4)
