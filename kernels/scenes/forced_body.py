@@ -16,7 +16,11 @@ Initial state: body rates (``omega1``, ``omega2``, 2πf) rad/s (EULR's
 only turns the output axis: nothing here depends on it).  The torque does
 work and turns L, so nothing is conserved while it acts (CONSERVED is empty);
 only methods that see time integrate the scene (``step_driven``,
-kernels/methods/README.md), the others are refused before any run.
+kernels/methods/README.md), the others are refused before any run.  The
+runner's divergence check still compares |E − E0| with
+``runner.divergence_threshold`` × T0: a drive that pumps in more energy than
+that (the SciML problem takes E from 1.47 J to 6.5 J) is flagged as diverged;
+raise the threshold for such a drive.
 
 I = (0.5, 2, 3) violates the triangle inequality (0.5 + 2 < 3): no rigid body
 has it, and the published problem uses it anyway, so ``allow_unphysical``
