@@ -14,7 +14,9 @@ scene forced_body with ``window: [0, 10]``):
   work_precision.time_method), or the stored wall_time with ``retime=False``;
 - peers: scipy's DOP853, RK45, Radau and LSODA on the same three equations
   (the state is ω alone, as SciML's; a free body's ω does not depend on its
-  orientation) at SciML's tolerance pairs, timed alike (best of ``repeats``);
+  orientation; a body with gravity: the (ω, R) equations of
+  kernels/reference.py) at SciML's tolerance pairs, timed alike (best of
+  ``repeats``);
 - reference: DOP853 on (ω, R) at rtol = atol = 1e-13 (kernels/reference.py;
   tests/test_forced_body.py checks that it agrees with lie_poisson4 and
   split6_exact to 1e-10 at t = 10).
@@ -35,7 +37,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ..layout import GRID_DIMS
-from .figure import add_note, legend_below, suptitle
+from .figure import add_note, legend_below, select_note, suptitle
 from .io import SelectionError, build_run_scene, color, open_results, scene_label, select
 
 METHOD_DIM = GRID_DIMS[0]
@@ -55,13 +57,18 @@ def omega_rhs(t, w, I1, I2, I3, tau1, tau2, tau3, rate, on, off):
     )
 
 
-def _free_body(scene):
-    """The args of ``omega_rhs`` for the scene's body; ValueError if gravity acts (ω would then depend
-    on the orientation, and the three equations would not be the problem)."""
+def _system(scene):
+    """(rhs, y0, args) the peers solve: SciML's three equations in ω for a body without gravity (its ω
+    does not depend on the orientation), else kernels/reference.py's (ω, R) equations; ω is y[:3]."""
     b = scene.body
-    if b.mgl or b.mgc1 or b.mgc2:
-        raise ValueError("the SciML diagram needs a body without gravity (scene forced_body or a free body)")
-    return (b.I1, b.I2, b.I3, b.tau1, b.tau2, b.tau3, b.drive_rate, b.drive_on, b.drive_off)
+    w0 = np.asarray(scene.omega0, dtype=float)
+    if not (b.mgl or b.mgc1 or b.mgc2):
+        return omega_rhs, w0, (b.I1, b.I2, b.I3, b.tau1, b.tau2, b.tau3, b.drive_rate, b.drive_on, b.drive_off)
+    from ..kernels.closed_form import scene_rotation
+    from ..kernels.reference import rhs
+
+    y0 = np.concatenate((w0, scene_rotation(scene).as_matrix().ravel()))
+    return rhs, y0, tuple(float(v) for v in b)
 
 
 def best_time(call, repeats):
@@ -75,21 +82,20 @@ def best_time(call, repeats):
 
 
 def peer_points(scene, t_end, ref, solver, repeats=5, tolerances=TOLERANCES):
-    """[(abstol, reltol, seconds, rhs evaluations, error)] of scipy ``solver`` on the scene's ω equations;
+    """[(abstol, reltol, seconds, rhs evaluations, error)] of scipy ``solver`` on the scene (``_system``);
     a tolerance the solver fails at is left out."""
     from scipy.integrate import solve_ivp
 
-    args = _free_body(scene)
-    w0 = np.asarray(scene.omega0, dtype=float)
+    fun, y0, args = _system(scene)
     out = []
     for atol, rtol in tolerances:
 
         def solve():
-            return solve_ivp(omega_rhs, (0.0, t_end), w0, method=solver, rtol=rtol, atol=atol, args=args)
+            return solve_ivp(fun, (0.0, t_end), y0, method=solver, rtol=rtol, atol=atol, args=args)
 
         seconds, sol = best_time(solve, repeats)
         if sol.success:
-            out.append((atol, rtol, seconds, int(sol.nfev), float(np.linalg.norm(sol.y[:, -1] - ref))))
+            out.append((atol, rtol, seconds, int(sol.nfev), float(np.linalg.norm(sol.y[:3, -1] - ref))))
     return out
 
 
@@ -101,14 +107,17 @@ def reference_omega(scene, t_end):
 
 
 def sciml_data(ds, sel=None, retime=True, peers=PEERS, repeats=5, tolerances=TOLERANCES):
-    """{"t_end", "reference", "methods": {m: [(dt, seconds, steps, error)]}, "peers": {solver: [...]}}
-    for the file's first (f, θ0).  Errors in rad/s; a diverged run has error inf."""
+    """{"t_end", "f", "theta0", "reference", "methods": {m: [(dt, seconds, steps, error)]},
+    "peers": {solver: [...]}, "note"} for one (f, θ0) of the selection (the first; ``note`` says how to
+    draw the others).  Errors in rad/s; a diverged run has error inf."""
     from .work_precision import time_method
 
-    sub = select(ds, sel)
-    f, theta0 = float(sub.f.values[0]), float(sub.theta0.values[0])
+    whole = select(ds, sel)
+    fs, thetas = list(whole.f.values), list(whole.theta0.values)
+    f, theta0 = float(fs[0]), float(thetas[0])
+    note = select_note("sciml", {"f": fs[:1], "theta0": thetas[:1]}, {"f": fs[1:], "theta0": thetas[1:]})
+    sub = whole.sel(f=[f], theta0=[theta0])
     scene = build_run_scene(sub, f, theta0)
-    _free_body(scene)
     t_end, every = float(sub.time[-1]), float(sub.time[1] - sub.time[0])
     ref = reference_omega(scene, t_end)
     methods = {}
@@ -132,6 +141,8 @@ def sciml_data(ds, sel=None, retime=True, peers=PEERS, repeats=5, tolerances=TOL
         "retimed": retime,
         "methods": methods,
         "peers": peer,
+        "note": note,
+        "equations": "ω" if _system(scene)[0] is omega_rhs else "(ω, R)",
     }
 
 
@@ -161,6 +172,7 @@ def sciml_figure(ds, sel=None, retime=True, peers=PEERS, repeats=5, data=None):
     ax.set_yscale("log")
     ax.invert_xaxis()  # more accurate to the right, as one reads a work-precision diagram
     ax.set_xlabel(f"error |ω(t) − ω_ref(t)| at t = {data['t_end']:g} s (rad/s)")
+    ax.set_title(f"f = {data['f']:g} Hz, θ0 = {data['theta0']:g}°", fontsize=9)
     ax.set_ylabel("time (s)")
     ax.grid(alpha=0.3, which="both")
     dts = sorted({p[0] for pts in data["methods"].values() for p in pts})
@@ -168,18 +180,20 @@ def sciml_figure(ds, sel=None, retime=True, peers=PEERS, repeats=5, data=None):
     timing = f"best of {data['repeats']}, {ours}"
     suptitle(
         fig,
-        f"SciMLBenchmarks rigid body (work-precision): {scene_label(ds)}\n"
+        f"Work-precision at t_end, SciMLBenchmarks' rigid-body form: {scene_label(ds)}\n"
         f"gyrolab: one point per dt = {dts[0]:g} … {dts[-1]:g} s; scipy: abstol 1e-6 … 1e-13 with "
         f"reltol 1e-3 … 1e-10; reference DOP853 at {REFERENCE_TOL:g}",
         fontsize=9.5,
     )
     fig.tight_layout()
+    peers = "ω alone (SciML's three equations)" if data["equations"] == "ω" else "(ω, R) (kernels/reference.py)"
     add_note(
         fig,
         f"times: {timing}; gyrolab integrates (ω, q) compiled (numba) and stores its samples; scipy "
-        "integrates ω alone (SciML's three equations) and pays Python's cost per RHS evaluation, so "
-        "read absolute times within a family and slopes across",
+        f"integrates {peers} and pays Python's cost per RHS evaluation, so read absolute times within "
+        "a family and slopes across",
     )
+    add_note(fig, data["note"])
     handles, labels = ax.get_legend_handles_labels()
     legend_below(fig, handles, labels, ncol=4)
     return fig
@@ -212,9 +226,12 @@ def _make_figure():
     return Figure(
         "sciml",
         "SciMLBenchmarks' rigid-body work-precision: error at t_end vs time, scipy solvers as peers",
-        lambda ds, sel=None, no_retime=False, repeats=5: sciml_figure(ds, sel, retime=not no_retime, repeats=repeats),
+        lambda ds, sel=None, no_retime=False, no_peers=False, repeats=5: sciml_figure(
+            ds, sel, retime=not no_retime, peers=() if no_peers else PEERS, repeats=repeats
+        ),
         {
             "--no-retime": {"action": "store_true", "help": "use the stored wall_time (no re-timing)"},
+            "--no-peers": {"action": "store_true", "help": "do not run the scipy peers"},
             "--repeats": {"type": int, "default": 5, "help": "timing repeats per point (best is kept)"},
         },
         file_name="sciml_work_precision.png",

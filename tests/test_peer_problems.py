@@ -102,7 +102,8 @@ def test_sciml_rigid_body_is_their_problem():
 def test_sciml_diagram_from_a_small_run(tmp_path):
     """A reduced run of the pinned experiment (rk4 and lie_poisson4 at three dt): the diagram's data has
     each method's error falling ~16x per halving, the peers' errors falling with their tolerance, the
-    figure draws, and the table command writes every point and refuses a file it cannot use in one line."""
+    figure draws, and the table command writes every point and refuses a missing file in one line; on a
+    body with gravity the peers solve (ω, R) and the figure says which (f, θ0) it drew."""
     from gyrolab.analysis import sciml
     from gyrolab.analysis.io import open_results
 
@@ -132,23 +133,28 @@ def test_sciml_diagram_from_a_small_run(tmp_path):
     assert sciml.main([str(out), "-o", str(table), "--repeats", "1"]) == 0
     text = table.read_text()
     assert text.count("| `rk4` |") == 3 and "scipy Radau" in text and "abstol 1e-13" in text
-    other = tmp_path / "other.h5"
+    heavy = tmp_path / "heavy.h5"  # a body with gravity: the peers solve (ω, R)
     done = gyrolab(
         "sweep.method=[rk4]",
-        "sweep.t_end=0.01",
+        "sweep.t_end=0.1",
         "output.every=0.01",
         "output.figures=false",
-        f"output.path={other}",
+        f"output.path={heavy}",
         cwd=tmp_path,
     )
     assert done.returncode == 0, done.stderr
+    data = sciml.sciml_data(
+        open_results(heavy), retime=False, repeats=1, peers=("DOP853",), tolerances=sciml.TOLERANCES[:1]
+    )
+    assert data["equations"] == "(ω, R)" and data["peers"]["DOP853"][0][4] < 1e-3
+    assert data["note"].endswith("gyrolab-plot sciml FILE f=10,50"), data["note"]  # the default study: f = 1, 10, 50
     import subprocess
     import sys
 
     refused = subprocess.run(
-        [sys.executable, "-m", "gyrolab.analysis.sciml", str(other), "-o", str(tmp_path / "x.md")],
+        [sys.executable, "-m", "gyrolab.analysis.sciml", str(tmp_path / "none.h5"), "-o", str(tmp_path / "x.md")],
         capture_output=True,
         text=True,
     )
     assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1, refused.stderr
-    assert "needs a body without gravity" in refused.stderr and not (tmp_path / "x.md").exists()
+    assert "none.h5" in refused.stderr and not (tmp_path / "x.md").exists()
