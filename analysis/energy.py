@@ -56,6 +56,8 @@ def _check_quantity(ds, quantity):
     if quantity not in have and quantity in conserved(ds):  # conserved, but the file does not hold it
         lacking = [v for v in DERIVED_INVARIANTS.get(quantity, (quantity,)) if v not in ds.data_vars]
         raise missing_variable_error(ds, " and ".join(lacking), "energy")
+    if not have:
+        raise ValueError(f"the scene {scene_name(ds)} declares no conserved quantity: no drift to draw")
     if quantity not in have:
         raise ValueError(
             f"quantity={quantity}: the scene {scene_name(ds)} does not conserve it; choose from {', '.join(have)}"
@@ -181,6 +183,8 @@ def invariants_figure(ds, sel=None, envelope=True):
     if not quantities and conserved(ds):
         needed = sorted({v for q in conserved(ds) for v in DERIVED_INVARIANTS.get(q, (q,)) if v not in ds.data_vars})
         raise missing_variable_error(ds, " or ".join(needed), "invariants")
+    if not quantities and not conserved(ds):
+        raise ValueError(f"the scene {scene_name(ds)} declares no conserved quantity: no invariant to draw")
     if not quantities:
         raise ValueError("the file's scene declares no invariant that its variables hold")
     sub, note = choose(select(ds, sel), "invariants", max_panels=4)

@@ -29,6 +29,7 @@ ENTRIES = (
     "energy.DRIFT",
     "energy.INVARIANTS",
     "work_precision.FIGURE",
+    "sciml.FIGURE",
     "stability.FIGURE",
     "animation.FIGURE",
 )

@@ -31,6 +31,8 @@ METHOD_COLORS = {
     "lie_poisson4": "#ff7f0e",
     "DOP853": "#000000",
     "RK45": "#7f7f7f",
+    "Radau": "#e7ba52",
+    "LSODA": "#6baed6",
 }
 DT_STYLES = ("-", "--", ":", "-.")
 QUANTITY_LABELS = {"energy": "E", "Lz": "L_z", "L3": "L_3", "L": "L", "L_norm": "|L|", "kovalevskaya": "K"}

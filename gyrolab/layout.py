@@ -219,7 +219,8 @@ def drop_neutral_defaults(data):
 # Files of older layouts hold the same grid and variables less these; every reader opens them.
 # Layout 0: files written before layout_version existed (gyrolab at c0ed527 and earlier), without
 # stored run inputs.  Layout 1: no gamma, and a body of four fields (I1, I2, I3, mgl: the centre of
-# mass on e3), read as today's Body with mgc1 = mgc2 = 0.
+# mass on e3), read as today's Body with mgc1 = mgc2 = 0.  Layout 2: a body of six fields (no
+# driving torque), read as today's Body with the drive zero.
 ABSENT_BEFORE = {0: ("L", "gamma"), 1: ("gamma",)}
 # Dims renamed at a layout: {layout: {old name: new name}}, applied to files of every earlier layout.
 # Layout 3: ``method`` -> ``integrator`` (``method`` is a keyword of xarray's .sel).
@@ -239,8 +240,8 @@ def file_layout_version(ds):
 
 def with_current_body(ds):
     """``ds`` with its stored ``body`` on today's ``body_param`` fields: a layout-1 body (I1, I2, I3,
-    mgl: the centre of mass on e3) gains mgc1 = mgc2 = 0, which is what it meant.  Files without
-    stored bodies, or with today's, come back unchanged."""
+    mgl: the centre of mass on e3) gains mgc1 = mgc2 = 0 and a layout-2 body a zero drive, which is
+    what they meant.  Files without stored bodies, or with today's, come back unchanged."""
     if "body" not in ds.data_vars or list(ds["body_param"].values) == list(BODY_FIELDS):
         return ds
     known = [str(v) for v in ds["body_param"].values]

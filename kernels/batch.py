@@ -16,8 +16,9 @@ import numpy as np
 
 from .block import plan_blocks
 from .body import N_FIELDS as N_BODY
+from .body import is_driven
 from .driver import N_FIELDS
-from .registry import get_method, uses_blocks
+from .registry import DRIVEN_REFUSAL, driven_methods, get_method, sees_time, uses_blocks
 
 DEFAULT_DIVERGENCE_THRESHOLD = 10.0
 # Most runs per block: state, body and scratch of 64 lanes take ~8 kB of L1;
@@ -75,7 +76,12 @@ def integrate(
     out = np.empty((n, int(n_samples), N_FIELDS))
     status = np.zeros(n, dtype=np.int8)
     n_steps = np.zeros(n, dtype=np.int64)
-    if path == "runs" or not uses_blocks(module) or (path == "auto" and n < MIN_BLOCK_RUNS):
+    if is_driven(bodies):
+        # A torque that depends on time: only a step that sees time integrates it (never the blocks).
+        if not sees_time(module):
+            raise ValueError(f"method {method!r} {DRIVEN_REFUSAL}; methods that do: {', '.join(driven_methods())}")
+        module.run_batch_driven(omega0, q0, bodies, dt, stride, float(threshold), out, status, n_steps)
+    elif path == "runs" or not uses_blocks(module) or (path == "auto" and n < MIN_BLOCK_RUNS):
         module.run_batch(omega0, q0, bodies, dt, stride, float(threshold), out, status, n_steps)
     else:
         plan = plan_blocks(stride, numba.get_num_threads(), BLOCK_LANES)

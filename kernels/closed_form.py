@@ -38,9 +38,13 @@ def scene_rotation(scene):
 
 
 def _axial(scene):
-    """ValueError unless the centre of mass lies on e3 (mgc1 = mgc2 = 0): these closed forms are the top's."""
+    """ValueError unless the centre of mass lies on e3 (mgc1 = mgc2 = 0) and nothing drives the body:
+    these closed forms are the top's."""
     if any(float(v) != 0.0 for v in tuple(scene.body)[4:]):
-        raise ValueError(f"body={tuple(scene.body)}: the closed form needs the centre of mass on e3 (mgc1 = mgc2 = 0)")
+        raise ValueError(
+            f"body={tuple(scene.body)}: the closed form needs the centre of mass on e3 (mgc1 = mgc2 = 0) "
+            "and no driving torque"
+        )
 
 
 def top_invariants(scene):

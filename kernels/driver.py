@@ -114,10 +114,45 @@ def make_advance(step):
         # the general branch of gravity_torque is folded away (a loop-invariant branch costs rk4's
         # four torque evaluations a step about 10 ns otherwise).  Same bits either way.
         if body[4] == 0.0 and body[5] == 0.0:
-            axial = Body(body[0], body[1], body[2], body[3], 0.0, 0.0)
+            axial = Body(body[0], body[1], body[2], body[3], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
             done = steps_and_samples(i, w, q, dts[i], strides[i], axial, tolerance, out, status)
         else:
             done = steps_and_samples(i, w, q, dts[i], strides[i], body, tolerance, out, status)
+        n_steps[i] = done
+
+    return advance_run
+
+
+def make_advance_driven(step_driven):
+    """``advance_run`` of ``make_advance`` for driven bodies (a torque that depends on time,
+    body.py): each step is ``step_driven(w, q, t, dt, body)`` from t = n dt, n the steps taken, so
+    that t carries no rounding accumulated over the run.  The drive's window acts per step: a step
+    whose midpoint t + dt/2 lies in [drive_on, drive_off] gets the body with its drive, any other
+    the body with the drive's amplitude zeroed.  A window whose ends are multiples of dt is then
+    exact; elsewhere the switch lands on the nearest step boundary."""
+
+    @njit(error_model="numpy")
+    def advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
+        body = body_row(bodies, i)
+        w = (w0[i, 0], w0[i, 1], w0[i, 2])
+        q = (q0[i, 0], q0[i, 1], q0[i, 2], q0[i, 3])
+        _record(out, i, 0, w, q, body)
+        tolerance = threshold * (kinetic_energy(w, body) + potential_scale(body))
+        status[i] = STATUS_OK
+        dt, stride = dts[i], strides[i]
+        idle = Body(body[0], body[1], body[2], body[3], body[4], body[5], 0.0, 0.0, 0.0, body[9], body[10], body[11])
+        done = 0
+        for k in range(1, out.shape[1]):
+            for _ in range(stride):
+                t = done * dt
+                if body[10] <= t + 0.5 * dt <= body[11]:
+                    w, q = step_driven(w, q, t, dt, body)
+                else:
+                    w, q = step_driven(w, q, t, dt, idle)
+                done += 1
+            _record(out, i, k, w, q, body)
+            if _diverged(out, i, k, tolerance, status):
+                break
         n_steps[i] = done
 
     return advance_run

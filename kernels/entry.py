@@ -6,7 +6,10 @@ methods/README.md); ``add_entry_points(module)`` gives it
 - ``run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps)``:
   one ``prange`` over runs, each run by driver.make_advance's ``advance_run``;
 - ``run_blocks(..., runs, starts, queues)``: one ``prange`` over threads, each
-  running its queue of vectorised blocks (block.py).
+  running its queue of vectorised blocks (block.py);
+- for a method that sees time (``step_driven``), ``run_batch_driven`` with
+  ``run_batch``'s arguments: driven bodies, one run after another
+  (driver.make_advance_driven).  Compiled only when a driven scene runs.
 
 Both must be cached (the block kernel takes seconds to compile), and numba
 caches a function by its source file and qualified name, keyed by its
@@ -22,7 +25,7 @@ which is keyed by the hash of every kernel source file (kernels/__init__.py).
 """
 
 from .block import make_advance_queue
-from .driver import make_advance
+from .driver import make_advance, make_advance_driven
 
 # The line numbers of these defs become part of the cache file names: keep them fixed.
 _TEMPLATE = """
@@ -37,6 +40,12 @@ def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, ru
     for t in _prange(queues.size - 1):
         _advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
 """
+_DRIVEN_TEMPLATE = """
+@_njit(cache=True, parallel=True, error_model="numpy")
+def run_batch_driven(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
+    for i in _prange(w0.shape[0]):
+        _advance_driven(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
+"""
 
 
 def add_entry_points(module):
@@ -48,4 +57,7 @@ def add_entry_points(module):
     namespace["_advance_run"] = make_advance(module.step)
     namespace["_advance_queue"] = make_advance_queue(module.step)
     exec(compile(_TEMPLATE, module.__file__, "exec"), namespace)
+    if hasattr(module, "step_driven"):
+        namespace["_advance_driven"] = make_advance_driven(module.step_driven)
+        exec(compile(_DRIVEN_TEMPLATE, module.__file__, "exec"), namespace)
     return module

@@ -13,7 +13,7 @@ each exact, second order and Poisson, conserving |L| exactly.
 
 from numba import njit
 
-from .rigid_body import gravity_torque
+from .rigid_body import gravity_torque, torque_at
 from .rotation import half_angle, quat_mul, quat_normalize, rotate_body_step
 
 
@@ -21,6 +21,15 @@ from .rotation import half_angle, quat_mul, quat_normalize, rotate_body_step
 def kick(w, q, h, body):
     """ω after the potential's flow for h seconds (q unchanged)."""
     t1, t2, t3 = gravity_torque(q, body)
+    return w[0] + h * t1 / body[0], w[1] + h * t2 / body[1], w[2] + h * t3 / body[2]
+
+
+@njit(cache=True, error_model="numpy")
+def kick_at(w, q, h, t, body):
+    """ω after the flow of the torque at time t frozen (q, t unchanged) for h seconds: ``kick`` plus
+    the driving torque (rigid_body.drive_torque).  In a splitting of the driven body, made
+    autonomous with t as a coordinate, the free flow advances t and the kicks hold it."""
+    t1, t2, t3 = torque_at(q, t, body)
     return w[0] + h * t1 / body[0], w[1] + h * t2 / body[1], w[2] + h * t3 / body[2]
 
 

@@ -38,6 +38,8 @@ def register(name, module):
         problems.append("FREE_EXACT, when given, must be a bool")
     if not isinstance(getattr(module, "REPRODUCES", ""), str):
         problems.append("REPRODUCES, when given, must name the engine scheme reproduced (a str)")
+    if hasattr(module, "step_driven") and not isinstance(module.step_driven, Dispatcher):
+        problems.append("step_driven(w, q, t, dt, body) -> (w, q), when given, must be a numba @njit function")
     if not isinstance(getattr(module, "BLOCKS", True), bool):
         problems.append("BLOCKS, when given, must be a bool")
     if problems:
@@ -86,13 +88,35 @@ def uses_blocks(module):
     return getattr(module, "BLOCKS", True)
 
 
+# How batch.integrate and the grid check name a method that cannot integrate a driven body.
+DRIVEN_REFUSAL = "does not see time (no step_driven), so it cannot integrate a torque that depends on time"
+
+
+def sees_time(module):
+    """Whether the method integrates driven bodies (a torque that depends on time): it defines
+    ``step_driven``.  Every method integrates the free body and gravity with the centre of mass on
+    e3 or anywhere (``gravity_torque``); only these also the drive."""
+    return hasattr(module, "step_driven")
+
+
+def force_models(module):
+    """The force models (kernels/scenes: ``FORCE_MODELS``) the method integrates."""
+    return ("free", "axial", "general") + (("driven",) if sees_time(module) else ())
+
+
+def driven_methods():
+    """Names of the registered methods that see time."""
+    return [name for name, mod in METHODS.items() if sees_time(mod)]
+
+
 def methods():
-    """{name: {"order", "symplectic", "preserves", "doc"}} for every registered method."""
+    """{name: {"order", "symplectic", "preserves", "force_models", "doc"}} for every registered method."""
     return {
         name: {
             "order": mod.ORDER,
             "symplectic": mod.SYMPLECTIC,
             "preserves": mod.PRESERVES,
+            "force_models": force_models(mod),
             "doc": (mod.__doc__ or "").strip().splitlines()[0],
         }
         for name, mod in METHODS.items()

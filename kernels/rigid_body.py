@@ -1,8 +1,9 @@
 """Euler's equations, the gravity torque and the invariants, in the body frame.
 
-A body is kernels/body.py's Body (I1, I2, I3, mgl, mgc1, mgc2): principal
-moments about the pivot (kg m²) and the weight times the centre of mass's
-body coordinates (M g c3, M g c1, M g c2; N m), all zero for a free body.  ω is the body angular
+A body is kernels/body.py's Body (I1, I2, I3, mgl, mgc1, mgc2, then the
+driving torque's fields): principal moments about the pivot (kg m²), the
+weight times the centre of mass's body coordinates (M g c3, M g c1, M g c2;
+N m), all zero for a free body, and a body-fixed torque that depends on time.  ω is the body angular
 velocity (rad/s, components on the current body axes), q the orientation
 quaternion (see rotation.py).
 """
@@ -34,6 +35,27 @@ def gravity_torque(q, body):
         return m3 * g2, -m3 * g1, 0.0
     g1, g2, g3 = lab_up_in_body(q)
     return g2 * m3 - g3 * m2, g3 * m1 - g1 * m3, g1 * m2 - g2 * m1
+
+
+@njit(cache=True, error_model="numpy")
+def drive_torque(t, body):
+    """The driving torque's smooth part at time t (s), body frame (N m): (tau1, tau2, tau3)
+    sin²(drive_rate t).  Whether it acts is decided per step, not here: the driver hands a step
+    the body with the drive zeroed when the step's midpoint lies outside [drive_on, drive_off]
+    (driver.make_advance_driven).  A composition's substeps reach times outside [t, t + dt]
+    (lie_poisson4's middle substep runs backwards), and a window tested at those times would
+    switch the torque off inside a step: at t = 0 that cost the fourth-order methods an order."""
+    s = math.sin(body[9] * t)
+    s2 = s * s
+    return body[6] * s2, body[7] * s2, body[8] * s2
+
+
+@njit(cache=True, error_model="numpy")
+def torque_at(q, t, body):
+    """Total body-frame torque (N m) at orientation q and time t (s): gravity plus the drive."""
+    g1, g2, g3 = gravity_torque(q, body)
+    d1, d2, d3 = drive_torque(t, body)
+    return g1 + d1, g2 + d2, g3 + d3
 
 
 @njit(cache=True, error_model="numpy")

@@ -94,7 +94,7 @@ def rate_key(grid, runs):
     """(method, block path?) of the chunk ``runs``: measured speeds are kept per path, since the block
     path runs several times faster per step than one by one (grid.BLOCK_SPEEDUP)."""
     method = grid.methods[int(grid.index(runs[:1])[0][0])]
-    return method, runs_in_blocks(method, len(runs))
+    return method, runs_in_blocks(method, len(runs), grid.driven)
 
 
 def chunk_estimate(grid, runs, threads, rates):
@@ -103,7 +103,7 @@ def chunk_estimate(grid, runs, threads, rates):
     speed measured for its method on its path (``rates``: {rate_key: steps/s per thread}), else at
     grid.step_rate (the block path's speed-up included)."""
     method, blocks = rate_key(grid, runs)
-    rate = rates.get((method, blocks)) or step_rate(method, len(runs))
+    rate = rates.get((method, blocks)) or step_rate(method, len(runs), grid.driven)
     steps = grid.steps(runs)
     return max(float(steps.sum()) / min(max(threads, 1), len(runs)), float(steps.max())) / rate
 

@@ -15,7 +15,8 @@ from omegaconf import OmegaConf
 
 from ..kernels.batch import MIN_BLOCK_RUNS, sample_schedule
 from ..kernels.body import N_FIELDS as N_BODY
-from ..kernels.registry import METHODS
+from ..kernels.body import is_driven
+from ..kernels.registry import DRIVEN_REFUSAL, METHODS, driven_methods, sees_time
 from ..kernels.scenes import SCENES, build_scene
 from ..layout import RAW_PER_SAMPLE, SAMPLE_VARIABLES, chosen_variables, stored_per_sample
 from .config import ConfigError, check_values
@@ -110,6 +111,11 @@ class Grid:
         """Size of the per-sample data in the results file (bytes)."""
         return self.n_runs * self.n_samples * stored_per_sample(self.variables) * 8
 
+    @property
+    def driven(self):
+        """Whether the scene drives its bodies (a torque that depends on time: no block path)."""
+        return is_driven(self.bodies)
+
     def bytes_per_run(self):
         """Memory of one run's samples while a chunk is integrated and stored (bytes)."""
         return self.n_samples * (RAW_PER_SAMPLE + stored_per_sample(self.variables)) * 8
@@ -142,6 +148,13 @@ def build_grid(cfg):
             except ValueError as err:
                 raise ConfigError(_prefix_sweep(str(err))) from None
             bodies[j, k], omega0[j, k], q0[j, k] = sc.body, sc.omega0, sc.q0
+    if is_driven(bodies):
+        blind = [m for m in sweep.method if not sees_time(METHODS[m])]
+        if blind:
+            raise ConfigError(
+                f"sweep.method={blind[0]}: {DRIVEN_REFUSAL} (scene {name} drives the body); "
+                f"methods that do: {', '.join(driven_methods())}"
+            )
     return Grid(
         scene=name,
         options=scene_cfg,
@@ -205,7 +218,9 @@ def plan_chunks(grid, runs, threads, chunk_seconds, rates=None, max_bytes=MAX_CH
     chunks = []
     for m in range(len(grid.methods)):
         rate = rates.get(grid.methods[m], STEP_RATE.get(grid.methods[m], DEFAULT_STEP_RATE))
-        speedup = step_rate(grid.methods[m], MIN_BLOCK_RUNS) / STEP_RATE.get(grid.methods[m], DEFAULT_STEP_RATE)
+        speedup = step_rate(grid.methods[m], MIN_BLOCK_RUNS, grid.driven) / STEP_RATE.get(
+            grid.methods[m], DEFAULT_STEP_RATE
+        )
         leftovers = []
         for l in range(len(grid.dt)):
             group = runs[(im == m) & (ld == l)]
@@ -238,21 +253,22 @@ def _pool(grid, runs, rate, threads, chunk_seconds, max_bytes):
     return chunks
 
 
-def step_rate(method, n_runs):
+def step_rate(method, n_runs, driven=False):
     """Estimated steps per second per thread of ``method`` in a chunk of ``n_runs`` runs: STEP_RATE,
     times its BLOCK_SPEEDUP when the batch kernels run the chunk in vectorised blocks."""
     rate = STEP_RATE.get(method, DEFAULT_STEP_RATE)
-    if runs_in_blocks(method, n_runs):
+    if runs_in_blocks(method, n_runs, driven):
         rate *= BLOCK_SPEEDUP.get(method, DEFAULT_BLOCK_SPEEDUP)
     return rate
 
 
-def runs_in_blocks(method, n_runs):
+def runs_in_blocks(method, n_runs, driven=False):
     """Whether kernels/batch.py's ``integrate`` runs a chunk of ``n_runs`` runs of ``method`` on the
-    block path (its "auto" rule: the method allows it and there are MIN_BLOCK_RUNS runs or more)."""
+    block path (its "auto" rule: the method allows it and there are MIN_BLOCK_RUNS runs or more; a
+    driven body, ``driven``, never: it runs one by one through step_driven)."""
     from ..kernels.registry import get_method, uses_blocks
 
-    return n_runs >= MIN_BLOCK_RUNS and uses_blocks(get_method(method))
+    return not driven and n_runs >= MIN_BLOCK_RUNS and uses_blocks(get_method(method))
 
 
 def estimate_seconds(grid, chunks, threads):
@@ -263,7 +279,7 @@ def estimate_seconds(grid, chunks, threads):
     for chunk in chunks:
         method = grid.methods[int(grid.index(chunk[:1])[0][0])]
         steps = grid.steps(chunk)
-        rate = step_rate(method, len(chunk))
+        rate = step_rate(method, len(chunk), grid.driven)
         total += max(float(steps.sum()) / min(threads, len(chunk)), float(steps.max())) / rate
     return total
 

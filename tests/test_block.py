@@ -13,6 +13,7 @@ import pytest
 
 from gyrolab.kernels.batch import MIN_BLOCK_RUNS, integrate, sample_schedule
 from gyrolab.kernels.block import VECTOR, WIDE_INTERVALS, make_block_steps, plan_blocks
+from gyrolab.kernels.body import is_driven
 from gyrolab.kernels.driver import N_FIELDS, STATUS_ENERGY, STATUS_NONFINITE, STATUS_OK
 from gyrolab.kernels.lanes import _half_angle_or_nan, _quat_from_rotvec_or_nan, ieee_step, lane_step
 from gyrolab.kernels.registry import METHODS
@@ -20,6 +21,8 @@ from gyrolab.kernels.rotation import SMALL_ANGLE, half_angle, quat_from_rotvec
 from gyrolab.kernels.scenes import SCENES, build_scene
 
 EVERY, T_END = 1e-2, 0.2
+# Scenes the block path runs: a driven body (a torque that depends on time) always goes one by one.
+BLOCK_SCENES = [name for name in SCENES if not is_driven([build_scene(name, 1.0, 0.0).body])]
 
 
 def mixed_batch(scene, fs=(2.0, 50.0, 400.0), thetas=(5.0, 60.0, 120.0), dts=(1e-4, 5e-4, 2e-3, 1e-2)):
@@ -62,7 +65,20 @@ def run_blocks(method, inputs, n_samples, runs, starts, threshold=10.0):
     return out, status, n_steps
 
 
-@pytest.mark.parametrize("scene", SCENES)
+def test_driven_bodies_go_one_by_one_whatever_the_path():
+    """forced_body on 64 runs with path="blocks" is the driven one-by-one kernel's result (the block
+    kernels do not see time), for every scene but it the block path is tested below."""
+    assert "forced_body" not in BLOCK_SCENES and "heavy_body" in BLOCK_SCENES
+    inputs, n_samples = mixed_batch("forced_body")
+    runs = integrate("rk4", *inputs, n_samples, path="runs")
+    assert_same(integrate("rk4", *inputs, n_samples, path="blocks"), runs)
+    bodies, omega0, q0, dt, stride = inputs
+    out, status, n_steps = np.empty_like(runs[0]), np.zeros(len(dt), np.int8), np.zeros(len(dt), np.int64)
+    METHODS["rk4"].run_batch_driven(omega0, q0, bodies, dt, stride, 10.0, out, status, n_steps)
+    assert_same((out, status, n_steps), runs)
+
+
+@pytest.mark.parametrize("scene", BLOCK_SCENES)
 @pytest.mark.parametrize("method", METHODS)
 def test_blocks_equal_runs_bit_for_bit(method, scene):
     """36 runs (not a whole number of 8-lane vectors): 2, 50, 400 Hz x θ0 5°, 60°, 120° x dt 1e-4 .. 1e-2

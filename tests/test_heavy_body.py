@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from gyrolab.kernels.body import Body
 from gyrolab.kernels.driver import FIELDS
 from gyrolab.kernels.reference import dop853
 from gyrolab.kernels.registry import METHODS
@@ -91,7 +92,7 @@ def test_unphysical_moments_are_refused_unless_allowed():
     with pytest.raises(ValueError, match="no rigid body has"):
         build_scene("kovalevskaya", 5.0, 30.0, I3=1.0, c=1.0, M=1.0)
     sc = build_scene("kovalevskaya", 5.0, 30.0, I3=1.0, c=1.0, M=1.0, g=1.0, allow_unphysical=True)
-    assert tuple(sc.body) == (2.0, 2.0, 1.0, 0.0, 1.0, 0.0)
+    assert sc.body == Body(2.0, 2.0, 1.0, 0.0, 1.0, 0.0)
     with pytest.raises(ValueError, match=r"scene.com=.*three"):
         build_scene("heavy_body", 5.0, 30.0, com=[0.1, 0.2])
 

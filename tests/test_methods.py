@@ -57,10 +57,16 @@ def test_registry_contract(name):
         assert isinstance(kernel, Dispatcher), entry
         assert kernel.targetoptions["error_model"] == "numpy" and kernel.targetoptions["parallel"], entry
         assert kernel._cache.__class__.__name__ == "FunctionCache", f"{entry} is not cached"
+    if hasattr(module, "step_driven"):  # sees time: a cached driven entry point from the same template
+        assert module.step_driven.targetoptions["error_model"] == "numpy"
+        assert module.run_batch_driven._cache.__class__.__name__ == "FunctionCache"
+    else:
+        assert not hasattr(module, "run_batch_driven")
     assert listed[name] == {
         "order": module.ORDER,
         "symplectic": module.SYMPLECTIC,
         "preserves": module.PRESERVES,
+        "force_models": ("free", "axial", "general") + (("driven",) if hasattr(module, "step_driven") else ()),
         "doc": module.__doc__.strip().splitlines()[0],
     }
     sc = build_scene("heavy_top", 10.0, 45.0)

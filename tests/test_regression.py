@@ -110,13 +110,13 @@ def fresh_all(tmp_path_factory):
 
     def get(name):
         if name not in done:
-            done[name] = regen.run_config(name, list(METHODS), work / f"{name}.h5", work)
+            done[name] = regen.run_config(name, list(regen.dataset_methods(name)), work / f"{name}.h5", work)
         return done[name]
 
     return get
 
 
-PAIRS = [(name, method) for name in regen.DATASETS for method in METHODS]
+PAIRS = [(name, method) for name in regen.DATASETS for method in regen.dataset_methods(name)]
 
 
 @pytest.mark.slow
@@ -166,31 +166,31 @@ def test_every_regression_config_and_method_has_a_stored_dataset():
     assert {regen.pinned_scene(n) for n in regen.PINNED} | {
         d[len("scene_") :] for d in regen.DATASETS if d.startswith("scene_")
     } == set(SCENES)
-    missing = [f"{n}/{m}" for n in regen.DATASETS for m in METHODS if not regen.stored_path(n, m).exists()]
+    missing = [f"{n}/{m}" for n, m in PAIRS if not regen.stored_path(n, m).exists()]
     assert not missing, f"no stored regression data for {', '.join(missing)}; add it with: {regen.ADD_COMMAND}"
-    expected = {regen.stored_path(n, m) for n in regen.DATASETS for m in METHODS}
+    expected = {regen.stored_path(n, m) for n, m in PAIRS}
     stray = sorted(str(p.relative_to(regen.DATA_DIR)) for p in regen.DATA_DIR.rglob("*.h5") if p not in expected)
     assert not stray, f"stored files of no registered (config, method): {', '.join(stray)}"
 
 
 def test_stored_datasets_open_are_small_and_cover_every_scene_and_method():
     total, scenes, inits = 0, set(), set()
-    for name in regen.DATASETS:
-        for method in METHODS:
-            path = regen.stored_path(name, method)
-            total += path.stat().st_size
-            with xr.open_dataset(path, engine="h5netcdf") as ds:
-                config = yaml.safe_load(ds.attrs["config"])
-                assert ds.attrs["scene"] == config["scene"]["name"]
-                assert ds["method"].values.tolist() == [method], path  # stored before layout 3 named the dim method
-                assert current(ds)["integrator"].values.tolist() == [method], path
-                if not (getattr(METHODS[method], "REPRODUCES", "") or method in CONTROL_FAILURES):
-                    assert (ds["status"].values == 0).all(), f"{path}: a run diverged"
-                assert ds.attrs["gyrolab_version"] and ds.attrs["numba_version"] and ds.attrs["git_commit"]
-                assert ds.attrs["layout_version"] >= 1 and ds.attrs["kernel_source_hash"]
-                scenes.add(ds.attrs["scene"])
-                if ds.attrs["scene"] == "heavy_top":
-                    inits.add(ds.attrs["scene_init"])
+    for name, method in PAIRS:
+        path = regen.stored_path(name, method)
+        total += path.stat().st_size
+        with xr.open_dataset(path, engine="h5netcdf") as ds:
+            config = yaml.safe_load(ds.attrs["config"])
+            assert ds.attrs["scene"] == config["scene"]["name"]
+            stored_dim = "integrator" if ds.attrs["layout_version"] >= 3 else "method"  # renamed at layout 3
+            assert ds[stored_dim].values.tolist() == [method], path
+            assert current(ds)["integrator"].values.tolist() == [method], path
+            if not (getattr(METHODS[method], "REPRODUCES", "") or method in CONTROL_FAILURES):
+                assert (ds["status"].values == 0).all(), f"{path}: a run diverged"
+            assert ds.attrs["gyrolab_version"] and ds.attrs["numba_version"] and ds.attrs["git_commit"]
+            assert ds.attrs["layout_version"] >= 1 and ds.attrs["kernel_source_hash"]
+            scenes.add(ds.attrs["scene"])
+            if ds.attrs["scene"] == "heavy_top":
+                inits.add(ds.attrs["scene_init"])
     assert total < MAX_TOTAL_BYTES, f"stored datasets take {total / 2**20:.2f} MB"
     assert scenes == set(SCENES)
     assert {"release", "steady_slow"} <= inits

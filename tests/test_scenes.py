@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from gyrolab.kernels.body import Body
 from gyrolab.kernels.rotation import ck_matrix
 from gyrolab.kernels.scenes import SCENES, build_scene
 from gyrolab.kernels.scenes.heavy_top import steady_precession_rates
@@ -13,10 +14,10 @@ from gyrolab.kernels.scenes.heavy_top import steady_precession_rates
 def test_heavy_top_seed_body():
     """M = 1 kg, r = 0.05 m, l = 0.1 m, g = 10: I1 = I2 = M(r²/4 + l²), I3 = M r²/2, M g l = 1."""
     sc = build_scene("heavy_top", 10.0, 45.0)
-    np.testing.assert_allclose(sc.body, (0.010625, 0.010625, 0.00125, 1.0, 0.0, 0.0), rtol=1e-15)
+    np.testing.assert_allclose(sc.body, Body(0.010625, 0.010625, 0.00125, 1.0), rtol=1e-15)
     sc = build_scene("heavy_top", 10.0, 45.0, M=2.0, r=0.1, l=0.3, g=9.81)
     np.testing.assert_allclose(
-        sc.body, (2 * (0.01 / 4 + 0.09), 2 * (0.01 / 4 + 0.09), 2 * 0.01 / 2, 2 * 9.81 * 0.3, 0.0, 0.0), rtol=1e-15
+        sc.body, Body(2 * (0.01 / 4 + 0.09), 2 * (0.01 / 4 + 0.09), 2 * 0.01 / 2, 2 * 9.81 * 0.3), rtol=1e-15
     )
 
 
@@ -89,7 +90,7 @@ def test_sleeping_top_is_upright_and_spinning():
 def test_free_symmetric_body_and_rates():
     """Disc about its centre: I1 = I2 = M r²/4, I3 = M r²/2, no gravity; ω = (0, wobble ω3, ω3)."""
     sc = build_scene("free_symmetric", 10.0, 30.0, M=2.0, r=0.1, wobble=0.25)
-    np.testing.assert_allclose(sc.body, (0.005, 0.005, 0.01, 0.0, 0.0, 0.0), rtol=1e-15)
+    np.testing.assert_allclose(sc.body, Body(0.005, 0.005, 0.01, 0.0), rtol=1e-15)
     w3 = 2 * math.pi * 10.0
     np.testing.assert_allclose(sc.omega0, (0.0, 0.25 * w3, w3), rtol=1e-15)
 

@@ -12,7 +12,7 @@ Wanner, *Geometric Numerical Integration* (2006), §I.1.
 
 from numba import njit
 
-from ..rigid_body import euler_rhs, gravity_torque
+from ..rigid_body import euler_rhs, gravity_torque, torque_at
 from ..rotation import quat_mul, quat_normalize
 
 ORDER = 1
@@ -23,10 +23,22 @@ PRESERVES = ("L3",)
 
 
 @njit(cache=True, error_model="numpy")
-def step(w, q, dt, body):
-    wd = euler_rhs(w, gravity_torque(q, body), body)
+def _update(w, q, tau, dt, body):
+    """One explicit Euler step of (ω, q) under the body-frame torque tau."""
+    wd = euler_rhs(w, tau, body)
     qd = quat_mul(q, (0.0, w[0], w[1], w[2]))
     h = 0.5 * dt
     q_next = (q[0] + h * qd[0], q[1] + h * qd[1], q[2] + h * qd[2], q[3] + h * qd[3])
     w_next = (w[0] + dt * wd[0], w[1] + dt * wd[1], w[2] + dt * wd[2])
     return w_next, quat_normalize(q_next)
+
+
+@njit(cache=True, error_model="numpy")
+def step(w, q, dt, body):
+    return _update(w, q, gravity_torque(q, body), dt, body)
+
+
+@njit(cache=True, error_model="numpy")
+def step_driven(w, q, t, dt, body):
+    """``step`` of a driven body from time t (s): the torque at (q, t)."""
+    return _update(w, q, torque_at(q, t, body), dt, body)

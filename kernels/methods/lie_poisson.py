@@ -8,7 +8,7 @@ Source: McLachlan (1993), Dullweber, Leimkuhler & McLachlan (1997).
 
 from numba import njit
 
-from ..free_flow import free_flow, kick
+from ..free_flow import free_flow, kick, kick_at
 
 ORDER = 2
 SYMPLECTIC = True
@@ -20,3 +20,13 @@ def step(w, q, dt, body):
     w = kick(w, q, 0.5 * dt, body)
     w, q = free_flow(w, q, dt, body)
     return kick(w, q, 0.5 * dt, body), q
+
+
+@njit(cache=True, error_model="numpy")
+def step_driven(w, q, t, dt, body):
+    """``step`` of a driven body from time t (s): the splitting of the system made autonomous with t
+    as a coordinate, the free flow advancing t, the kicks holding it (the first at t, the last at
+    t + dt).  Still second order and symmetric."""
+    w = kick_at(w, q, 0.5 * dt, t, body)
+    w, q = free_flow(w, q, dt, body)
+    return kick_at(w, q, 0.5 * dt, t + dt, body), q

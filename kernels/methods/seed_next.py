@@ -8,7 +8,7 @@ Source: the write-up's eq. (8) and its argument around eq. (9) for using
 
 from numba import njit
 
-from ..rigid_body import euler_rhs, gravity_torque
+from ..rigid_body import euler_rhs, gravity_torque, torque_at
 from ..rotation import rotate_body_step
 
 ORDER = 1
@@ -35,4 +35,12 @@ def rk4_frozen_torque(w, tau, dt, body):
 @njit(cache=True, error_model="numpy")
 def step(w, q, dt, body):
     w_next = rk4_frozen_torque(w, gravity_torque(q, body), dt, body)
+    return w_next, rotate_body_step(q, w_next[0] * dt, w_next[1] * dt, w_next[2] * dt)
+
+
+@njit(cache=True, error_model="numpy")
+def step_driven(w, q, t, dt, body):
+    """``step`` of a driven body from time t (s): the whole torque, drive included, frozen at t, as
+    the write-up freezes gravity's."""
+    w_next = rk4_frozen_torque(w, torque_at(q, t, body), dt, body)
     return w_next, rotate_body_step(q, w_next[0] * dt, w_next[1] * dt, w_next[2] * dt)

@@ -14,7 +14,7 @@ Celledoni, Fassò, Säfström & Zanna, SIAM J. Sci. Comput. 30 (2008) 2084.
 from numba import njit
 
 from ..euler_poinsot import free_flow_exact
-from ..free_flow import kick
+from ..free_flow import kick, kick_at
 
 ORDER = 6
 SYMPLECTIC = True
@@ -48,3 +48,30 @@ def step(w, q, dt, body):
     w = kick(w, q, K32 * dt, body)
     w, q = free_flow_exact(w, q, W3 * dt, body)
     return kick(w, q, K3 * dt, body), q
+
+
+@njit(cache=True, error_model="numpy")
+def step_driven(w, q, t, dt, body):
+    """``step`` of a driven body from time t (s): each kick at the time the free flows before it
+    reached (the partial sums of the weights W3, W2, W1, W0, W1, W2, W3)."""
+    t1 = t + W3 * dt
+    t2 = t1 + W2 * dt
+    t3 = t2 + W1 * dt
+    t4 = t3 + W0 * dt
+    t5 = t4 + W1 * dt
+    t6 = t5 + W2 * dt
+    w = kick_at(w, q, K3 * dt, t, body)
+    w, q = free_flow_exact(w, q, W3 * dt, body)
+    w = kick_at(w, q, K32 * dt, t1, body)
+    w, q = free_flow_exact(w, q, W2 * dt, body)
+    w = kick_at(w, q, K21 * dt, t2, body)
+    w, q = free_flow_exact(w, q, W1 * dt, body)
+    w = kick_at(w, q, K10 * dt, t3, body)
+    w, q = free_flow_exact(w, q, W0 * dt, body)
+    w = kick_at(w, q, K10 * dt, t4, body)
+    w, q = free_flow_exact(w, q, W1 * dt, body)
+    w = kick_at(w, q, K21 * dt, t5, body)
+    w, q = free_flow_exact(w, q, W2 * dt, body)
+    w = kick_at(w, q, K32 * dt, t6, body)
+    w, q = free_flow_exact(w, q, W3 * dt, body)
+    return kick_at(w, q, K3 * dt, t + dt, body), q

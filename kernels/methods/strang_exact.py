@@ -13,7 +13,7 @@ rigid body flow); Strang (1968); Dullweber, Leimkuhler & McLachlan (1997).
 from numba import njit
 
 from ..euler_poinsot import free_flow_exact
-from ..free_flow import kick
+from ..free_flow import kick, kick_at
 
 ORDER = 2
 SYMPLECTIC = True
@@ -29,3 +29,12 @@ def step(w, q, dt, body):
     w = kick(w, q, 0.5 * dt, body)
     w, q = free_flow_exact(w, q, dt, body)
     return kick(w, q, 0.5 * dt, body), q
+
+
+@njit(cache=True, error_model="numpy")
+def step_driven(w, q, t, dt, body):
+    """``step`` of a driven body from time t (s): the exact free flow advances t, the kicks hold it
+    (at t and t + dt), as lie_poisson's."""
+    w = kick_at(w, q, 0.5 * dt, t, body)
+    w, q = free_flow_exact(w, q, dt, body)
+    return kick_at(w, q, 0.5 * dt, t + dt, body), q

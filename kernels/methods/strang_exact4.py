@@ -12,7 +12,7 @@ Fassò, Säfström & Zanna, SIAM J. Sci. Comput. 30 (2008) 2084.
 from numba import njit
 
 from ..euler_poinsot import free_flow_exact
-from ..free_flow import kick
+from ..free_flow import kick, kick_at
 
 ORDER = 4
 SYMPLECTIC = True
@@ -34,3 +34,18 @@ def step(w, q, dt, body):
     w = kick(w, q, K_IN * dt, body)
     w, q = free_flow_exact(w, q, G1 * dt, body)
     return kick(w, q, K_OUT * dt, body), q
+
+
+@njit(cache=True, error_model="numpy")
+def step_driven(w, q, t, dt, body):
+    """``step`` of a driven body from time t (s): each kick at the time the free flows before it
+    reached (t, t + G1 dt, t + (G1 + G0) dt, t + dt)."""
+    t1 = t + G1 * dt
+    t2 = t1 + G0 * dt
+    w = kick_at(w, q, K_OUT * dt, t, body)
+    w, q = free_flow_exact(w, q, G1 * dt, body)
+    w = kick_at(w, q, K_IN * dt, t1, body)
+    w, q = free_flow_exact(w, q, G0 * dt, body)
+    w = kick_at(w, q, K_IN * dt, t2, body)
+    w, q = free_flow_exact(w, q, G1 * dt, body)
+    return kick_at(w, q, K_OUT * dt, t + dt, body), q

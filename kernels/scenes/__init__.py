@@ -13,8 +13,8 @@ A scene is one module here plus ``conf/scene/<name>.yaml`` and one line in
 - ``build(f, theta0, **options) -> Scene``: the body (kernels/body.py) and
   initial state for spin f (Hz) and tilt θ0 (deg).
 
-An option is a number, a bool, a string or a list of three numbers (a
-body-frame vector such as heavy_body's ``com``).  What a scene declares
+An option is a number, a bool, a string or a list of numbers (a body-frame
+vector such as heavy_body's ``com``, forced_body's time ``window``).  What a scene declares
 through its body is all the kernels compute: M g c = 0 skips the torque,
 I1 = I2 takes the closed-form free flow.
 """
@@ -31,6 +31,7 @@ NAMES = (
     "free_asymmetric",
     "heavy_body",
     "kovalevskaya",
+    "forced_body",
 )
 SCENES = {name: importlib.import_module(f".{name}", __package__) for name in NAMES}
 

@@ -25,9 +25,9 @@ from gyrolab.kernels.batch import integrate, sample_schedule
 from gyrolab.kernels.driver import N_FIELDS
 from gyrolab.kernels.methods.lie_poisson4 import W1
 from gyrolab.kernels.scenes import build_scene
-from gyrolab.layout import sample_variables
+from gyrolab.layout import current, sample_variables
 
-from regenerate import DATASETS, SCALED_TOL, lie_poisson4_with, stored_path
+from regenerate import DATASETS, SCALED_TOL, dataset_methods, lie_poisson4_with, stored_path
 
 ULP = 2.0**-52
 
@@ -99,11 +99,9 @@ COEFFICIENTS = {
 def main():
     kernels = {label: lie_poisson4_with(w1) for label, w1 in COEFFICIENTS.items()}
     print(f"largest |change| / largest |stored value| per variable; regression tolerance {SCALED_TOL:g}")
-    from gyrolab.kernels.registry import METHODS
-
     for name in DATASETS:
         ds = xr.concat(
-            [xr.open_dataset(stored_path(name, m), engine="h5netcdf").load() for m in METHODS],
+            [current(xr.open_dataset(stored_path(name, m), engine="h5netcdf").load()) for m in dataset_methods(name)],
             dim="integrator",
             data_vars="minimal",
             coords="minimal",
