@@ -13,9 +13,10 @@
   τ(t) = (tau1, tau2, tau3) sin²(drive_rate t) (N m, body frame, drive_rate in
   rad/s) on the steps whose midpoint lies in [drive_on, drive_off] (s), zero on
   the others (``rigid_body.drive_torque``, driver.make_advance_driven;
-  Hairer–Nørsett–Wanner's EULR problem and SciMLBenchmarks' rigid body).  All of tau zero is no drive; a body with a
-  drive is integrated only by methods that see time (``step_driven``,
-  methods/README.md), never by the others.
+  Hairer–Nørsett–Wanner's EULR problem and SciMLBenchmarks' rigid body).
+  All of tau zero is no drive; a body with a drive is integrated only by
+  methods that see time (``step_driven``, methods/README.md), never by the
+  others.
 
 ``Body(I1, I2, I3, mgl)`` still builds the top with its centre of mass on e3
 (the rest default to 0).  A namedtuple of floats, so
@@ -28,6 +29,7 @@ results files carry that axis as the ``body_param`` coordinate.
 
 from collections import namedtuple
 
+import numpy as np
 from numba import njit
 
 Body = namedtuple(
@@ -57,8 +59,6 @@ DRIVE = slice(FIELDS.index("tau1"), FIELDS.index("tau3") + 1)
 
 def is_driven(bodies):
     """Whether any body (rows of FIELDS, any leading shape) has a driving torque."""
-    import numpy as np
-
     return bool(np.any(np.asarray(bodies, dtype=float)[..., DRIVE] != 0.0))
 
 

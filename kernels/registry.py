@@ -100,7 +100,8 @@ def sees_time(module):
 
 
 def force_models(module):
-    """The force models (kernels/scenes: ``FORCE_MODELS``) the method integrates."""
+    """The force models the method integrates (kernels/body.py): the free body, the weight with the
+    centre of mass on e3 or anywhere, and, for a method that sees time, the drive."""
     return ("free", "axial", "general") + (("driven",) if sees_time(module) else ())
 
 
