@@ -309,10 +309,16 @@ def data_config(text):
 
     from ..layout import RUN_ONLY, drop_neutral_defaults
 
-    data = yaml.safe_load(text) or {}
+    try:
+        data = yaml.safe_load(text) or {}
+    except yaml.YAMLError:
+        data = None
+    if not isinstance(data, dict):
+        return {"config": str(text)}  # not a gyrolab config (a foreign or hand-made file): compared as text
     for group, keys in RUN_ONLY.items():
-        for key in keys:
-            (data.get(group) or {}).pop(key, None)
+        node = data.get(group)
+        for key in keys if isinstance(node, dict) else ():
+            node.pop(key, None)
     return _flatten(drop_neutral_defaults(data))
 
 

@@ -282,3 +282,16 @@ def test_console_script(pair):
         for x in (a, b, Path(a).with_name("nothing.h5"))
     ]
     assert codes == [0, 1, 2]
+
+
+def test_a_config_attr_that_is_not_a_gyrolab_config_is_compared_as_text(tmp_path):
+    """A file whose ``config`` attr is not a YAML mapping (hand-made, foreign) compares without a
+    traceback; two such texts that differ are named as a config difference, not an error."""
+    ds = make_dataset(t_end=0.05, every=1e-2)
+    a, b, c = tmp_path / "a.h5", tmp_path / "b.h5", tmp_path / "c.h5"
+    for path, text in ((a, "built by hand"), (b, "built by hand"), (c, "sweep: [unclosed")):
+        ds.attrs["config"] = text
+        ds.to_netcdf(path, engine="h5netcdf")
+    assert compare_files(a, b).ok and not compare_files(a, b).configs
+    report = compare_files(a, c)
+    assert report.ok and any("config" in note for note in report.configs), report.text()
