@@ -3,6 +3,7 @@
 import pytest
 from hydra import compose, initialize_config_module
 
+from gyrolab.kernels.scenes import SCENES
 from gyrolab.runner.app import describe_hydra_error, output_state, remove_empty_dirs
 from gyrolab.runner.config import ConfigError, register_configs
 from gyrolab.runner.store import Journal
@@ -55,8 +56,7 @@ def composition_error(*overrides):
         ("sweep.t_end=ten", "sweep.t_end=ten: Value 'ten' of type 'str' could not be converted to Float"),
         (
             "scene=plate",
-            "scene=plate: unknown scene; choose from "
-            "free_asymmetric, free_symmetric, heavy_body, heavy_top, kovalevskaya",
+            "scene=plate: unknown scene; choose from " + ", ".join(sorted(SCENES)),
         ),
         ("sweep.tend=3", "sweep.tend=3: Key 'tend' not in 'SweepConfig'"),
         (
