@@ -147,6 +147,23 @@ CONTROL_FAILURES = {"explicit_euler": "control method: explicit Euler's energy g
 GRID = {"integrator": ["seed_next", "seed_prev", "rk4"], "f": [10.0, 50.0], "theta0": [45.0], "dt": [1e-3, 5e-4]}
 
 
+def final_samples(name, scene, dts, t_end):
+    """(final samples (n, driver.N_FIELDS), status (n,)) of one scene integrated by method ``name`` to
+    t_end (s) at each of the n steps ``dts``, in one batch, with the energy check off (threshold 1e9)."""
+    n = len(dts)
+    samples, status, _ = integrate(
+        name,
+        np.tile(scene.body, (n, 1)),
+        np.tile(scene.omega0, (n, 1)),
+        np.tile(scene.q0, (n, 1)),
+        np.asarray(dts),
+        np.rint(t_end / np.asarray(dts)).astype(np.int64),
+        2,
+        1e9,
+    )
+    return samples[:, -1, :], status
+
+
 def build_dataset(path, grid=None, scene="heavy_top", t_end=1.0, every=1e-3, threshold=10.0, **options):
     """Write a results file of ``grid`` (dict of lists over GRID_DIMS) to ``path`` and return its Dataset."""
     out = make_dataset(grid, scene, t_end, every, threshold, **options)

@@ -13,14 +13,13 @@ import numpy as np
 import pytest
 
 from gyrolab.analysis.classify import fit_order
-from gyrolab.kernels.batch import integrate
 from gyrolab.kernels.body import Body, is_driven
 from gyrolab.kernels.reference import dop853
 from gyrolab.kernels.registry import METHODS, driven_methods, sees_time
 from gyrolab.kernels.rigid_body import drive_torque, euler_rhs, gravity_torque
 from gyrolab.kernels.scenes import build_scene
 
-from helpers import gyrolab
+from helpers import final_samples, gyrolab
 
 SCIML_F = 0.9 / (2.0 * math.pi)  # ω3(0) = 0.9 rad/s
 SCIML = {"window": [0.0, 10.0]}  # SciMLBenchmarks: k(t) = 0.25 sin² t on all of [0, 10]
@@ -33,18 +32,8 @@ def sciml_rhs(t, y):
 
 def final_omega(name, sc, dts, t_end):
     """ω at t_end for each dt, in one batch (NaN where a run did not stay bounded)."""
-    n = len(dts)
-    samples, status, _ = integrate(
-        name,
-        np.tile(sc.body, (n, 1)),
-        np.tile(sc.omega0, (n, 1)),
-        np.tile(sc.q0, (n, 1)),
-        np.asarray(dts),
-        np.rint(t_end / np.asarray(dts)).astype(np.int64),
-        2,
-        1e9,
-    )
-    return np.where((status == 0)[:, None], samples[:, -1, 3:6], np.nan)
+    final, status = final_samples(name, sc, dts, t_end)
+    return np.where((status == 0)[:, None], final[:, 3:6], np.nan)
 
 
 def test_the_scene_is_the_published_problem():

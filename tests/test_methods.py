@@ -26,7 +26,7 @@ from gyrolab.kernels.rigid_body import potential_scale
 from gyrolab.kernels.rotation import ck_matrix
 from gyrolab.kernels.scenes import build_scene
 
-from helpers import CONTROL_FAILURES, method_params, own_methods
+from helpers import CONTROL_FAILURES, final_samples, method_params, own_methods
 
 # Error level below which a run is at its rounding floor, not its truncation error
 # (measured floors: 1e-13 .. 4e-11 over up to 2e5 steps).
@@ -205,19 +205,7 @@ def test_free_body_conserves_lab_angular_momentum(name, scene, f, options, step_
 
 def final_state_errors(name, scene, reference, dts, t_end):
     """Error of the final state (max of |axis − ref| and |ω − ref|/ω3) for each dt, in one batch."""
-    n = len(dts)
-    strides = np.rint(t_end / np.asarray(dts)).astype(np.int64)
-    samples, status, _ = integrate(
-        name,
-        np.tile(scene.body, (n, 1)),
-        np.tile(scene.omega0, (n, 1)),
-        np.tile(scene.q0, (n, 1)),
-        np.asarray(dts),
-        strides,
-        2,
-        1e9,
-    )
-    final = samples[:, -1, :]
+    final, status = final_samples(name, scene, dts, t_end)
     errors = np.maximum(
         np.max(np.abs(final[:, :3] - reference[:3]), axis=1),
         np.max(np.abs(final[:, 3:6] - reference[3:6]), axis=1) / scene.omega0[2],
