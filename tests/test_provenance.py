@@ -1,15 +1,19 @@
 """What ran, recorded truthfully: a numba cache that cannot go stale, the commit as built, the import
 from a checkout root."""
 
+import importlib
 import os
+import re
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from numba.core.dispatcher import Dispatcher
 
 import gyrolab
+from gyrolab.kernels import compile_keys, compiled_files
 from gyrolab.runner import provenance
 
 CHECKOUT = Path(__file__).resolve().parents[1]
@@ -18,6 +22,11 @@ import gyrolab, gyrolab.kernels as k
 ds = gyrolab.simulate(scene="heavy_top", method="lie_poisson", f=10.0, theta0=45.0, dt=1e-3, t_end=0.05, every=1e-2)
 print(k.__file__, k.SOURCE_HASH, repr(float(ds.energy[-1])))
 """
+
+
+def cached_files(cache):
+    """{path: size} of every file numba cached under ``cache``."""
+    return {str(p.relative_to(cache)): p.stat().st_size for p in cache.rglob("*") if p.is_file()}
 
 
 def probe(tree, cache):
@@ -42,6 +51,13 @@ def test_editing_a_kernel_helper_never_runs_stale_machine_code(tmp_path):
     path, before_hash, before = probe(tree, cache)
     assert Path(path).resolve() == (tree / "kernels" / "__init__.py").resolve()  # the copy ran, not the install
     assert probe(tree, cache)[2] == before  # warm cache, same code: same bits
+    # Editing a scene (pure Python, in no compile key) compiles nothing: the cache gains no file.
+    filled = cached_files(cache)
+    scene = tree / "kernels" / "scenes" / "heavy_top.py"
+    scene.write_text(scene.read_text() + "\n# an edit of a scene file\n")
+    _, edited_hash, edited = probe(tree, cache)
+    assert edited == before and edited_hash != before_hash  # provenance names the edit; the bits are the same
+    assert cached_files(cache) == filled
     free_flow = tree / "kernels" / "free_flow.py"
     text = free_flow.read_text()
     assert "return w[0] + h * t1 / body[0]" in text
@@ -54,6 +70,73 @@ def test_editing_a_kernel_helper_never_runs_stale_machine_code(tmp_path):
     _, after_hash, after = probe(tree, cache)
     assert after_hash != before_hash and after != before
     assert probe(tree, tmp_path / "empty-cache")[2] == after
+
+
+def copy_kernels(tmp_path):
+    tree = tmp_path / "kernels"
+    shutil.copytree(CHECKOUT / "kernels", tree, ignore=shutil.ignore_patterns("__pycache__"))
+    return tree
+
+
+def edited(tree, rel, text="\n# edited\n"):
+    path = tree / rel
+    path.write_text(path.read_text() + text)
+    return compile_keys(tree)
+
+
+def test_compile_keys_follow_what_numba_compiles(tmp_path):
+    """A scene, the closed forms, the reference or the registry's names edited: no key changes (nothing
+    recompiles).  A core helper edited: every key changes.  A method edited: its key and those of the
+    methods importing it change, no other."""
+    tree = copy_kernels(tmp_path)
+    keys = compile_keys(tree)
+    assert len(set(keys.values())) > 20 and all(str(p).startswith(str(tree.resolve())) for p in keys)
+    for rel in ("scenes/heavy_top.py", "scenes/common.py", "closed_form.py", "reference.py", "registry.py"):
+        assert edited(tree, rel) == keys, rel
+    method = lambda name: str((tree / "methods" / f"{name}.py").resolve())  # noqa: E731
+    after = edited(tree, "methods/bullet_explicit.py")
+    changed = {p for p in keys if after[p] != keys[p]}
+    assert changed == {method("bullet_explicit"), method("bullet_implicit_body")}
+    after_core = edited(tree, "free_flow.py")
+    assert all(after_core[p] != after[p] for p in keys)
+
+
+DECORATOR = re.compile(r"^\s*@(numba\.)?(njit|jit|vectorize|guvectorize|cfunc)\b", re.MULTILINE)
+
+
+def code_names(code):
+    """Every global name a code object and its nested code objects read."""
+    names = set(code.co_names)
+    for const in code.co_consts:
+        if hasattr(const, "co_names"):
+            names |= code_names(const)
+    return names
+
+
+def test_files_out_of_the_compile_keys_hold_no_compiled_code():
+    """What NOT_COMPILED leaves out of the keys compiles nothing, and no compiled function reads a name
+    defined there, so compiled code can never hold a stale copy of it."""
+    root = CHECKOUT / "kernels"
+    compiled = set(compiled_files(root))
+    left_out = [p for p in root.rglob("*.py") if p not in compiled]
+    assert {p.name for p in left_out} >= {"closed_form.py", "reference.py", "registry.py", "heavy_top.py"}
+    for path in left_out:
+        assert not DECORATOR.search(path.read_text()), path
+    pure = {
+        "gyrolab.kernels." + ".".join(p.relative_to(root).with_suffix("").parts).removesuffix(".__init__")
+        for p in left_out
+    }
+    checked = 0
+    for path in compiled:
+        name = "gyrolab.kernels." + ".".join(path.relative_to(root).with_suffix("").parts)
+        module = importlib.import_module(name.removesuffix(".__init__"))
+        for obj in list(vars(module).values()):
+            if isinstance(obj, Dispatcher) and obj.py_func.__module__ == module.__name__:
+                checked += 1
+                for used in code_names(obj.py_func.__code__):
+                    source = getattr(vars(module).get(used), "__module__", None)
+                    assert source not in pure, (name, obj.py_func.__name__, used, source)
+    assert checked > 50
 
 
 def test_recorded_commit_is_the_built_one_never_a_git_call_on_the_installed_files(monkeypatch):
