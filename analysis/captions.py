@@ -16,8 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..results import open_results
 from . import yardstick
-from .io import invariant_error, open_results, relative_error
+from .io import invariant_error, relative_error
 
 
 def worst_error(ds, quantity, **at):

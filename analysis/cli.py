@@ -133,8 +133,9 @@ def _split_member(words):
 def run(args, notes=None):
     """Make the figure ``args.kind``; return the written path(s).  ``notes`` (a list) receives the
     figure's selection notes, with FILE replaced by the file's path (and member selection)."""
+    from ..results import open_members
     from .figures import FIGURES
-    from .io import SelectionError, open_members
+    from .io import SelectionError
 
     kind = args.kind
     _check_output(args)

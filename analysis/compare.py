@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..layout import GRID_DIMS as RUN_DIMS
-from ..layout import INPUT_VARIABLES
+from ..results.layout import GRID_DIMS as RUN_DIMS
+from ..results.layout import INPUT_VARIABLES
 
 EXACT = ("status", "n_steps")
 IGNORED = {"wall_time": "timing, not physics"}
@@ -179,45 +179,26 @@ def parse_tolerances(items, option):
 
 
 def open_results(path, label, member=None):
-    """Open a results file fully loaded (xarray, h5netcdf) with today's names (layout.current: the
-    ``method`` dim of a file from before layout 3 is ``integrator``); CompareError if unreadable.
-    A combined file (gyrolab-combine) opens whole, its members along a leading ``scene``/``job``
-    dim, or as the one member ``member`` names ({"scene": NAME} or {"job": K})."""
-    import xarray as xr
-
-    from ..layout import current, file_layout_version, member_dim, member_labels
-    from ..layout import member as member_of
+    """A results file in memory with today's names, through the one reader (gyrolab.results) and its
+    checks; CompareError naming ``label`` (A or B) and the reader's one-line reason if it cannot be
+    used.  A combined file (gyrolab-combine) opens whole, every member checked, its members along a
+    leading ``scene``/``job`` dim, or as the one member ``member`` names ({"scene": NAME} or
+    {"job": K})."""
+    from ..results import ResultsError, open_file
+    from ..results.members import member_dim
+    from ..results.reader import members_of
 
     try:
-        with xr.open_dataset(path, engine="h5netcdf") as ds:
-            ds = ds.load()
-    except FileNotFoundError:
-        raise CompareError(f"{label}: {path}: no such file") from None
-    except Exception as err:  # h5py/h5netcdf raise many kinds on non-HDF5 input
-        raise CompareError(
-            f"{label}: {path}: not a readable results file ({type(err).__name__}: {' '.join(str(err).split())[:120]})"
-        ) from None
-    ds = current(ds)
-    missing = [d for d in RUN_DIMS + ("time",) if d not in ds.coords]
-    if missing:
-        raise CompareError(f"{label}: {path}: not a gyrolab results file (no coordinate {missing[0]})")
-    if file_layout_version(ds) is None:
-        raise CompareError(f"{label}: {path}: not a gyrolab results file (no layout_version attr)")
-    if "status" not in ds.data_vars:
-        raise CompareError(f"{label}: {path}: not a complete gyrolab results file (no variable 'status')")
-    for key, value in (member or {}).items():
-        dim = member_dim(ds)
-        if dim is None:
-            raise CompareError(f"{label}: {key}={value}: {path} is not a combined file")
-        if key != dim or str(value) not in member_labels(ds):
-            raise CompareError(f"{label}: {key}={value}: not in {path} ({dim} has {', '.join(member_labels(ds))})")
-        ds = member_of(ds, value)
-    return ds
+        ds, version = open_file(path)
+        members = members_of(path, ds, version, member)  # every member checked as its own results file
+        return ds if member_dim(ds) is not None and not member else members[0][1]
+    except ResultsError as err:
+        raise CompareError(f"{label}: {err}") from None
 
 
 def run_dims(ds):
     """The dims that label a run: a combined file's member dim (``scene``/``job``), then RUN_DIMS."""
-    from ..layout import member_dim
+    from ..results.members import member_dim
 
     dim = member_dim(ds)
     return ((dim,) if dim else ()) + RUN_DIMS
@@ -307,7 +288,7 @@ def data_config(text):
     """The flattened config of a file's ``config`` attr, without the keys that do not change data."""
     import yaml
 
-    from ..layout import RUN_ONLY, drop_neutral_defaults
+    from ..results.identity import RUN_ONLY, drop_neutral_defaults
 
     try:
         data = yaml.safe_load(text) or {}
@@ -402,7 +383,8 @@ def compare_variable(name, a, b, rtol, atol, exact, dims, coords, n_run_dims=len
 
 def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, scaled=None, names=("A", "B")):
     """Compare two opened results Datasets; see ``compare_files``."""
-    from ..layout import current, member_dim, member_labels
+    from ..results.members import member_dim, member_labels
+    from ..results.migrate import current
 
     da, db = current(da), current(db)
     ignored = dict(IGNORED)
@@ -433,7 +415,8 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
         ignored.update({v: "provenance of the combined files" for v in d.data_vars if "source" in d[v].dims})
     va = [v for v in da.data_vars if v not in ignored and v not in INPUT_VARIABLES]
     vb = [v for v in db.data_vars if v not in ignored and v not in INPUT_VARIABLES]
-    from ..layout import ABSENT_BEFORE, SAMPLE_VARIABLES, file_layout_version, held_variables
+    from ..results.layout import SAMPLE_VARIABLES, held_variables
+    from ..results.migrate import ABSENT_BEFORE, file_layout_version
 
     # A file of an older layout lacks some variables: compare the rest, and say so.
     older = {name: set(ABSENT_BEFORE.get(file_layout_version(d), ())) for name, d in zip(names, (da, db))}

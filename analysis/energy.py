@@ -13,7 +13,8 @@ marked "diverged" in the legend.
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ..layout import DERIVED_INVARIANTS, conserved
+from ..kernels.invariants import needed_variables
+from ..results.layout import conserved
 from .figure import add_note, choose, coincidence_text, coincident, legend_below, panel_size, subplots, suptitle
 from .io import (
     DT_STYLES,
@@ -54,7 +55,7 @@ def _check_quantity(ds, quantity):
     """ValueError unless the file's scene conserves ``quantity`` (layout.conserved)."""
     have = drawable_invariants(ds)
     if quantity not in have and quantity in conserved(ds):  # conserved, but the file does not hold it
-        lacking = [v for v in DERIVED_INVARIANTS.get(quantity, (quantity,)) if v not in ds.data_vars]
+        lacking = [v for v in needed_variables(quantity) if v not in ds.data_vars]
         raise missing_variable_error(ds, " and ".join(lacking), "energy")
     if not have:
         raise ValueError(f"the scene {scene_name(ds)} declares no conserved quantity: no drift to draw")
@@ -181,7 +182,7 @@ def invariants_figure(ds, sel=None, envelope=True):
     not drawn; one that every drawn run keeps exactly (error 0) gets no row, the figure says so."""
     quantities = drawable_invariants(ds)
     if not quantities and conserved(ds):
-        needed = sorted({v for q in conserved(ds) for v in DERIVED_INVARIANTS.get(q, (q,)) if v not in ds.data_vars})
+        needed = sorted({v for q in conserved(ds) for v in needed_variables(q) if v not in ds.data_vars})
         raise missing_variable_error(ds, " or ".join(needed), "invariants")
     if not quantities and not conserved(ds):
         raise ValueError(f"the scene {scene_name(ds)} declares no conserved quantity: no invariant to draw")

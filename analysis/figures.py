@@ -19,8 +19,9 @@ import sys
 import time
 from pathlib import Path
 
+from ..results import open_results
 from .figure import Figure  # noqa: F401 (the record each figure module defines)
-from .io import MissingVariableError, open_results
+from .io import MissingVariableError
 
 # One line per figure kind: "<module of analysis/>.<its Figure record>".
 ENTRIES = (

@@ -15,10 +15,10 @@ import matplotlib
 matplotlib.use("Agg")  # analysis is headless: files, never windows
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-import xarray as xr  # noqa: E402
 
-from ..layout import GRID_DIMS, MEMBER_DIMS, member_dim, member_labels  # noqa: E402
-from ..layout import member as member_of  # noqa: E402
+from ..results import ResultsError  # noqa: E402
+from ..results.layout import GRID_DIMS  # noqa: E402
+from ..results.members import MEMBER_DIMS
 
 FORMATS = ("png", "svg", "pdf")
 # Fixed colours of the first methods and the peers; any other method gets one from PALETTE
@@ -38,7 +38,7 @@ DT_STYLES = ("-", "--", ":", "-.")
 QUANTITY_LABELS = {"energy": "E", "Lz": "L_z", "L3": "L_3", "L": "L", "L_norm": "|L|", "kovalevskaya": "K"}
 
 
-class SelectionError(ValueError):
+class SelectionError(ResultsError):
     """A selection naming a coordinate or value the file does not have (one-line message)."""
 
 
@@ -51,7 +51,7 @@ def absent_variable(ds, err):
     ``ds`` does not hold, or None when ``err`` is about something else."""
     import re
 
-    from ..layout import SAMPLE_VARIABLES
+    from ..results.layout import SAMPLE_VARIABLES
 
     for name in re.findall(r"'(\w+)'", str(err)) + [str(err.args[0]) if err.args else ""]:
         if name in SAMPLE_VARIABLES and name not in ds.data_vars:
@@ -61,7 +61,7 @@ def absent_variable(ds, err):
 
 def missing_variable_error(ds, name, figure):
     """The one-line MissingVariableError of figure ``figure`` needing variable ``name``."""
-    from ..layout import held_variables
+    from ..results.layout import held_variables
 
     held = ", ".join(held_variables(ds)) or "none"
     return MissingVariableError(
@@ -73,94 +73,6 @@ def missing_variable_error(ds, name, figure):
 # The grid dim's old name, still accepted in a selection (``method=rk4``: gyrolab-plot commands and
 # scripts written before layout 3; the sweep's config key is still ``sweep.method``).
 SELECTION_ALIASES = {"method": "integrator"}
-
-
-def _load(path):
-    """The Dataset of ``path`` in memory with today's names (layout.current), and its layout version
-    (None: not a gyrolab file); SelectionError (one line) for a missing or unreadable file."""
-    from ..layout import current, file_layout_version
-
-    path = Path(path)
-    if not path.is_file():
-        raise SelectionError(f"FILE={path}: no such results file")
-    try:
-        with xr.open_dataset(path, engine="h5netcdf") as ds:
-            ds = ds.load()
-    except Exception as err:  # h5py/h5netcdf/xarray raise many kinds on damaged or foreign files
-        text = " ".join(str(err).split())[:120]
-        raise SelectionError(f"FILE={path}: not a readable results file ({type(err).__name__}: {text})") from None
-    version = file_layout_version(ds)
-    return current(ds), version  # an older layout's ``method`` is ``integrator``, its body today's
-
-
-def _check(path, ds, version):
-    """``ds`` (one scene's results) if it is a gyrolab results file this gyrolab reads, else
-    SelectionError (one line naming the file and the first problem)."""
-    from ..layout import LAYOUT_VERSION, required_variables
-
-    missing = [d for d in GRID_DIMS + ("time",) if d not in ds.dims]
-    if missing:
-        raise SelectionError(f"FILE={path}: not a gyrolab results file (no dimension {missing[0]!r})")
-    if version is None:
-        raise SelectionError(f"FILE={path}: not a gyrolab results file (no layout_version attr)")
-    if version > LAYOUT_VERSION:
-        raise SelectionError(
-            f"FILE={path}: layout_version={version} is newer than this gyrolab reads "
-            f"({LAYOUT_VERSION}); upgrade gyrolab"
-        )
-    for name, dims in required_variables(version, ds).items():
-        if name not in ds.data_vars:
-            raise SelectionError(f"FILE={path}: not a complete gyrolab results file (no variable {name!r})")
-        if ds[name].dims != dims:
-            raise SelectionError(f"FILE={path}: variable {name} has dims {ds[name].dims}, expected {dims}")
-    return ds
-
-
-def open_members(path, member=None):
-    """[(label, Dataset)] of the results file ``path``: [(None, ds)] for a one-scene file; for a
-    combined file (a leading ``scene`` or ``job`` dim) each member, or the one ``member`` names
-    ({"scene": "heavy_top"} or {"job": "1"}), as a one-scene Dataset with its own attrs.
-    SelectionError (one line) for a file no reader can open or a member it does not have."""
-    ds, version = _load(path)
-    dim = member_dim(ds)
-    member = {k: v for k, v in (member or {}).items() if v is not None}
-    if dim is None:
-        for key, value in member.items():
-            value = value[0] if isinstance(value, (list, tuple)) else value
-            if not (key == "scene" and str(value) == scene_name(ds)):
-                raise SelectionError(f"{key}={value}: FILE={path} is not a combined file (one scene, {scene_name(ds)})")
-        return [(None, _check(path, ds, version))]
-    labels = member_labels(ds)
-    for key in member:
-        if key != dim:
-            raise SelectionError(f"{key}=: FILE={path} is combined along {dim} ({dim} has {', '.join(labels)})")
-    wanted = member.get(dim, labels)
-    wanted = [str(v) for v in (wanted if isinstance(wanted, (list, tuple)) else [wanted])]
-    for label in wanted:
-        if label not in labels:
-            raise SelectionError(f"{dim}={label}: not in FILE={path} ({dim} has {', '.join(labels)})")
-    return [(label, _check(f"{path} {dim}={label}", member_of(ds, label), version)) for label in wanted]
-
-
-def open_results(path, member=None):
-    """The results Dataset of ``path`` loaded into memory (file closed afterwards), as today's layout
-    names it (layout.current: an older layout's ``method`` dim is ``integrator``).
-
-    SelectionError (one line naming the file) for a missing, unreadable, damaged or foreign
-    file: anything h5py/h5netcdf/xarray raise while reading, no layout version (layout 0, files from
-    before the attr, are read), a grid dimension or a layout variable missing or on the wrong dims
-    (gyrolab/layout.py).  A combined file (gyrolab-combine) opens as the one member ``member``
-    names ({"scene": NAME} or {"job": K}; see ``open_members``); without one, SelectionError naming
-    its members and the selection that picks one."""
-    members = open_members(path, member)
-    if len(members) > 1:
-        ds, _ = _load(path)
-        dim = member_dim(ds)
-        raise SelectionError(
-            f"FILE={path}: a combined file of {len(members)} {dim}s ({', '.join(l for l, _ in members)}); "
-            f"choose one with {dim}={members[0][0]}"
-        )
-    return members[0][1]
 
 
 def parse_selection(words, members=False):
@@ -308,7 +220,7 @@ def relative_error(values, reference=None):
 def invariant_error(run, name):
     """Relative error series of invariant ``name`` of one run (a Dataset over time):
     |X(t) − X0| / |X0|, with |·| the vector norm for L (layout.invariant gives X)."""
-    from ..layout import invariant
+    from ..kernels.invariants import invariant
 
     values = np.asarray(invariant(run, name).values, dtype=float)
     if values.ndim == 2:  # (time, xyz): the distance from the initial vector over its length
@@ -319,7 +231,8 @@ def invariant_error(run, name):
 
 def drawable_invariants(ds):
     """The invariants the file's scene declares (layout.conserved) that its variables can give."""
-    from ..layout import conserved, has_invariant
+    from ..kernels.invariants import has_invariant
+    from ..results.layout import conserved
 
     return [q for q in conserved(ds) if has_invariant(ds, q)]
 

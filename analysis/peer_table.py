@@ -15,8 +15,9 @@ import argparse
 import sys
 from pathlib import Path
 
+from ..results import ResultsError, open_results
 from .captions import fmt_error, worst_error
-from .io import SelectionError, drawable_invariants, open_results, scene_name, scene_options
+from .io import drawable_invariants, scene_name, scene_options
 from .work_precision import reference_name, work_precision_data
 
 
@@ -62,7 +63,7 @@ def main(argv=None):
     args = p.parse_args(argv)
     try:
         sections = [file_section(f) for f in args.files]  # every file read before anything is written
-    except SelectionError as err:
+    except ResultsError as err:  # a bad file or selection (SelectionError is one)
         sys.stderr.write(f"peer_table: error: {' '.join(str(err).split())}\n")
         return 2
     text = (

@@ -36,9 +36,10 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ..layout import GRID_DIMS
+from ..results import open_results
+from ..results.layout import GRID_DIMS
 from .figure import add_note, legend_below, select_note, suptitle
-from .io import SelectionError, build_run_scene, color, open_results, scene_label, select
+from .io import SelectionError, build_run_scene, color, scene_label, select
 
 METHOD_DIM = GRID_DIMS[0]
 # SciMLBenchmarks RigidBody_wpd: abstols = 1 ./ 10 .^ (6:13), reltols = 1 ./ 10 .^ (3:10), paired.

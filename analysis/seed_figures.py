@@ -20,7 +20,8 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from .io import DT_STYLES, FLOOR, color, fmt_dt, open_results, relative_error, save_figure, scene_options
+from ..results import find_results, open_results
+from .io import DT_STYLES, FLOOR, color, fmt_dt, relative_error, save_figure, scene_options
 from .nutation import closed_form_nutation
 
 REGIME_TITLES = {
@@ -33,21 +34,6 @@ WRITEUP_F = 20.0  # Hz: the write-up's steady case (impossible at 45 deg) and ou
 STEADY_NOTE = (
     "write-up: 20 Hz at 45° is impossible\nfor its body (steady precession needs\nf ≥ 22.07 Hz); nearest possible case"
 )
-
-
-def find_files(paths):
-    """Results files under ``paths`` (files or directories; ``*.h5`` searched recursively)."""
-    found = []
-    for p in map(Path, paths):
-        if p.is_dir():
-            found += sorted(q for q in p.rglob("*.h5") if ".partial" not in str(q) and not q.name.startswith("."))
-        elif p.is_file():
-            found.append(p)
-        else:
-            raise ValueError(f"FILE={p}: no such file or directory")
-    if not found:
-        raise ValueError(f"FILE={' '.join(map(str, paths))}: no results files (*.h5) found")
-    return found
 
 
 def regime_of(ds):
@@ -71,7 +57,7 @@ def regime_of(ds):
 def load_jobs(paths):
     """{regime: (Dataset, f)} of the seed_figures jobs found under ``paths``."""
     jobs = {}
-    for path in find_files(paths):
+    for path in find_results(paths):
         ds = open_results(path)
         name, f = regime_of(ds)
         jobs.setdefault(name, (ds, f))

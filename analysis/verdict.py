@@ -79,31 +79,19 @@ class VerdictError(ValueError):
 # ---------------------------------------------------------------- reading
 
 
-def find_files(paths):
-    """Results files named by ``paths``: files as given, directories searched for ``*.h5``."""
-    found = []
-    for p in map(Path, paths):
-        if p.is_dir():
-            found += sorted(q for q in p.rglob("*.h5") if ".partial" not in str(q) and not q.name.startswith("."))
-        elif p.exists():
-            found.append(p)
-        else:
-            raise VerdictError(f"FILE={p}: no such results file")
-    if not found:
-        raise VerdictError(f"FILE={' '.join(map(str, paths))}: no results files (*.h5) found")
-    return found
-
-
 def load(paths):
     """[(path, Dataset)] of gyrolab results files (layout_version ≥ 1); VerdictError otherwise."""
-    from .io import SelectionError, open_members
+    from ..results import ResultsError, find_results, open_members
 
     out = []
-    found = find_files(paths)
+    try:
+        found = find_results(paths)
+    except ResultsError as err:
+        raise VerdictError(str(err)) from None
     for path in found:
         try:
             members = open_members(path)  # a combined file: each scene (or job) on its own
-        except SelectionError as err:
+        except ResultsError as err:
             raise VerdictError(str(err)) from None
         if members[0][0] is not None and _inputs_found(members[0][1], path, found):
             continue  # gyrolab-combine's <dir>/combined.h5 next to its job files: judge those once
@@ -173,7 +161,7 @@ class References:
 
     def get(self, ds, f, theta0):
         """(axis (3,), ω (3,) rad/s, label, yardstick (method, dt) or None) at the file's last sample time."""
-        from ..layout import closed_form
+        from ..results.layout import closed_form
         from .io import build_run_scene
 
         t = float(ds.time.values[-1])
@@ -302,7 +290,8 @@ def preserved_ulps(n_steps):
 
 def drift_records(ds):
     """Run records (one per run and declared invariant) of every run with ≥ MIN_DRIFT_SAMPLES samples."""
-    from ..layout import conserved, has_invariant, invariant
+    from ..kernels.invariants import has_invariant, invariant
+    from ..results.layout import conserved
     from .io import scene_name
 
     if ds.sizes["time"] < MIN_DRIFT_SAMPLES:
@@ -408,7 +397,7 @@ def _blank(**kw):
 
 def summaries(datasets, orders, runs, thresholds):
     """Summary records: per (scene, method, declared invariant) the order, drift, preserved and threshold."""
-    from ..layout import conserved
+    from ..results.layout import conserved
     from .io import scene_name
 
     scenes = {}

@@ -97,7 +97,7 @@ def _threshold_panel(ax, thresholds):
 
 
 def _drift_panel(ax, q, runs, datasets):
-    from ..layout import invariant
+    from ..kernels.invariants import invariant
     from .verdict import signed_error
 
     for r in runs:

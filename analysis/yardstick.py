@@ -32,7 +32,7 @@ class Period:
 
 def kind(ds):
     """The file's closed form name (layout.closed_form), or None."""
-    from ..layout import closed_form
+    from ..results.layout import closed_form
 
     return closed_form(ds)
 

@@ -18,7 +18,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from gyrolab.layout import SAMPLE_VARIABLES
+from gyrolab.results.layout import SAMPLE_VARIABLES
 
 FILTERS = {
     "none": {},

@@ -13,7 +13,7 @@ method that inlines it.  Here every cached function is stored under a key
 - a method file by the core's bytes, its own and those of the method files
   it imports (bullet_implicit_body imports bullet_explicit);
 - files numba never compiles (``NOT_COMPILED``: the scenes, the closed forms,
-  the scipy reference, the registry's list of names) are in no key, so
+  the scipy reference, the invariants' declarations, the registry's list of names) are in no key, so
   editing a scene or adding a method compiles nothing that already ran.
 
 Any edit of what a kernel compiles selects a fresh directory: nothing stale
@@ -55,7 +55,7 @@ bytecode.FunctionIdentity._unique_ids = itertools.count(secrets.randbits(40) + 1
 ROOT = Path(__file__).resolve().parent
 # Pure-Python files and folders under kernels/ (relative paths): numba compiles nothing in them and no
 # compiled function reads them (tests/test_provenance.py checks both), so they key no cache.
-NOT_COMPILED = ("closed_form.py", "reference.py", "registry.py", "scenes")
+NOT_COMPILED = ("closed_form.py", "invariants.py", "reference.py", "registry.py", "scenes")
 _METHOD_IMPORT = re.compile(r"^from \.(\w+) import", re.MULTILINE)
 
 

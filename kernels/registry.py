@@ -110,6 +110,40 @@ def driven_methods():
     return [name for name, mod in METHODS.items() if sees_time(mod)]
 
 
+# Names a sweep may give in sweep.method instead of (or beside) methods; each stands for the registered
+# methods it selects, in registry order, so that a study covering "every method" lists none by hand.
+SELECTORS = {
+    "all": "every registered method that can integrate the scene (on a driven scene, those that see time)",
+    "all_own": "gyrolab's own schemes (every method that does not reproduce an engine)",
+    "all_engines": "the reproductions of engines' rotation updates (REPRODUCES)",
+    "driven": "the methods that see time (step_driven)",
+}
+
+
+def select_methods(names, driven_scene=False):
+    """``names`` (sweep.method: method names and SELECTORS) as method names, each once, in the order
+    given (a selector's methods in registry order); ValueError (one line) naming an unknown name.
+    ``driven_scene``: the scene drives its body, so ``all`` means the methods that see time."""
+    out = []
+    for name in names:
+        if name == "all":
+            chosen = driven_methods() if driven_scene else list(METHODS)
+        elif name == "all_own":
+            chosen = [m for m, mod in METHODS.items() if not getattr(mod, "REPRODUCES", "")]
+        elif name == "all_engines":
+            chosen = [m for m, mod in METHODS.items() if getattr(mod, "REPRODUCES", "")]
+        elif name == "driven":
+            chosen = driven_methods()
+        elif name in METHODS:
+            chosen = [name]
+        else:
+            raise ValueError(
+                f"unknown method {name!r}; choose from {', '.join(METHODS)} or a selector ({', '.join(SELECTORS)})"
+            )
+        out.extend(m for m in chosen if m not in out)
+    return out
+
+
 def methods():
     """{name: {"order", "symplectic", "preserves", "force_models", "doc"}} for every registered method."""
     return {

@@ -45,7 +45,7 @@ from hydra.errors import HydraException
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from ..layout import RAW_PER_SAMPLE, scene_attrs
+from ..results.layout import RAW_PER_SAMPLE, scene_attrs
 from .config import ConfigError, config_hash, register_configs
 from .execute import BackendError
 from .grid import build_grid, estimate_seconds, estimate_writing_seconds, plan_chunks

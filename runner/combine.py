@@ -40,7 +40,8 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from ..layout import (
+from ..results import ResultsError, find_results, open_file
+from ..results.layout import (
     COORD_ATTRS,
     GRID_DIMS,
     INPUT_DIMS,
@@ -51,11 +52,10 @@ from ..layout import (
     STATUS_ABSENT,
     VARIABLE_ATTRS,
     VARIABLES_ATTR,
-    current,
-    file_layout_version,
     held_variables,
     sample_dims,
 )
+from ..results.migrate import file_layout_version
 from .config import ConfigError
 from .provenance import VOLATILE_ATTRS
 from .store import OutputLock, atomic_replace, remove_stale_temporaries
@@ -73,56 +73,11 @@ class CombineError(ValueError):
     """Inputs that cannot be combined; the message is one line."""
 
 
-def find_results(paths, exclude=None, skip_unfinished=False):
-    """Results files under the given files/directories (``*.h5``, not temporaries or partial chunks).
-
-    CombineError for an unfinished job (a journal or lock without its results file) unless
-    ``skip_unfinished``; then it is reported on stderr and left out."""
-    found = []
-    for path in map(Path, paths):
-        if path.is_dir():
-            candidates = sorted(path.rglob("*.h5"))
-            for marker in sorted([*path.rglob("*.h5.partial"), *path.rglob("*.h5.lock")]):
-                target = marker.with_name(marker.name.rsplit(".", 1)[0])
-                what = "an interrupted sweep's journal" if marker.suffix == ".partial" else "a lock (running?)"
-                if target.exists() and marker.suffix == ".partial":
-                    what = "a leftover journal next to its results file"
-                message = f"{marker.parent}: unfinished job: {what} {marker.name}"
-                if not skip_unfinished:
-                    raise CombineError(
-                        f"{message}; finish it with runner.resume=true, or pass --skip-unfinished to leave it out"
-                    )
-                sys.stderr.write(f"gyrolab-combine: warning: {message}; left out\n")
-                candidates = [c for c in candidates if c != target]
-        elif path.is_file():
-            candidates = [path]
-        else:
-            raise CombineError(f"{path}: no such file or directory")
-        mine = [
-            c
-            for c in candidates
-            if not (c.name.startswith(".") or any(p.name.endswith(".partial") for p in c.parents))
-            and not (exclude is not None and c.resolve() == Path(exclude).resolve())
-        ]
-        if not mine and path.is_dir():
-            raise CombineError(f"{path}: a directory without results files (*.h5)")
-        found.extend(mine)
-    if not found:
-        raise CombineError(f"{' '.join(map(str, paths))}: no results files (*.h5) found")
-    return found
-
-
 def load(path):
-    """The results Dataset of ``path`` in memory, checked against the layout; CombineError naming
-    the file and the first problem."""
-    try:
-        with xr.open_dataset(path, engine="h5netcdf") as ds:
-            ds = ds.load()
-    except Exception as err:  # h5py/h5netcdf/xarray raise many kinds on damaged or foreign files
-        text = " ".join(str(err).split())[:120]
-        raise CombineError(f"{path}: not a readable results file ({type(err).__name__}: {text})") from None
-    version = file_layout_version(ds)
-    ds = current(ds)
+    """The results Dataset of ``path`` in memory (results.open_file), checked against the layout as a
+    file to combine (``layout_problem``); ResultsError or CombineError naming the file and the first
+    problem."""
+    ds, version = open_file(path)
     problem = layout_problem(ds, version)
     if problem:
         raise CombineError(f"{path}: {problem}")
@@ -400,10 +355,10 @@ def main(argv=None):
             raise CombineError(f"--output={out}: exists; add --overwrite to replace it")
         if not out.parent.is_dir():
             raise CombineError(f"--output={out}: {out.parent} is not a directory")
-        files = find_results(args.paths, exclude=out, skip_unfinished=args.skip_unfinished)
+        files = find_results(args.paths, exclude=out, unfinished="skip" if args.skip_unfinished else "refuse")
         ds = combine(files, args.allow_identical_overlap)
         write(ds, out)
-    except (CombineError, ConfigError) as err:
+    except (CombineError, ConfigError, ResultsError) as err:
         sys.stderr.write(f"gyrolab-combine: error: {' '.join(str(err).split())}\n")
         return 2
     except OSError as err:  # a full disk while writing: the old output, if any, is untouched

@@ -20,7 +20,7 @@ from typing import Any, List, Optional
 from omegaconf import MISSING, OmegaConf
 
 from ..kernels.scenes import SCENES
-from ..layout import RUN_ONLY, drop_neutral_defaults  # settings that change how a sweep is run, not its data
+from ..results.identity import RUN_ONLY, drop_neutral_defaults  # settings that change how a sweep is run, not its data
 from .ranges import RESOLVERS, register_resolvers
 
 BACKENDS = ("local", "dask")
@@ -119,7 +119,7 @@ def check_figures(setting):
 
 def check_variables(names):
     """ConfigError unless ``output.variables`` is null (all) or names each per-sample variable once."""
-    from ..layout import chosen_variables
+    from ..results.layout import chosen_variables
 
     if names is None:
         return

@@ -16,9 +16,9 @@ from omegaconf import OmegaConf
 from ..kernels.batch import MIN_BLOCK_RUNS, sample_schedule
 from ..kernels.body import N_FIELDS as N_BODY
 from ..kernels.body import is_driven
-from ..kernels.registry import DRIVEN_REFUSAL, METHODS, driven_methods, sees_time
+from ..kernels.registry import DRIVEN_REFUSAL, METHODS, driven_methods, sees_time, select_methods
 from ..kernels.scenes import SCENES, build_scene
-from ..layout import RAW_PER_SAMPLE, SAMPLE_VARIABLES, chosen_variables, stored_per_sample
+from ..results.layout import RAW_PER_SAMPLE, SAMPLE_VARIABLES, chosen_variables, stored_per_sample
 from .config import ConfigError, check_values
 
 # Rough steps per second per thread of each method on the development machine
@@ -126,8 +126,10 @@ def build_grid(cfg):
     check_values(cfg)
     sweep, scene_cfg = cfg.sweep, OmegaConf.to_container(cfg.scene, resolve=True)
     for m in sweep.method:
-        if m not in METHODS:
-            raise ConfigError(f"sweep.method={m}: unknown method; choose from {', '.join(METHODS)}")
+        try:
+            select_methods([m])
+        except ValueError as err:
+            raise ConfigError(f"sweep.method={m}: {err}") from None
     name = scene_cfg.pop("name", None)
     if name not in SCENES:
         raise ConfigError(f"scene.name={name}: unknown scene; choose from {', '.join(SCENES)}")
@@ -148,6 +150,11 @@ def build_grid(cfg):
             except ValueError as err:
                 raise ConfigError(_prefix_sweep(str(err))) from None
             bodies[j, k], omega0[j, k], q0[j, k] = sc.body, sc.omega0, sc.q0
+    # Selectors (sweep.method=[all], ...) become the methods they select, in the config too, so the
+    # stored config, the journal's config hash and the figures name the methods that ran.
+    chosen = select_methods(list(sweep.method), driven_scene=is_driven(bodies))
+    if chosen != list(sweep.method):
+        sweep.method = chosen
     if is_driven(bodies):
         blind = [m for m in sweep.method if not sees_time(METHODS[m])]
         if blind:

@@ -7,7 +7,7 @@ import numpy as np
 from ..kernels.batch import DEFAULT_DIVERGENCE_THRESHOLD, integrate, sample_schedule
 from ..kernels.registry import get_method
 from ..kernels.scenes import build_scene, get_scene
-from ..layout import scene_attrs, to_dataset
+from ..results.layout import scene_attrs, to_dataset
 
 
 def simulate(

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..layout import (
+from ..results.layout import (
     COORD_ATTRS,
     FIXED_COORDS,
     GRID_DIMS,

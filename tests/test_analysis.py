@@ -13,10 +13,11 @@ from gyrolab.analysis import cli  # noqa: E402
 from gyrolab.analysis.energy import drift_figure, drift_table, invariants_figure  # noqa: E402
 from gyrolab.analysis.figure import choose, facet, limit  # noqa: E402
 from gyrolab.analysis.figures import standard_figures  # noqa: E402
-from gyrolab.analysis.io import METHOD_COLORS, SelectionError, open_results, parse_selection, select  # noqa: E402
+from gyrolab.analysis.io import METHOD_COLORS, SelectionError, parse_selection, select  # noqa: E402
 from gyrolab.analysis.nutation import closed_form_nutation, theta_figure, tip_locus_figure  # noqa: E402
 from gyrolab.kernels.closed_form import heavy_top_nutation  # noqa: E402
 from gyrolab.kernels.scenes import build_scene  # noqa: E402
+from gyrolab.results import open_results  # noqa: E402
 
 
 def lines_of(ax, method):

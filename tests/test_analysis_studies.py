@@ -9,10 +9,10 @@ import pytest  # noqa: E402
 
 from gyrolab.analysis.animation import animate  # noqa: E402
 from gyrolab.analysis.figures import standard_figures  # noqa: E402
-from gyrolab.analysis.io import open_results  # noqa: E402
 from gyrolab.analysis.seed_figures import load_jobs, next_vs_prev_figure, regimes_figure, seed_figures  # noqa: E402
 from gyrolab.analysis.stability import stability_figure  # noqa: E402
 from gyrolab.analysis.work_precision import work_precision_data, work_precision_figure  # noqa: E402
+from gyrolab.results import open_results  # noqa: E402
 
 from helpers import build_dataset  # noqa: E402
 

@@ -10,7 +10,7 @@ import pytest
 from gyrolab.analysis import cli
 from gyrolab.analysis.compare import compare_files
 from gyrolab.analysis.compare import main as compare_main
-from gyrolab.analysis.io import SelectionError, open_members, open_results
+from gyrolab.results import ResultsError, open_members, open_results
 from gyrolab.runner.combine import main as combine_main
 
 from helpers import BIN, make_file
@@ -162,7 +162,7 @@ def test_verdict_judges_each_member(runs):
 
     loaded = load([runs["combined"]])
     assert [name.rsplit(" ", 1)[1] for name, _ in loaded] == ["scene=heavy_top", "scene=free_symmetric"]
-    with pytest.raises(SelectionError, match="combined file of 2 scenes .*choose one with scene=heavy_top"):
+    with pytest.raises(ResultsError, match="combined file of 2 scenes .*choose one with scene=heavy_top"):
         open_results(runs["combined"])
 
 

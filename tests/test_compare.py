@@ -16,7 +16,7 @@ import xarray as xr
 import yaml
 
 from gyrolab.analysis.compare import CompareError, compare_files, main, parse_tolerances
-from gyrolab.layout import SAMPLE_VARIABLES
+from gyrolab.results.layout import SAMPLE_VARIABLES, VARIABLES_ATTR
 
 from helpers import make_dataset
 
@@ -210,10 +210,17 @@ def test_different_grids_cannot_be_compared(pair):
     shorter = variant(lambda ds: ds.isel(time=slice(0, 6)), "shorter.h5")
     with pytest.raises(CompareError, match="time has 11 samples to 0.1 s in A and 6 samples to 0.05 s in B"):
         compare_files(a, shorter)
-    no_lz = variant(lambda ds: ds.drop_vars("Lz"), "nolz.h5")
-    with pytest.raises(CompareError, match="missing variables: Lz is in A but not in B"):
-        compare_files(a, no_lz)
-    assert compare_files(a, no_lz, ignore=["Lz"]).ok
+    # A file whose writer chose to leave Lz out (output.variables) is compared on what both hold ...
+    held = " ".join(n for n in SAMPLE_VARIABLES if n != "Lz")
+    no_lz = variant(lambda ds: ds.drop_vars("Lz").assign_attrs({VARIABLES_ATTR: held}), "nolz.h5")
+    report = compare_files(a, no_lz)
+    assert report.ok and "Lz" in report.text()
+    # ... one that lost it (damaged: no variables attr says so) is refused by the reader, as by every command.
+    damaged = variant(lambda ds: ds.drop_vars("Lz"), "damaged.h5")
+    with pytest.raises(
+        CompareError, match="B: FILE=.*damaged.h5: not a complete gyrolab results file .no variable 'Lz'"
+    ):
+        compare_files(a, damaged)
     other = variant(lambda ds: ds.assign_attrs(scene="free_symmetric"), "other.h5")
     with pytest.raises(CompareError, match="different scenes"):
         compare_files(a, other)

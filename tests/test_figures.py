@@ -13,8 +13,8 @@ import pytest  # noqa: E402
 
 from gyrolab.analysis import cli  # noqa: E402
 from gyrolab.analysis.figures import FIGURES, standard_figures  # noqa: E402
-from gyrolab.analysis.io import open_results  # noqa: E402
 from gyrolab.kernels.scenes import SCENES  # noqa: E402
+from gyrolab.results import open_results  # noqa: E402
 
 from helpers import build_dataset  # noqa: E402
 

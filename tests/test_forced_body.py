@@ -161,9 +161,9 @@ def test_a_layout_2_file_opens_with_an_undriven_body(tmp_path):
     import xarray as xr
 
     from gyrolab.analysis.compare import compare_files
-    from gyrolab.analysis.io import open_results
     from gyrolab.kernels.body import FIELDS
-    from gyrolab.layout import file_layout_version
+    from gyrolab.results import open_results
+    from gyrolab.results.migrate import file_layout_version
 
     from helpers import make_dataset
 

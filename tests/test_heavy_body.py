@@ -7,10 +7,10 @@ import xarray as xr
 
 from gyrolab.kernels.body import Body
 from gyrolab.kernels.driver import FIELDS
+from gyrolab.kernels.invariants import kovalevskaya_integral
 from gyrolab.kernels.reference import dop853
 from gyrolab.kernels.registry import METHODS
 from gyrolab.kernels.scenes import build_scene
-from gyrolab.layout import kovalevskaya_integral
 
 from helpers import assert_ok, gyrolab
 
@@ -100,7 +100,8 @@ def test_unphysical_moments_are_refused_unless_allowed():
 def test_heavy_body_from_the_command_line_stores_its_com_and_reads_back(tmp_path):
     """``scene=heavy_body scene.com=[...]`` runs, the file stores the vector option and the body,
     and the analysis rebuilds the run's scene from the file."""
-    from gyrolab.analysis.io import build_run_scene, open_results, scene_options
+    from gyrolab.analysis.io import build_run_scene, scene_options
+    from gyrolab.results import open_results
 
     out = tmp_path / "run"
     proc = gyrolab(
@@ -130,7 +131,8 @@ def test_peer_table_reads_every_declared_invariant_from_the_file(tmp_path):
     """``python -m gyrolab.analysis.peer_table``: per file an axis-error table and one table per declared
     invariant (Kovalevskaya's K included), a row per method and a column per dt, numbers from the file."""
     from gyrolab.analysis import peer_table
-    from gyrolab.analysis.io import invariant_error, open_results
+    from gyrolab.analysis.io import invariant_error
+    from gyrolab.results import open_results
 
     from helpers import build_dataset
 

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from gyrolab.analysis.compare import compare_files
-from gyrolab.analysis.io import SelectionError, open_results
-from gyrolab.layout import LAYOUT_VERSION, SAMPLE_VARIABLES, file_layout_version
+from gyrolab.results import ResultsError, open_results
+from gyrolab.results.layout import LAYOUT_VERSION, SAMPLE_VARIABLES
+from gyrolab.results.migrate import file_layout_version
 
 from helpers import BIN, make_dataset
 
@@ -108,7 +109,7 @@ def test_older_layouts_open_with_integrator_not_method(files, layout_1, layout_2
     the rename happens once, when the file is opened (layout.current)."""
     import xarray as xr
 
-    from gyrolab.layout import current
+    from gyrolab.results.migrate import current
 
     stored = DATA / "regression" / "heavy_top_release" / "rk4.h5"
     for path in (files[1], layout_1, layout_2, stored):
@@ -199,7 +200,7 @@ def test_a_newer_layout_is_refused_in_one_line(files, tmp_path):
     ds.attrs["layout_version"] = LAYOUT_VERSION + 1
     path = tmp_path / "future.h5"
     ds.to_netcdf(path, engine="h5netcdf")
-    with pytest.raises(SelectionError, match="newer than this gyrolab reads"):
+    with pytest.raises(ResultsError, match="newer than this gyrolab reads"):
         open_results(path)
 
 

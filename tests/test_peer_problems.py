@@ -105,7 +105,7 @@ def test_sciml_diagram_from_a_small_run(tmp_path):
     figure draws, and the table command writes every point and refuses a missing file in one line; on a
     body with gravity the peers solve (ω, R) and the figure says which (f, θ0) it drew."""
     from gyrolab.analysis import sciml
-    from gyrolab.analysis.io import open_results
+    from gyrolab.results import open_results
 
     from helpers import gyrolab
 

@@ -28,7 +28,8 @@ from gyrolab.analysis.compare import compare_datasets, compare_files
 from gyrolab.kernels.batch import sample_schedule
 from gyrolab.kernels.registry import METHODS
 from gyrolab.kernels.scenes import SCENES, build_scene
-from gyrolab.layout import current, sample_variables
+from gyrolab.results.layout import sample_variables
+from gyrolab.results.migrate import current
 
 from helpers import CONTROL_FAILURES
 

@@ -12,7 +12,7 @@ import pytest
 import xarray as xr
 
 from gyrolab import simulate
-from gyrolab.layout import GRID_DIMS, SAMPLE_VARIABLES
+from gyrolab.results.layout import GRID_DIMS, SAMPLE_VARIABLES
 
 from helpers import (  # noqa: F401 (re-used by the tests below)
     BIN,

@@ -71,7 +71,7 @@ def test_cli_writes_the_file_and_refuses_bad_arguments(tmp_path, capsys):
 def test_files_of_an_older_layout_combine_into_todays(tmp_path):
     """A layout-2 file (dim ``method``) joins a layout-3 tile: the combined file is layout 3, dim
     ``integrator``."""
-    from gyrolab.layout import LAYOUT_VERSION
+    from gyrolab.results.layout import LAYOUT_VERSION
 
     a = make_file(tmp_path / "a.h5", "sweep.f=[10]")
     b = make_file(tmp_path / "b.h5", "sweep.f=[50]")
@@ -99,7 +99,7 @@ def test_attrs_that_differ_between_scenes_are_kept_along_scene(tmp_path):
 def test_a_vector_scene_option_that_differs_is_kept_as_json(tmp_path):
     import json
 
-    from gyrolab.layout import member
+    from gyrolab.results.members import member
 
     a = make_file(tmp_path / "a.h5", "sweep.f=[3]", "scene=heavy_body", "scene.com=[0.02,0,0.1]")
     b = make_file(tmp_path / "b.h5", "sweep.f=[3]", "scene=heavy_body", "scene.com=[0,0.02,0.1]")

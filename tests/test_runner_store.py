@@ -6,7 +6,7 @@ import xarray as xr
 from hydra import compose, initialize_config_module
 
 from gyrolab.kernels.body import FIELDS as BODY_FIELDS
-from gyrolab.layout import COORD_ATTRS, VARIABLE_ATTRS
+from gyrolab.results.layout import COORD_ATTRS, VARIABLE_ATTRS
 from gyrolab.runner.config import ConfigError, register_configs
 from gyrolab.runner.execute import run_chunk
 from gyrolab.runner.grid import build_grid
@@ -160,7 +160,7 @@ def test_boxes_tile_the_grid_once():
 def test_assembly_from_the_journal_in_boxes_gives_the_same_data(tmp_path, grid, monkeypatch):
     """Journal chunks in any order and any mix of runs, boxes with ragged edges, rows read range by
     range from the chunk files: every value, dim, dtype and attr is what the in-memory layout gives."""
-    from gyrolab.layout import RUN_VARIABLES, to_dataset
+    from gyrolab.results.layout import RUN_VARIABLES, to_dataset
     from gyrolab.runner import assembly, store
 
     runs = np.random.default_rng(1).permutation(grid.n_runs)

@@ -5,7 +5,7 @@ import pytest
 import xarray as xr
 from hydra import compose, initialize_config_module
 
-from gyrolab.layout import SAMPLE_VARIABLES, VARIABLES_ATTR, held_variables, stored_per_sample
+from gyrolab.results.layout import SAMPLE_VARIABLES, VARIABLES_ATTR, held_variables, stored_per_sample
 from gyrolab.runner.config import ConfigError, register_configs
 from gyrolab.runner.grid import build_grid
 
@@ -71,7 +71,8 @@ def test_the_file_holds_the_chosen_variables_and_the_per_run_ones(files):
 
 def test_a_figure_that_needs_a_missing_variable_is_one_line(files, tmp_path):
     from gyrolab.analysis.figures import FIGURES, standard_figures
-    from gyrolab.analysis.io import MissingVariableError, open_results
+    from gyrolab.analysis.io import MissingVariableError
+    from gyrolab.results import open_results
 
     chosen, _ = files
     ds = open_results(chosen)

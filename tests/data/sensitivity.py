@@ -25,7 +25,8 @@ from gyrolab.kernels.batch import integrate, sample_schedule
 from gyrolab.kernels.driver import N_FIELDS
 from gyrolab.kernels.methods.lie_poisson4 import W1
 from gyrolab.kernels.scenes import build_scene
-from gyrolab.layout import current, sample_variables
+from gyrolab.results.layout import sample_variables
+from gyrolab.results.migrate import current
 
 from regenerate import DATASETS, SCALED_TOL, dataset_methods, lie_poisson4_with, stored_path
 

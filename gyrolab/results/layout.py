@@ -28,17 +28,16 @@ Adding a per-sample variable: a field in kernels/driver.py (``FIELDS`` and
 ``SAMPLE_VARIABLES`` here; every writer, reader and size estimate follows.
 """
 
-import json
-import math
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
-from .kernels.body import FIELDS as BODY_FIELDS
-from .kernels.body import UNITS as BODY_UNITS
-from .kernels.driver import FIELDS as RAW_FIELDS
-from .kernels.driver import STATUS_LEGEND
+from ..kernels.body import FIELDS as BODY_FIELDS
+from ..kernels.body import UNITS as BODY_UNITS
+from ..kernels.driver import FIELDS as RAW_FIELDS
+from ..kernels.driver import STATUS_LEGEND
+from .migrate import ABSENT_BEFORE, file_layout_version
 
 LAYOUT_VERSION = 3
 GRID_DIMS = ("integrator", "f", "theta0", "dt")
@@ -143,8 +142,6 @@ FIXED_COORDS = {"xyz": ["x", "y", "z"], "quat": ["a", "b", "c", "d"], "body_para
 VARIABLE_ATTRS = {name: {"units": v.units, "long_name": v.long_name} for name, v in SAMPLE_VARIABLES.items()}
 VARIABLE_ATTRS.update({name: attrs for name, (_, attrs) in RUN_VARIABLES.items()})
 VARIABLE_ATTRS.update({name: attrs for name, (_, attrs) in INPUT_VARIABLES.items()})
-# Float64 values per stored sample of one run (the results file's main cost), every variable stored.
-STORED_PER_SAMPLE = sum(3 if v.vector else 1 for v in SAMPLE_VARIABLES.values())
 # File attr naming the per-sample variables a file holds (space-separated, SAMPLE_VARIABLES order),
 # written only when ``output.variables`` chose a subset; a file without it holds all of its layout's.
 VARIABLES_ATTR = "variables"
@@ -185,144 +182,6 @@ WALL_TIME_NOTE = (
     "chunk wall-clock time x threads used, shared among the chunk's runs in proportion to their steps "
     "(runs of one chunk run in parallel; JIT compilation excluded)"
 )
-# Config keys that change how a sweep is run, not its data: left out of the data hash and of comparisons.
-RUN_ONLY = {
-    "output": ("path", "overwrite", "figures"),
-    "runner": (
-        "resume",
-        "dry_run",
-        "threads",
-        "chunk_seconds",
-        "backend",
-        "address",
-        "scheduler_file",
-        "connect_timeout",
-    ),
-}
-
-# Config keys whose default changes nothing a file written before the key existed holds: left out of
-# the data hash and of comparisons while they have this value (output.variables=null: all stored).
-NEUTRAL_DEFAULTS = {"output": {"variables": None}}
-
-
-def drop_neutral_defaults(data):
-    """``data`` (a resolved config as nested dicts) without the NEUTRAL_DEFAULTS keys at their default."""
-    for group, keys in NEUTRAL_DEFAULTS.items():
-        node = data.get(group)
-        if isinstance(node, dict):
-            for key, default in keys.items():
-                if key in node and node[key] == default:
-                    node.pop(key)
-    return data
-
-
-# Files of older layouts hold the same grid and variables less these; every reader opens them.
-# Layout 0: files written before layout_version existed (gyrolab at c0ed527 and earlier), without
-# stored run inputs.  Layout 1: no gamma, and a body of four fields (I1, I2, I3, mgl: the centre of
-# mass on e3), read as today's Body with mgc1 = mgc2 = 0.  Layout 2: a body of six fields (no
-# driving torque), read as today's Body with the drive zero.
-ABSENT_BEFORE = {0: ("L", "gamma"), 1: ("gamma",)}
-# Dims renamed at a layout: {layout: {old name: new name}}, applied to files of every earlier layout.
-# Layout 3: ``method`` -> ``integrator`` (``method`` is a keyword of xarray's .sel).
-RENAMED_AT = {3: {"method": "integrator"}}
-
-
-def file_layout_version(ds):
-    """The layout version of an opened file: its ``layout_version`` attr; 0 for a gyrolab file from
-    before that attr (it carries ``gyrolab_version`` and a ``config``); None for anything else."""
-    if "layout_version" in ds.attrs:
-        try:
-            return int(ds.attrs["layout_version"])
-        except (TypeError, ValueError):
-            return None
-    return 0 if "gyrolab_version" in ds.attrs and "config" in ds.attrs else None
-
-
-def with_current_body(ds):
-    """``ds`` with its stored ``body`` on today's ``body_param`` fields: a layout-1 body (I1, I2, I3,
-    mgl: the centre of mass on e3) gains mgc1 = mgc2 = 0 and a layout-2 body a zero drive, which is
-    what they meant.  Files without stored bodies, or with today's, come back unchanged."""
-    if "body" not in ds.data_vars or list(ds["body_param"].values) == list(BODY_FIELDS):
-        return ds
-    known = [str(v) for v in ds["body_param"].values]
-    if known != list(BODY_FIELDS[: len(known)]):
-        return ds  # not an older gyrolab body: leave it for the reader's checks to name
-    return ds.reindex(body_param=list(BODY_FIELDS), fill_value=0.0)
-
-
-def with_current_dims(ds, version=None):
-    """``ds`` with the dims (and their coordinates) of an older layout renamed as RENAMED_AT says
-    (a layout-2 file's ``method`` becomes ``integrator``).  Files of today's layout, and files that
-    are not gyrolab's (no layout version), come back unchanged."""
-    version = file_layout_version(ds) if version is None else version
-    if version is None:
-        return ds
-    renames = {
-        old: new
-        for since, names in RENAMED_AT.items()
-        if version < since
-        for old, new in names.items()
-        if old in ds.dims and new not in ds.variables
-    }
-    return ds.rename(renames) if renames else ds
-
-
-def current(ds):
-    """``ds`` as today's layout names it: renamed dims (``with_current_dims``) and today's body
-    (``with_current_body``).  Every reader opens files through this, so analysis code speaks only
-    today's names; what an older layout lacks stays absent (``ABSENT_BEFORE``)."""
-    return with_current_body(with_current_dims(ds))
-
-
-# The leading dim gyrolab-combine stacks files along (runner/combine.py): one scene per member, or
-# jobs of one scene with different options.  A selection ``scene=NAME`` / ``job=K`` picks a member.
-MEMBER_DIMS = ("scene", "job")
-
-
-def member_dim(ds):
-    """The dim a combined file stacks its members along (``scene`` or ``job``), or None."""
-    return next((d for d in MEMBER_DIMS if d in ds.dims and "combined_from" in ds.attrs), None)
-
-
-def member_labels(ds):
-    """The members of a combined file as a selection names them: scene names, or job indices."""
-    dim = member_dim(ds)
-    if dim == "scene":
-        return [str(v) for v in ds["scene"].values]
-    return [str(k) for k in range(ds.sizes[dim])] if dim else []
-
-
-def member(ds, label):
-    """Member ``label`` (member_labels) of the combined ``ds`` as a one-scene results Dataset: the attrs that
-    differed between members (stored by gyrolab-combine as coordinates along ``dim``: scene options,
-    conserved, closed_form, t_end, ...) are its attrs again, and the grid values, times and run
-    inputs that only other members have (status -1, NaN) are left out."""
-    dim = member_dim(ds)
-    k = member_labels(ds).index(str(label))
-    one = ds.isel({dim: k})
-    attrs = dict(one.attrs)
-    for name in [c for c in one.coords if c != dim and ds[c].dims == (dim,)]:
-        value = one[name].values.item() if one[name].ndim == 0 else one[name].values
-        if one[name].attrs.get("encoding") == "json":
-            value = np.asarray(json.loads(value)) if value else ""
-        if isinstance(value, bytes):
-            value = value.decode()
-        if not (isinstance(value, str) and value == "") and not (isinstance(value, float) and math.isnan(value)):
-            attrs[name] = value
-        one = one.drop_vars(name)
-    if dim == "scene":
-        attrs["scene"] = label
-    one = one.drop_vars([dim], errors="ignore")
-    one = one.drop_vars([v for v in one.data_vars if "source" in one[v].dims])
-    present = one["status"] != STATUS_ABSENT
-    keep = {d: present.any(dim=[o for o in GRID_DIMS if o != d]).values for d in GRID_DIMS}
-    one = one.isel({d: np.flatnonzero(mask) for d, mask in keep.items()})
-    if "t_end" in attrs:  # a member of a shorter sweep: its own samples only
-        one = one.isel(time=np.flatnonzero(one["time"].values <= float(attrs["t_end"]) * (1 + 1e-12)))
-    for name, dtype in (("status", np.int8), ("n_steps", np.int64)):
-        one[name] = one[name].astype(dtype)
-    attrs["combined_member"] = f"{dim}={label}"
-    return one.assign_attrs(attrs)
 
 
 def required_variables(version, ds=None):
@@ -374,7 +233,7 @@ def conserved(ds):
     before that attr existed, the scene's current declaration."""
     if "conserved" in ds.attrs:
         return tuple(_text(ds.attrs["conserved"]).split())
-    from .kernels.scenes import get_scene
+    from ..kernels.scenes import get_scene
 
     return tuple(get_scene(_text(ds.attrs.get("scene", "heavy_top"))).CONSERVED)
 
@@ -383,43 +242,9 @@ def closed_form(ds):
     """The name of the file's scene's closed form (kernels/closed_form.py), or None."""
     if "closed_form" in ds.attrs:
         return _text(ds.attrs["closed_form"]) or None
-    from .kernels.scenes import get_scene
+    from ..kernels.scenes import get_scene
 
     return get_scene(_text(ds.attrs.get("scene", "heavy_top"))).CLOSED_FORM
-
-
-def invariant(ds, name):
-    """The invariant ``name`` (kernels/invariants.py) per sample: a stored variable, |L| from L, or
-    Kovalevskaya's integral from ω, γ and the stored body."""
-    if name == "L_norm":
-        return np.sqrt((ds["L"] ** 2).sum("xyz"))
-    if name == "kovalevskaya":
-        return kovalevskaya_integral(ds["omega"], ds["gamma"], ds["body"])
-    return ds[name]
-
-
-# Invariants derived from stored variables rather than stored themselves: {name: what they need}.
-DERIVED_INVARIANTS = {"L_norm": ("L",), "kovalevskaya": ("omega", "gamma", "body")}
-
-
-def has_invariant(ds, name):
-    """True when ``invariant(ds, name)`` can be computed from what the file holds."""
-    return all(v in ds.data_vars for v in DERIVED_INVARIANTS.get(name, (name,)))
-
-
-def kovalevskaya_integral(omega, gamma, body):
-    """K = (ω1² − ω2² − ν γ1)² + (2 ω1 ω2 − ν γ2)² (rad⁴ s⁻⁴), ν = M g c1 / I3.
-
-    Conserved by the exact motion of Kovalevskaya's top: I1 = I2 = 2 I3 about
-    the pivot, centre of mass on body e1 (c = (c1, 0, 0)); γ = Rᵀ ẑ the lab
-    vertical in body coordinates.  ``omega``/``gamma``: DataArrays with an
-    ``xyz`` dim; ``body``: the stored body (dim ``body_param``).  The sign of ν
-    follows from V = M g c·γ (checked by tests/test_heavy_body.py).
-    """
-    nu = body.sel(body_param="mgc1") / body.sel(body_param="I3")
-    w1, w2 = omega.sel(xyz="x"), omega.sel(xyz="y")
-    g1, g2 = gamma.sel(xyz="x"), gamma.sel(xyz="y")
-    return (w1 * w1 - w2 * w2 - nu * g1) ** 2 + (2.0 * w1 * w2 - nu * g2) ** 2
 
 
 def to_dataset(raw, per_run, coords, inputs=None, attrs=None):

@@ -1,0 +1,158 @@
+"""The one way to find, open and check results files, for every command and script.
+
+``open_results(path)`` gives a one-scene results file (or one member of a
+combined file) in memory, as today's layout names it; ``open_members`` each
+member of a combined file; ``open_file`` a whole file, combined or not, read
+and migrated but not split.  Every problem with a file (missing, unreadable,
+damaged, foreign, of a newer layout, lacking a layout variable, a member it
+does not have) is one ``ResultsError`` whose message is one line naming the
+file; every command turns it into that line and exit status ``EXIT_BAD_INPUT``.
+"""
+
+import sys
+from pathlib import Path
+
+import xarray as xr
+
+from .layout import GRID_DIMS, LAYOUT_VERSION, required_variables
+from .members import member, member_dim, member_labels
+from .migrate import current, file_layout_version
+
+EXIT_BAD_INPUT = 2  # every gyrolab command's exit status for bad input: a bad file, option or selection
+
+
+class ResultsError(ValueError):
+    """A results file that cannot be used as asked; the message is one line naming the file."""
+
+
+def _scene_name(ds):
+    value = ds.attrs.get("scene", "heavy_top")
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+def open_file(path):
+    """(Dataset in memory with today's names, its file's layout version or None) of ``path``, a
+    results file combined or not, read whole and closed again; ResultsError (one line) when it is
+    missing or unreadable (anything h5py/h5netcdf/xarray raise on damaged or foreign input)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ResultsError(f"FILE={path}: no such results file")
+    try:
+        with xr.open_dataset(path, engine="h5netcdf") as ds:
+            ds = ds.load()
+    except Exception as err:  # h5py/h5netcdf/xarray raise many kinds on damaged or foreign files
+        text = " ".join(str(err).split())[:120]
+        raise ResultsError(f"FILE={path}: not a readable results file ({type(err).__name__}: {text})") from None
+    version = file_layout_version(ds)
+    return current(ds), version  # an older layout's ``method`` is ``integrator``, its body today's
+
+
+def check(where, ds, version):
+    """``ds`` (one scene's results, renamed by ``current``) if it is a gyrolab results file this
+    gyrolab reads, else ResultsError (one line naming ``where`` and the first problem)."""
+    missing = [d for d in GRID_DIMS + ("time",) if d not in ds.dims]
+    if missing:
+        raise ResultsError(f"FILE={where}: not a gyrolab results file (no dimension {missing[0]!r})")
+    if version is None:
+        raise ResultsError(f"FILE={where}: not a gyrolab results file (no layout_version attr)")
+    if version > LAYOUT_VERSION:
+        raise ResultsError(
+            f"FILE={where}: layout_version={version} is newer than this gyrolab reads "
+            f"({LAYOUT_VERSION}); upgrade gyrolab"
+        )
+    for name, dims in required_variables(version, ds).items():
+        if name not in ds.data_vars:
+            raise ResultsError(f"FILE={where}: not a complete gyrolab results file (no variable {name!r})")
+        if ds[name].dims != dims:
+            raise ResultsError(f"FILE={where}: variable {name} has dims {ds[name].dims}, expected {dims}")
+    return ds
+
+
+def open_members(path, member_of=None):
+    """[(label, Dataset)] of the results file ``path``: [(None, ds)] for a one-scene file; for a
+    combined file (a leading ``scene`` or ``job`` dim) each member, or the one ``member_of`` names
+    ({"scene": "heavy_top"} or {"job": "1"}), as a one-scene Dataset with its own attrs, each checked.
+    ResultsError (one line) for a file no reader can open or a member it does not have."""
+    ds, version = open_file(path)
+    return members_of(path, ds, version, member_of)
+
+
+def members_of(path, ds, version, member_of=None):
+    """``open_members`` of a file already opened with ``open_file`` (``ds``, ``version``)."""
+    dim = member_dim(ds)
+    wanted_members = {k: v for k, v in (member_of or {}).items() if v is not None}
+    if dim is None:
+        for key, value in wanted_members.items():
+            value = value[0] if isinstance(value, (list, tuple)) else value
+            if not (key == "scene" and str(value) == _scene_name(ds)):
+                raise ResultsError(f"{key}={value}: FILE={path} is not a combined file (one scene, {_scene_name(ds)})")
+        return [(None, check(path, ds, version))]
+    labels = member_labels(ds)
+    for key in wanted_members:
+        if key != dim:
+            raise ResultsError(f"{key}=: FILE={path} is combined along {dim} ({dim} has {', '.join(labels)})")
+    wanted = wanted_members.get(dim, labels)
+    wanted = [str(v) for v in (wanted if isinstance(wanted, (list, tuple)) else [wanted])]
+    for label in wanted:
+        if label not in labels:
+            raise ResultsError(f"{dim}={label}: not in FILE={path} ({dim} has {', '.join(labels)})")
+    return [(label, check(f"{path} {dim}={label}", member(ds, label), version)) for label in wanted]
+
+
+def open_results(path, member_of=None):
+    """The results Dataset of ``path`` in memory (file closed afterwards), as today's layout names
+    it (an older layout's ``method`` dim is ``integrator``, its body today's), checked against the
+    layout.  A combined file (gyrolab-combine) opens as the one member ``member_of`` names
+    ({"scene": NAME} or {"job": K}); without one, ResultsError naming its members and the selection
+    that picks one.  ResultsError (one line naming the file) for any file it cannot use."""
+    members = open_members(path, member_of)
+    if len(members) > 1:
+        dim = member_dim(open_file(path)[0])
+        raise ResultsError(
+            f"FILE={path}: a combined file of {len(members)} {dim}s ({', '.join(label for label, _ in members)}); "
+            f"choose one with {dim}={members[0][0]}"
+        )
+    return members[0][1]
+
+
+def find_results(paths, exclude=None, unfinished="ignore"):
+    """Results files (``*.h5``) named by ``paths``: files as given, directories searched recursively,
+    leaving out temporaries (names starting with ``.``), journals (``*.partial``) and ``exclude``.
+
+    ``unfinished`` says what to do with a directory's unfinished job (a journal or a lock without
+    its results file): "ignore" it, "refuse" (ResultsError naming it and how to finish it) or "skip"
+    (a warning on stderr, its results file left out).  ResultsError for a path that does not exist,
+    a directory without results files, or nothing found."""
+    found = []
+    for path in map(Path, paths):
+        if path.is_dir():
+            candidates = sorted(path.rglob("*.h5"))
+            if unfinished != "ignore":
+                for marker in sorted([*path.rglob("*.h5.partial"), *path.rglob("*.h5.lock")]):
+                    target = marker.with_name(marker.name.rsplit(".", 1)[0])
+                    what = "an interrupted sweep's journal" if marker.suffix == ".partial" else "a lock (running?)"
+                    if target.exists() and marker.suffix == ".partial":
+                        what = "a leftover journal next to its results file"
+                    message = f"{marker.parent}: unfinished job: {what} {marker.name}"
+                    if unfinished == "refuse":
+                        raise ResultsError(
+                            f"{message}; finish it with runner.resume=true, or pass --skip-unfinished to leave it out"
+                        )
+                    sys.stderr.write(f"warning: {message}; left out\n")
+                    candidates = [c for c in candidates if c != target]
+        elif path.is_file():
+            candidates = [path]
+        else:
+            raise ResultsError(f"FILE={path}: no such results file or directory")
+        mine = [
+            c
+            for c in candidates
+            if not (c.name.startswith(".") or any(p.name.endswith(".partial") for p in c.parents))
+            and not (exclude is not None and c.resolve() == Path(exclude).resolve())
+        ]
+        if not mine and path.is_dir():
+            raise ResultsError(f"FILE={path}: a directory without results files (*.h5)")
+        found.extend(mine)
+    if not found:
+        raise ResultsError(f"FILE={' '.join(map(str, paths))}: no results files (*.h5) found")
+    return found
