@@ -1,6 +1,6 @@
 """Reading stored results and choosing runs: the helpers every figure shares.
 
-A results file (gyrolab/layout.py) opens as an xarray Dataset with dims
+A results file (gyrolab/results/layout.py) opens as an xarray Dataset with dims
 ``integrator, f, theta0, dt, time, xyz`` (``open_results`` renames the ``method`` dim
 of files from before layout 3).  A *selection* is a dict (or the CLI
 text ``integrator=seed_next,rk4 f=10 dt=1e-4``) of coordinate values; numbers
@@ -47,7 +47,7 @@ class MissingVariableError(SelectionError):
 
 
 def absent_variable(ds, err):
-    """The per-sample variable (gyrolab/layout.py) named in the KeyError/AttributeError ``err`` that
+    """The per-sample variable (gyrolab/results/layout.py) named in the KeyError/AttributeError ``err`` that
     ``ds`` does not hold, or None when ``err`` is about something else."""
     import re
 

@@ -9,7 +9,7 @@ the symmetric-body free_flow; kernels/methods/lie_poisson.py,
 lie_poisson4.py; the rotation helpers) and changes one operation at a time;
 variant 0 is the copy itself and is checked bit for bit against the
 registered lie_poisson4.  Each variant's energy series is classified by
-analysis/classify.py.  Variants:
+analysis/verdicts/classify.py.  Variants:
 
 0  the copy, unchanged
 1  free_flow: no quat_normalize at the end
@@ -39,7 +39,7 @@ import time
 import numpy as np
 from numba import njit, prange
 
-from gyrolab.analysis.classify import classify_drift
+from gyrolab.analysis.verdicts.classify import classify_drift
 from gyrolab.kernels.batch import integrate
 from gyrolab.kernels.rigid_body import energy, gravity_torque
 from gyrolab.kernels.rotation import SMALL_ANGLE, _cos_sinc_half, quat_mul, quat_normalize

@@ -19,7 +19,7 @@ the bounded kick–drift error.  Experiments:
    own trajectory, divided by E0 and the run time;
 5. the same on the torque-free disc (free_symmetric), where ω* = 0.
 
-Rates are the classifier's (analysis/classify.py): least-squares slope of the
+Rates are the classifier's (analysis/verdicts/classify.py): least-squares slope of the
 windowed means of E/E0 − 1, in 1/s.  The issue's reference numbers: mean of the
 last 5 s of 400 s = −1.30e-3 at 50 Hz, dt = 1e-3 s (−3.2e-6 /s).
 """
@@ -31,7 +31,7 @@ import time
 import numpy as np
 from numba import njit
 
-from gyrolab.analysis.classify import classify_drift
+from gyrolab.analysis.verdicts.classify import classify_drift
 from gyrolab.kernels.methods import lie_trotter
 from gyrolab.kernels.methods.seed_next import rk4_frozen_torque
 from gyrolab.kernels.rigid_body import energy, gravity_torque

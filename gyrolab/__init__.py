@@ -14,7 +14,6 @@ path, so ``gyrolab.kernels`` is the checkout's kernels/ and the checkout's
 code runs, whole and consistent, instead of an ImportError.
 """
 
-from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 _HERE = Path(__file__).resolve().parent
@@ -30,10 +29,6 @@ from .kernels.euler_poinsot import free_body  # noqa: E402
 from .kernels.registry import methods  # noqa: E402
 from .kernels.scenes import scenes  # noqa: E402
 from .runner.simulate import simulate  # noqa: E402
-
-try:
-    __version__ = version("gyrolab")
-except PackageNotFoundError:  # running from a source tree
-    __version__ = "0+unknown"
+from .version import __version__  # noqa: E402
 
 __all__ = ["simulate", "methods", "scenes", "free_body", "__version__"]

@@ -18,7 +18,7 @@ axis_x, axis_y, axis_z (R e3, lab), omega_1..3 (body, rad/s),
 energy (J), L_x, L_y, L_z (lab angular momentum, kg m²/s), L3 (kg m²/s),
 gamma_1..3 (γ = Rᵀ ẑ, the lab vertical in body coordinates).
 A new per-sample quantity is one more field here and in ``_record``, and one
-entry in the results layout (gyrolab/layout.py).
+entry in the results layout (gyrolab/results/layout.py).
 """
 
 import math

@@ -59,7 +59,7 @@ COMPILE_SECONDS = 3.0  # rough JIT time of one method's kernel on a cold numba c
 # Loading one method's kernels from a warm numba cache, the checks and the file's open and close
 # (the "rest" of benchmarks/bench_pipeline.py: 0.5-0.9 s with 2 to 4 methods).
 LOAD_SECONDS = 0.2
-# The figure step (analysis/figures.py standard_figures, in this process after the sweep) loads the
+# The figure step (analysis/figures/registry.py standard_figures, in this process after the sweep) loads the
 # whole results file and draws from it: the process's peak RSS is then ~ FIGURE_BASE_BYTES +
 # FIGURE_PER_BYTE x the file's size, fitted to sweeps with the default figures writing 41 MB, 273 MB
 # and 1.09 GB heavy-top files (453, 708, 1673 MB; docs/benchmarks.md).

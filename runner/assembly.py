@@ -1,6 +1,6 @@
 """Assembly of the results file from finished chunks: HDF5 chunk shapes and whole-hyperslab writes.
 
-The per-sample variables (gyrolab/layout.py) have dims (integrator, f, theta0,
+The per-sample variables (gyrolab/results/layout.py) have dims (integrator, f, theta0,
 dt, time[, xyz]).  ``chunk_layout`` picks one HDF5 chunk shape for all of
 them: a *box* of runs taken from the trailing grid dims (dt first, then
 theta0, f, integrator) times ``time_chunk`` samples, about CHUNK_ELEMENTS float64

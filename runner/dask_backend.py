@@ -37,7 +37,7 @@ import numpy as np
 from distributed import Client, LocalCluster, WorkerPlugin, as_completed, get_worker
 from numba.core import event
 
-from .. import __version__
+from ..version import __version__
 from .config import ConfigError
 from .execute import BackendError, chunk_delay, integrate_chunk, warm_up_methods
 from .grid import estimate_seconds, plan_chunks

@@ -62,8 +62,8 @@ def library_versions():
 
 def provenance(config_yaml, threads):
     """File attrs: resolved config (YAML text), code and library versions, numba threads, creation time (UTC ISO)."""
-    from .. import __version__
     from ..kernels import SOURCE_HASH
+    from ..version import __version__
 
     commit, dirty, source = code_state()
     return {

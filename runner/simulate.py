@@ -26,7 +26,7 @@ def simulate(
     f in Hz (ω3 = 2πf), theta0 in degrees, dt, t_end and every (sample
     interval, a multiple of dt) in seconds.  ``scene_options`` are the scene's
     options (for heavy_top: M, r, l, g, init, phidot0).  Variables as in a
-    results file (gyrolab/layout.py): axis (lab), theta, phi (rad), energy (J),
+    results file (gyrolab/results/layout.py): axis (lab), theta, phi (rad), energy (J),
     L (lab), Lz, L3 (kg m²/s), omega (body, rad/s); status, n_steps,
     wall_time (s); the run's body, omega0 and q0.
     """

@@ -13,7 +13,7 @@ process left (``.<out>.tmp<pid>``) are removed by the next writer
 (``remove_stale_temporaries``).  ``OutputLock`` (``fcntl.flock`` on
 ``<out>.lock``) refuses a second writer to the same output.
 
-The results layout (dims, variables, units, attrs) is gyrolab/layout.py's.
+The results layout (dims, variables, units, attrs) is gyrolab/results/layout.py's.
 """
 
 import errno

@@ -6,12 +6,20 @@ Tests that sweep methods parametrise over ``registry.METHODS``, so a newly
 registered method inherits every one of them.
 """
 
+import os
+
 import numpy as np
 import pytest
 from numba import njit
 
 from gyrolab.kernels.batch import integrate, sample_schedule
 from gyrolab.kernels.registry import METHODS
+
+
+def pytest_configure(config):
+    """Headless figures in every test: matplotlib's Agg backend, chosen before any test module imports
+    matplotlib (nothing imported above does)."""
+    os.environ.setdefault("MPLBACKEND", "Agg")
 
 
 def _run_scene(method, scene, dt, t_end, every, threshold=1e9):

@@ -4,7 +4,7 @@
   ``TINY`` and chunking ``SLOW``, ``data(path)`` (a file without its volatile
   attrs), ``tiny_reference(root)``;
 - ``build_dataset(path, grid, scene, ...)``: a small results file made
-  through the batch kernels and gyrolab/layout.py, without the runner.
+  through the batch kernels and gyrolab/results/layout.py, without the runner.
 """
 
 import os

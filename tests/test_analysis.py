@@ -3,21 +3,19 @@
 import math
 
 import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
-
-from gyrolab.analysis import cli  # noqa: E402
-from gyrolab.analysis.energy import drift_figure, drift_table, invariants_figure  # noqa: E402
-from gyrolab.analysis.figure import choose, facet, limit  # noqa: E402
-from gyrolab.analysis.figures import standard_figures  # noqa: E402
-from gyrolab.analysis.io import METHOD_COLORS, SelectionError, parse_selection, select  # noqa: E402
-from gyrolab.analysis.nutation import closed_form_nutation, theta_figure, tip_locus_figure  # noqa: E402
-from gyrolab.kernels.closed_form import heavy_top_nutation  # noqa: E402
-from gyrolab.kernels.scenes import build_scene  # noqa: E402
-from gyrolab.results import open_results  # noqa: E402
+from gyrolab.analysis.figures import cli
+from gyrolab.analysis.figures.energy import drift_figure, drift_table, invariants_figure
+from gyrolab.analysis.figures.nutation import closed_form_nutation, theta_figure, tip_locus_figure
+from gyrolab.analysis.figures.record import choose, facet, limit
+from gyrolab.analysis.figures.registry import standard_figures
+from gyrolab.analysis.io import METHOD_COLORS, SelectionError, parse_selection, select
+from gyrolab.kernels.closed_form import heavy_top_nutation
+from gyrolab.kernels.scenes import build_scene
+from gyrolab.results import open_results
 
 
 def lines_of(ax, method):

@@ -1,20 +1,17 @@
 """Study figures (stability map, seed figures, work-precision, animation) on small simulate-built files."""
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+from gyrolab.analysis.figures.animation import animate
+from gyrolab.analysis.figures.registry import standard_figures
+from gyrolab.analysis.figures.seed import load_jobs, next_vs_prev_figure, regimes_figure, seed_figures
+from gyrolab.analysis.figures.stability import stability_figure
+from gyrolab.analysis.figures.work_precision import work_precision_data, work_precision_figure
+from gyrolab.results import open_results
 
-from gyrolab.analysis.animation import animate  # noqa: E402
-from gyrolab.analysis.figures import standard_figures  # noqa: E402
-from gyrolab.analysis.seed_figures import load_jobs, next_vs_prev_figure, regimes_figure, seed_figures  # noqa: E402
-from gyrolab.analysis.stability import stability_figure  # noqa: E402
-from gyrolab.analysis.work_precision import work_precision_data, work_precision_figure  # noqa: E402
-from gyrolab.results import open_results  # noqa: E402
-
-from helpers import build_dataset  # noqa: E402
+from helpers import build_dataset
 
 
 @pytest.fixture(autouse=True)

@@ -1,4 +1,4 @@
-"""The verdict classifier (analysis/classify.py): checked on synthetic series with known answers,
+"""The verdict classifier (analysis/verdicts/classify.py): checked on synthetic series with known answers,
 then on the kernels where theory knows the answer.
 
 Synthetic: a bounded oscillation with noise, a linear drift under an oscillation, seeded √t
@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from gyrolab.analysis.classify import (
+from gyrolab.analysis.verdicts.classify import (
     DRIFT_CLASSES,
     EPS,
     classify_drift,

@@ -7,11 +7,11 @@ import subprocess
 import numpy as np
 import pytest
 
-from gyrolab.analysis import cli
-from gyrolab.analysis.compare import compare_files
-from gyrolab.analysis.compare import main as compare_main
+from gyrolab.analysis.figures import cli
+from gyrolab.analysis.files.combine import main as combine_main
+from gyrolab.analysis.files.compare import compare_files
+from gyrolab.analysis.files.compare import main as compare_main
 from gyrolab.results import ResultsError, open_members, open_results
-from gyrolab.runner.combine import main as combine_main
 
 from helpers import BIN, make_file
 
@@ -122,7 +122,7 @@ def test_plot_standard_of_a_combined_file_draws_every_scene(runs, tmp_path):
 
 
 def test_plot_standard_of_a_combined_file_that_draws_nothing_exits_2(runs, tmp_path, monkeypatch, capsys):
-    from gyrolab.analysis import figures
+    from gyrolab.analysis.figures import registry as figures
 
     monkeypatch.setattr(figures, "standard_figures", lambda *args, **kwargs: [])
     assert plot("standard", runs["combined"], "-o", tmp_path / "figs")[0] == 2
@@ -158,7 +158,7 @@ def test_compare_a_combined_file_with_a_one_scene_file_names_the_selection(runs,
 
 
 def test_verdict_judges_each_member(runs):
-    from gyrolab.analysis.verdict import load
+    from gyrolab.analysis.verdicts.verdict import load
 
     loaded = load([runs["combined"]])
     assert [name.rsplit(" ", 1)[1] for name, _ in loaded] == ["scene=heavy_top", "scene=free_symmetric"]
@@ -169,7 +169,7 @@ def test_verdict_judges_each_member(runs):
 def test_verdict_of_a_directory_judges_a_combined_file_once(runs):
     """gyrolab-combine DIR writes DIR/combined.h5 next to the job files: a verdict of DIR judges the
     job files, not their runs twice."""
-    from gyrolab.analysis.verdict import load
+    from gyrolab.analysis.verdicts.verdict import load
 
     names = [str(name) for name, _ in load([runs["root"] / "top", runs["root"] / "free", runs["combined"]])]
     assert names == [str(runs["top"]), str(runs["free"])]

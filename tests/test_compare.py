@@ -1,7 +1,7 @@
 """gyrolab-compare: the comparison rules, the table, the exit status and the provenance notes.
 
 The files here are built by helpers.make_dataset in the results layout
-(gyrolab/layout.py) and written with h5netcdf,
+(gyrolab/results/layout.py) and written with h5netcdf,
 so these tests do not depend on the runner; tests/test_regression.py runs
 the same code on files the ``gyrolab`` command wrote.
 """
@@ -15,7 +15,7 @@ import pytest
 import xarray as xr
 import yaml
 
-from gyrolab.analysis.compare import CompareError, compare_files, main, parse_tolerances
+from gyrolab.analysis.files.compare import CompareError, compare_files, main, parse_tolerances
 from gyrolab.results.layout import SAMPLE_VARIABLES, VARIABLES_ATTR
 
 from helpers import make_dataset
@@ -46,7 +46,7 @@ def config_text(scene="heavy_top", t_end=0.1, path="results.h5", **scene_options
 
 
 def assemble(scene="heavy_top", t_end=0.1, every=0.01, **scene_options):
-    """Results Dataset (gyrolab/layout.py) of METHODS x F x [45 deg] x DT, built by helpers.make_dataset."""
+    """Results Dataset (gyrolab/results/layout.py) of METHODS x F x [45 deg] x DT, built by helpers.make_dataset."""
     ds = make_dataset(
         {"integrator": list(METHODS), "f": list(F), "theta0": [45.0], "dt": list(DT)},
         scene,

@@ -17,9 +17,9 @@ import pytest
 import xarray as xr
 from hydra import compose, initialize_config_module
 
-from gyrolab.analysis.figures import FIGURES
+from gyrolab.analysis.figures.registry import FIGURES
+from gyrolab.analysis.files.combine import main as combine_main
 from gyrolab.runner.app import file_attrs, output_state
-from gyrolab.runner.combine import main as combine_main
 from gyrolab.runner.config import ConfigError, config_hash, register_configs
 from gyrolab.runner.execute import run_chunk
 from gyrolab.runner.grid import build_grid
@@ -282,8 +282,8 @@ def call(main, argv):
 
 
 def analysis_commands():
-    from gyrolab.analysis.cli import main as plot_main
-    from gyrolab.analysis.compare import main as compare_main
+    from gyrolab.analysis.figures.cli import main as plot_main
+    from gyrolab.analysis.files.compare import main as compare_main
 
     commands = {f"plot {kind}": (plot_main, lambda f, kind=kind: [kind, f]) for kind in FIGURES}
     commands["plot seed"] = (plot_main, lambda f: ["seed", f])
@@ -291,7 +291,7 @@ def analysis_commands():
     commands["compare A"] = (compare_main, lambda f: [f, GOOD[0]])
     commands["compare B"] = (compare_main, lambda f: [GOOD[0], f])
     try:
-        from gyrolab.analysis.verdict import main as verdict_main  # being written elsewhere
+        from gyrolab.analysis.verdicts.verdict import main as verdict_main  # being written elsewhere
 
         commands["verdict"] = (verdict_main, lambda f: [f])
     except ImportError:

@@ -1,22 +1,19 @@
-"""Every figure kind (analysis/figures.py FIGURES) on every scene and a few grid shapes, checked without eyes:
+"""Every figure kind (analysis/figures/registry.py FIGURES) on every scene and a few grid shapes, checked without eyes:
 the figure's size is bounded, no two text boxes overlap (matplotlib's tight bounding boxes), every swept value
 is drawn or named in the figure's note, and no closed form or invariant is drawn that the scene lacks."""
 
 import re
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+from gyrolab.analysis.figures import cli
+from gyrolab.analysis.figures.registry import FIGURES, standard_figures
+from gyrolab.kernels.scenes import SCENES
+from gyrolab.results import open_results
 
-from gyrolab.analysis import cli  # noqa: E402
-from gyrolab.analysis.figures import FIGURES, standard_figures  # noqa: E402
-from gyrolab.kernels.scenes import SCENES  # noqa: E402
-from gyrolab.results import open_results  # noqa: E402
-
-from helpers import build_dataset  # noqa: E402
+from helpers import build_dataset
 
 SHAPES = {  # name: grid (method, f, theta0, dt)
     "1x1": {"integrator": ["rk4"], "f": [10.0], "theta0": [45.0], "dt": [1e-3]},
@@ -158,7 +155,7 @@ def test_nutation_defaults_to_finest_dt_and_says_so(files):
 
 
 def test_free_bodies_draw_their_exact_motion(files):
-    from gyrolab.analysis import yardstick
+    from gyrolab.analysis.figures import yardstick
 
     for scene, label in (("free_symmetric", "free symmetric"), ("free_asymmetric", "Euler–Poinsot")):
         ds = open_results(files[(scene, "1x1")])
@@ -218,7 +215,7 @@ def test_figure_step_prints_progress(files, tmp_path):
 def test_many_methods_are_selected_and_named():
     import xarray as xr
 
-    from gyrolab.analysis.figure import choose
+    from gyrolab.analysis.figures.record import choose
     from gyrolab.kernels.registry import METHODS
 
     ds = xr.Dataset(coords={"integrator": list(METHODS), "f": [10.0], "theta0": [45.0], "dt": [1e-3]})

@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from gyrolab.analysis.classify import fit_order
+from gyrolab.analysis.verdicts.classify import fit_order
 from gyrolab.kernels.body import Body, is_driven
 from gyrolab.kernels.reference import dop853
 from gyrolab.kernels.registry import METHODS, driven_methods, sees_time
@@ -160,7 +160,7 @@ def test_a_layout_2_file_opens_with_an_undriven_body(tmp_path):
     and compare with a current file of the same runs passes."""
     import xarray as xr
 
-    from gyrolab.analysis.compare import compare_files
+    from gyrolab.analysis.files.compare import compare_files
     from gyrolab.kernels.body import FIELDS
     from gyrolab.results import open_results
     from gyrolab.results.migrate import file_layout_version

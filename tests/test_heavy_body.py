@@ -128,10 +128,10 @@ def test_heavy_body_from_the_command_line_stores_its_com_and_reads_back(tmp_path
 
 
 def test_peer_table_reads_every_declared_invariant_from_the_file(tmp_path):
-    """``python -m gyrolab.analysis.peer_table``: per file an axis-error table and one table per declared
+    """``python -m gyrolab.analysis.reports.peer_table``: per file an axis-error table and one table per declared
     invariant (Kovalevskaya's K included), a row per method and a column per dt, numbers from the file."""
-    from gyrolab.analysis import peer_table
     from gyrolab.analysis.io import invariant_error
+    from gyrolab.analysis.reports import peer_table
     from gyrolab.results import open_results
 
     from helpers import build_dataset
@@ -153,7 +153,7 @@ def test_peer_table_reads_every_declared_invariant_from_the_file(tmp_path):
 
 
 def test_peer_table_refuses_a_missing_file_in_one_line_and_writes_nothing(tmp_path, capsys):
-    from gyrolab.analysis import peer_table
+    from gyrolab.analysis.reports import peer_table
 
     out = tmp_path / "peer.md"
     assert peer_table.main([str(tmp_path / "absent.h5"), "-o", str(out)]) == 2

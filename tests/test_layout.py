@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gyrolab.analysis.compare import compare_files
+from gyrolab.analysis.files.compare import compare_files
 from gyrolab.results import ResultsError, open_results
 from gyrolab.results.layout import LAYOUT_VERSION, SAMPLE_VARIABLES
 from gyrolab.results.migrate import file_layout_version
@@ -206,7 +206,8 @@ def test_a_newer_layout_is_refused_in_one_line(files, tmp_path):
 
 def test_plot_standard_that_draws_nothing_exits_2(files, tmp_path, monkeypatch, capsys):
     """`gyrolab-plot standard` whose every figure fails is not a success: one line, exit 2."""
-    from gyrolab.analysis import cli, figures
+    from gyrolab.analysis.figures import cli
+    from gyrolab.analysis.figures import registry as figures
 
     monkeypatch.setattr(figures, "standard_figures", lambda *args, **kwargs: [])
     with pytest.raises(SystemExit) as done:

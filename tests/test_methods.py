@@ -16,7 +16,7 @@ import pytest
 from numba.core.dispatcher import Dispatcher
 
 import gyrolab
-from gyrolab.analysis.classify import fit_order
+from gyrolab.analysis.verdicts.classify import fit_order
 from gyrolab.kernels.batch import MIN_BLOCK_RUNS, integrate
 from gyrolab.kernels.closed_form import free_symmetric_solution
 from gyrolab.kernels.invariants import INVARIANTS

@@ -3,7 +3,7 @@
 - Hairer, Lubich & Wanner's free rigid body (conf/experiment/hlw_free_body.yaml);
 - the heavy top of Brüls, Cardona & Arnold (2012), the benchmark multibody codes reproduce
   (conf/experiment/bruls_heavy_top.yaml; values as in Kynema's heavy_top example);
-- SciMLBenchmarks' rigid body (conf/experiment/sciml_rigid_body.yaml, analysis/sciml.py).
+- SciMLBenchmarks' rigid body (conf/experiment/sciml_rigid_body.yaml, analysis/figures/sciml.py).
 """
 
 import math
@@ -104,7 +104,7 @@ def test_sciml_diagram_from_a_small_run(tmp_path):
     each method's error falling ~16x per halving, the peers' errors falling with their tolerance, the
     figure draws, and the table command writes every point and refuses a missing file in one line; on a
     body with gravity the peers solve (ω, R) and the figure says which (f, θ0) it drew."""
-    from gyrolab.analysis import sciml
+    from gyrolab.analysis.figures import sciml
     from gyrolab.results import open_results
 
     from helpers import gyrolab
@@ -152,7 +152,14 @@ def test_sciml_diagram_from_a_small_run(tmp_path):
     import sys
 
     refused = subprocess.run(
-        [sys.executable, "-m", "gyrolab.analysis.sciml", str(tmp_path / "none.h5"), "-o", str(tmp_path / "x.md")],
+        [
+            sys.executable,
+            "-m",
+            "gyrolab.analysis.figures.sciml",
+            str(tmp_path / "none.h5"),
+            "-o",
+            str(tmp_path / "x.md"),
+        ],
         capture_output=True,
         text=True,
     )

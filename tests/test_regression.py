@@ -24,7 +24,7 @@ import xarray as xr
 import yaml
 
 import gyrolab
-from gyrolab.analysis.compare import compare_datasets, compare_files
+from gyrolab.analysis.files.compare import compare_datasets, compare_files
 from gyrolab.kernels.batch import sample_schedule
 from gyrolab.kernels.registry import METHODS
 from gyrolab.kernels.scenes import SCENES, build_scene

@@ -178,7 +178,7 @@ def test_multirun_writes_one_file_per_job_and_combine_merges_them(tmp_path):
     files = sorted(sweep_dir.glob("*/results.h5"))
     assert [f.parent.name for f in files] == ["0", "1"]
     combined = subprocess.run(
-        command("gyrolab-combine", "gyrolab.runner.combine") + [str(sweep_dir)],
+        command("gyrolab-combine", "gyrolab.analysis.files.combine") + [str(sweep_dir)],
         capture_output=True,
         text=True,
         env=environment(),

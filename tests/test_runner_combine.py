@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from gyrolab.runner.combine import CombineError, combine, main
+from gyrolab.analysis.files.combine import CombineError, combine, main
 
 from helpers import make_file
 

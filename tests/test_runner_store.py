@@ -1,4 +1,4 @@
-"""Lock, journal and results file: one writer, durable chunks, the results layout (gyrolab/layout.py)."""
+"""Lock, journal and results file: one writer, durable chunks, the results layout (gyrolab/results/layout.py)."""
 
 import numpy as np
 import pytest

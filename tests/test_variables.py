@@ -70,7 +70,7 @@ def test_the_file_holds_the_chosen_variables_and_the_per_run_ones(files):
 
 
 def test_a_figure_that_needs_a_missing_variable_is_one_line(files, tmp_path):
-    from gyrolab.analysis.figures import FIGURES, standard_figures
+    from gyrolab.analysis.figures.registry import FIGURES, standard_figures
     from gyrolab.analysis.io import MissingVariableError
     from gyrolab.results import open_results
 
@@ -94,7 +94,7 @@ def gyrolab_plot(*args, cwd):
     from helpers import command, environment
 
     return subprocess.run(
-        command("gyrolab-plot", "gyrolab.analysis.cli") + list(args),
+        command("gyrolab-plot", "gyrolab.analysis.figures.cli") + list(args),
         cwd=cwd,
         capture_output=True,
         text=True,
@@ -103,7 +103,7 @@ def gyrolab_plot(*args, cwd):
 
 
 def test_compare_compares_the_variables_both_hold_and_says_which_it_left_out(files):
-    from gyrolab.analysis.compare import compare_files
+    from gyrolab.analysis.files.compare import compare_files
 
     chosen, full = files
     report = compare_files(chosen, full)
@@ -112,7 +112,7 @@ def test_compare_compares_the_variables_both_hold_and_says_which_it_left_out(fil
 
 
 def test_combine_refuses_files_of_different_variables(files):
-    from gyrolab.runner.combine import CombineError, combine
+    from gyrolab.analysis.files.combine import CombineError, combine
 
     chosen, full = files
     with pytest.raises(CombineError, match="combine files of the same output.variables"):

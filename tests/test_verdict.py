@@ -1,4 +1,4 @@
-"""gyrolab-verdict (analysis/verdict.py) on small results files with known answers.
+"""gyrolab-verdict (analysis/verdicts/verdict.py) on small results files with known answers.
 
 Files are built through the kernels and the layout (helpers.make_dataset): a dt ladder of the heavy
 top (50 Hz, θ0 = 45°, released; final state at 1 s, dt = 1e-2/2^k) for the orders, long runs for
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from gyrolab.analysis import verdict as V
+from gyrolab.analysis.verdicts import verdict as V
 
 from helpers import command, make_dataset
 
@@ -46,7 +46,7 @@ def drift_files(tmp_path_factory):
 
 def run_cli(*args, tmp_path):
     return subprocess.run(
-        command("gyrolab-verdict", "gyrolab.analysis.verdict") + [str(a) for a in args],
+        command("gyrolab-verdict", "gyrolab.analysis.verdicts.verdict") + [str(a) for a in args],
         capture_output=True,
         text=True,
         cwd=tmp_path,

@@ -3,7 +3,7 @@
 import json
 from pathlib import Path
 
-from gyrolab.analysis import readme_verdict
+from gyrolab.analysis.reports import readme_verdict
 from gyrolab.kernels.registry import METHODS
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -11,7 +11,7 @@ import numpy as np
 
 from .layout import GRID_DIMS, STATUS_ABSENT
 
-# The leading dim gyrolab-combine stacks files along (runner/combine.py): one scene per member, or
+# The leading dim gyrolab-combine stacks files along (analysis/files/combine.py): one scene per member, or
 # jobs of one scene with different options.  A selection ``scene=NAME`` / ``job=K`` picks a member.
 MEMBER_DIMS = ("scene", "job")
 

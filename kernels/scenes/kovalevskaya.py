@@ -3,7 +3,7 @@
 The third integrable heavy top (after Euler's and Lagrange's; Kovalevskaya
 1889): besides E and L_z it keeps the quartic integral
 K = (ω1² − ω2² − ν γ1)² + (2 ω1 ω2 − ν γ2)², ν = M g c / I3, with γ = Rᵀ ẑ
-(gyrolab/layout.py ``kovalevskaya_integral``, from the stored ω, γ and body).
+(gyrolab/results/layout.py ``kovalevskaya_integral``, from the stored ω, γ and body).
 A scheme that keeps E and L_z can still drift in K, so K judges it on a
 fourth, non-trivial invariant.
 

@@ -195,7 +195,7 @@ def _store(new, path):
 
 
 def main(argv=None):
-    from gyrolab.analysis.compare import CompareError, compare_files
+    from gyrolab.analysis.files.compare import CompareError, compare_files
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument(

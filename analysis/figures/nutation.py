@@ -1,7 +1,7 @@
 """Nutation figures: θ(t) per method against the scene's yardstick, and the tip locus from above.
 
 θ is the tilt of the symmetry axis from lab z (stored in rad, drawn in deg).
-The yardstick is what the scene declares (analysis/yardstick.py): the heavy
+The yardstick is what the scene declares (analysis/figures/yardstick.py): the heavy
 top's closed-form θ_min/θ_max (bounds every exact trajectory of that run stays
 between), the free symmetric top's exact θ(t), the free asymmetric body's
 exact Euler–Poinsot θ(t) with its flips marked; none for a scene without one.
@@ -15,8 +15,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.gridspec import GridSpec
 
+from ..io import DT_STYLES, color, fmt_dt, pick, scene_label, select
 from . import yardstick
-from .figure import (
+from .record import (
     add_note,
     choose,
     coincidence_text,
@@ -27,7 +28,6 @@ from .figure import (
     subplots,
     suptitle,
 )
-from .io import DT_STYLES, color, fmt_dt, pick, scene_label, select
 
 EXACT_STYLE = dict(color="k", ls=(0, (4, 3)), lw=0.9)
 
@@ -307,7 +307,7 @@ def _standard_tip(ds, sel=None, t_max=None):
 
 
 def _make_figures():
-    from .figure import Figure
+    from .record import Figure
 
     theta = Figure(
         "nutation",

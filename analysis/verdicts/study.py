@@ -3,7 +3,7 @@
 ``gyrolab experiment=verdict`` (conf/experiment/verdict.yaml) is a Hydra
 multirun of six jobs, a dt ladder and a long run per scene.  When they are
 done, ``VerdictStudyCallback`` reads every results file of the multirun
-directory through analysis/verdict.py, bisects the stability thresholds and
+directory through analysis/verdicts/verdict.py, bisects the stability thresholds and
 writes ``verdict.md``, ``verdict.json`` and ``verdict_<scene>.png`` into that
 directory (and into ``docs_dir`` when set, e.g.
 ``hydra.callbacks.verdict.docs_dir=$PWD/docs``).  The same outputs come from
@@ -25,7 +25,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from .io import FLOOR, color, save_figure
+from ..io import FLOOR, color, save_figure
 
 MARKERS = "osv^<>DPX*h"  # with the colours: PALETTE repeats after 12 methods
 
@@ -97,7 +97,7 @@ def _threshold_panel(ax, thresholds):
 
 
 def _drift_panel(ax, q, runs, datasets):
-    from ..kernels.invariants import invariant
+    from ...kernels.invariants import invariant
     from .verdict import signed_error
 
     for r in runs:
@@ -130,7 +130,7 @@ def _drift_panel(ax, q, runs, datasets):
 
 
 def _has_run(ds, r):
-    from .io import scene_name
+    from ..io import scene_name
 
     return (
         scene_name(ds) == r["scene"]

@@ -1,4 +1,4 @@
-"""The record of one figure kind (the registry is analysis/figures.py), and the layout rules every
+"""The record of one figure kind (the registry is analysis/figures/registry.py), and the layout rules every
 figure shares: faceting (panels wrap into rows, bounded size), selections that say what they drew,
 and notes where curves coincide.
 """
@@ -9,7 +9,7 @@ from typing import Callable
 
 import numpy as np
 
-from .io import absent_variable, missing_variable_error, save_figure
+from ..io import absent_variable, missing_variable_error, save_figure
 
 MAX_COLS = 3  # panels per row before wrapping
 MAX_PANELS = 9  # panels drawn before values are selected (and the figure says which)
@@ -176,7 +176,7 @@ def choose(ds, kind, max_methods=MAX_METHODS, max_dt=MAX_DT, max_panels=MAX_PANE
 def _preferred_methods(ds):
     """Methods drawn first when a file has too many: gyrolab's own schemes before engine reproductions."""
     try:
-        from ..kernels.registry import METHODS
+        from ...kernels.registry import METHODS
     except ImportError:  # pragma: no cover
         return None
     own = [str(m) for m in ds.integrator.values if not getattr(METHODS.get(str(m)), "REPRODUCES", "")]

@@ -1,13 +1,13 @@
 """The figure registry, and the figures a sweep writes after it finishes.
 
-A figure kind is a ``Figure`` record (analysis/figure.py) defined in its own module and listed
-once in ``FIGURES``; ``gyrolab-plot KIND`` (analysis/cli.py), the runner's
+A figure kind is a ``Figure`` record (analysis/figures/record.py) defined in its own module and listed
+once in ``FIGURES``; ``gyrolab-plot KIND`` (analysis/figures/cli.py), the runner's
 figure step and the tests all iterate over this registry.  A study names the
 figures it wants in its config (``output.figures: [stability, energy]``;
 ``true`` means ``DEFAULT``, ``false`` none); the resolved config is stored in
 the results file, so ``gyrolab-plot standard FILE`` draws the same set.
 
-Any grid shape: each figure facets its panels (analysis/figure.py: rows of at
+Any grid shape: each figure facets its panels (analysis/figures/record.py: rows of at
 most 3, bounded size) and, when a grid has more values than it can draw, draws
 a selection and says which, in the figure and on the command line, with the
 ``gyrolab-plot KIND FILE key=...`` that draws the others.  A figure that fails
@@ -19,9 +19,9 @@ import sys
 import time
 from pathlib import Path
 
-from ..results import open_results
-from .figure import Figure  # noqa: F401 (the record each figure module defines)
-from .io import MissingVariableError
+from ...results import open_results
+from ..io import MissingVariableError
+from .record import Figure  # noqa: F401 (the record each figure module defines)
 
 # One line per figure kind: "<module of analysis/>.<its Figure record>".
 ENTRIES = (

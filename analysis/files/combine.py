@@ -5,12 +5,12 @@
 
 Every input is checked before anything is written: a gyrolab results file
 of a known ``layout_version`` with exactly the layout's variables, dims,
-units and integer run variables (gyrolab/layout.py); no unfinished job (a
+units and integer run variables (gyrolab/results/layout.py); no unfinished job (a
 journal ``*.partial`` or a lock next to where a results file belongs) unless
 ``--skip-unfinished``.  Each refusal is one line naming the file and the
 reason, exit status 2, and the output is not touched.
 
-Files of every layout are read as today's (gyrolab/layout.py ``current``: the ``method`` dim of
+Files of every layout are read as today's (gyrolab/results/layout.py ``current``: the ``method`` dim of
 layouts before 3 is ``integrator``, a four-field body gains mgc1 = mgc2 = 0) and the combined file
 is of today's layout (a variable an older layout lacks is left out of its ``variables`` attr).
 
@@ -40,8 +40,8 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from ..results import ResultsError, find_results, open_file
-from ..results.layout import (
+from ...results import ResultsError, find_results, open_file
+from ...results.layout import (
     COORD_ATTRS,
     GRID_DIMS,
     INPUT_DIMS,
@@ -55,10 +55,10 @@ from ..results.layout import (
     held_variables,
     sample_dims,
 )
-from ..results.migrate import file_layout_version
-from .config import ConfigError
-from .provenance import VOLATILE_ATTRS
-from .store import OutputLock, atomic_replace, remove_stale_temporaries
+from ...results.migrate import file_layout_version
+from ...runner.config import ConfigError
+from ...runner.provenance import VOLATILE_ATTRS
+from ...runner.store import OutputLock, atomic_replace, remove_stale_temporaries
 
 KNOWN_LAYOUTS = tuple(range(LAYOUT_VERSION + 1))
 IDENTITY_PREFIXES = ("scene",)

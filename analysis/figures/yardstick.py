@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .io import build_run_scene
+from ..io import build_run_scene
 
 
 @dataclass(frozen=True)
@@ -32,7 +32,7 @@ class Period:
 
 def kind(ds):
     """The file's closed form name (layout.closed_form), or None."""
-    from ..results.layout import closed_form
+    from ...results.layout import closed_form
 
     return closed_form(ds)
 
@@ -41,7 +41,7 @@ def nutation(ds, f, theta0):
     """Closed-form Nutation (kernels/closed_form.py) of grid point (f Hz, θ0 deg), or None."""
     if kind(ds) != "heavy_top_nutation":
         return None
-    from ..kernels.closed_form import heavy_top_nutation
+    from ...kernels.closed_form import heavy_top_nutation
 
     try:
         return heavy_top_nutation(build_run_scene(ds, f, theta0))
@@ -61,14 +61,14 @@ def exact_motion(ds, f, theta0, times):
     name = kind(ds)
     times = np.asarray(times, dtype=float)
     if name == "free_symmetric":
-        from ..kernels.closed_form import free_symmetric_solution
+        from ...kernels.closed_form import free_symmetric_solution
 
         try:
             return free_symmetric_solution(build_run_scene(ds, f, theta0), times)
         except ValueError:
             return None
     if name == "euler_poinsot":
-        from .. import free_body
+        from ...kernels.euler_poinsot import free_body
 
         scene = build_run_scene(ds, f, theta0)
         omega, q = free_body(np.asarray(scene.body[:3]), np.asarray(scene.omega0), np.asarray(scene.q0), times)
@@ -86,7 +86,7 @@ def flip_period(ds, f, theta0):
     """Closed-form time between flips (s) of the free asymmetric body, or None (other scenes)."""
     if kind(ds) != "euler_poinsot":
         return None
-    from ..kernels.euler_poinsot import flip_period as period
+    from ...kernels.euler_poinsot import flip_period as period
 
     scene = build_run_scene(ds, f, theta0)
     value = float(period(np.asarray(scene.body[:3]), np.asarray(scene.omega0)))

@@ -13,7 +13,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.animation import FuncAnimation, PillowWriter
 
-from .io import fmt_dt, pick, scene_label, scene_options, select
+from ..io import fmt_dt, pick, scene_label, scene_options, select
 
 
 def animate(ds, out, sel=None, seconds=None, fps=20, max_frames=120):
@@ -93,7 +93,7 @@ def _render(ds, out, sel=None, seconds=None, fps=20):
 
 
 def _make_figure():
-    from .figure import Figure
+    from .record import Figure
 
     return Figure(
         "animation",

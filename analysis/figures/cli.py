@@ -46,7 +46,7 @@ def _common(p, many=False):
     if many:
         p.add_argument("file", metavar="FILE_OR_DIR", nargs="+", help="results files or a multirun directory")
     else:
-        p.add_argument("file", metavar="FILE", help="results file (HDF5, gyrolab/layout.py)")
+        p.add_argument("file", metavar="FILE", help="results file (HDF5, gyrolab/results/layout.py)")
         p.add_argument(
             "selection",
             nargs="*",
@@ -66,7 +66,7 @@ def _common(p, many=False):
 
 
 def build_parser():
-    from .figures import FIGURES
+    from .registry import FIGURES
 
     parser = argparse.ArgumentParser(
         prog="gyrolab-plot",
@@ -123,7 +123,7 @@ def _member_path(path, ds):
 
 def _split_member(words):
     """(member selection {scene|job: value}, grid selection) of the KEY=VALUE words."""
-    from .io import MEMBER_DIMS, parse_selection
+    from ..io import MEMBER_DIMS, parse_selection
 
     sel = parse_selection(words, members=True)
     member = {k: sel.pop(k)[0] for k in MEMBER_DIMS if k in sel}
@@ -133,14 +133,14 @@ def _split_member(words):
 def run(args, notes=None):
     """Make the figure ``args.kind``; return the written path(s).  ``notes`` (a list) receives the
     figure's selection notes, with FILE replaced by the file's path (and member selection)."""
-    from ..results import open_members
-    from .figures import FIGURES
-    from .io import SelectionError
+    from ...results import open_members
+    from ..io import SelectionError
+    from .registry import FIGURES
 
     kind = args.kind
     _check_output(args)
     if kind == "standard":
-        from .figures import standard_figures
+        from .registry import standard_figures
 
         member, grid = _split_member(args.selection)
         if grid:
@@ -157,7 +157,7 @@ def run(args, notes=None):
             raise SelectionError(f"FILE={args.file}: no figure could be drawn from it")
         return paths
     if kind == "seed":
-        from .seed_figures import seed_figures
+        from .seed import seed_figures
 
         first = Path(args.file[0])
         # next to a results file given as FILE, inside a multirun directory given as DIR
@@ -190,7 +190,7 @@ def run(args, notes=None):
 
 def main(argv=None):
     """Console entry point ``gyrolab-plot``."""
-    from .io import SelectionError
+    from ..io import SelectionError
 
     args = build_parser().parse_args(argv)
     notes = []

@@ -1,7 +1,7 @@
 """The README's methods table, generated from the stored verdicts (docs/verdict.json).
 
-    python -m gyrolab.analysis.readme_verdict            # rewrite the block in README.md
-    python -m gyrolab.analysis.readme_verdict --check    # exit 1 if README.md is not what it would write
+    python -m gyrolab.analysis.reports.readme_verdict            # rewrite the block in README.md
+    python -m gyrolab.analysis.reports.readme_verdict --check    # exit 1 if README.md is not what it would write
 
 The block between ``<!-- verdict-table:begin -->`` and ``<!-- verdict-table:end -->``
 is written from the verdict records (gyrolab-verdict --json; `gyrolab
@@ -35,7 +35,7 @@ def _drift(rec):
 
 def table(records, scene="heavy_top"):
     """Markdown rows: one per registered method, from its ``summary`` records on ``scene``."""
-    from ..kernels.registry import METHODS
+    from ...kernels.registry import METHODS
 
     summary = {
         (r["method"], r["quantity"]): r for r in records if r.get("kind") == "summary" and r.get("scene") == scene
@@ -102,7 +102,8 @@ def main(argv=None):
     if args.check:
         if new != text:
             sys.stderr.write(
-                "readme_verdict: README.md's methods table is stale; run python -m gyrolab.analysis.readme_verdict\n"
+                "readme_verdict: README.md's methods table is stale; "
+                "run python -m gyrolab.analysis.reports.readme_verdict\n"
             )
             return 1
         return 0

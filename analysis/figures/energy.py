@@ -1,7 +1,7 @@
 """Invariant drift: |X(t) − X0| / |X0| on a log scale for X = E, L_z, L_3.
 
 Only invariants the file's scene declares (layout.conserved) are drawn.  One
-panel per spin f (and θ0), wrapped into rows (analysis/figure.py); colour =
+panel per spin f (and θ0), wrapped into rows (analysis/figures/record.py); colour =
 method, line style = dt; methods whose curves lie on top of each other are
 named in the panel ("same curve: a = b").  Exact zeros
 (an invariant a method keeps to the last bit, e.g. L_3 = I3 ω3 of a
@@ -13,10 +13,9 @@ marked "diverged" in the legend.
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ..kernels.invariants import needed_variables
-from ..results.layout import conserved
-from .figure import add_note, choose, coincidence_text, coincident, legend_below, panel_size, subplots, suptitle
-from .io import (
+from ...kernels.invariants import needed_variables
+from ...results.layout import conserved
+from ..io import (
     DT_STYLES,
     FLOOR,
     QUANTITY_LABELS,
@@ -30,6 +29,7 @@ from .io import (
     scene_name,
     select,
 )
+from .record import add_note, choose, coincidence_text, coincident, legend_below, panel_size, subplots, suptitle
 
 
 def drift_table(ds, quantity="energy", sel=None):
@@ -231,7 +231,7 @@ def invariants_figure(ds, sel=None, envelope=True):
 
 
 def _make_figures():
-    from .figure import Figure
+    from .record import Figure
 
     raw = {"--raw": {"action": "store_true", "help": "raw error instead of its running maximum"}}
     drift = Figure(

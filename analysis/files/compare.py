@@ -1,4 +1,4 @@
-"""Compare two results files (the layout of gyrolab/layout.py) variable by variable: ``gyrolab-compare A B``.
+"""Compare two results files (the layout of gyrolab/results/layout.py) variable by variable: ``gyrolab-compare A B``.
 
     gyrolab-compare new.h5 stored.h5 --rtol 1e-10 --atol energy=1e-12 --atol 1e-13
     gyrolab-compare new.h5 stored.h5 --scaled 1e-10      # what the regression tests use
@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..results.layout import GRID_DIMS as RUN_DIMS
-from ..results.layout import INPUT_VARIABLES
+from ...results.layout import GRID_DIMS as RUN_DIMS
+from ...results.layout import INPUT_VARIABLES
 
 EXACT = ("status", "n_steps")
 IGNORED = {"wall_time": "timing, not physics"}
@@ -184,9 +184,9 @@ def open_results(path, label, member=None):
     used.  A combined file (gyrolab-combine) opens whole, every member checked, its members along a
     leading ``scene``/``job`` dim, or as the one member ``member`` names ({"scene": NAME} or
     {"job": K})."""
-    from ..results import ResultsError, open_file
-    from ..results.members import member_dim
-    from ..results.reader import members_of
+    from ...results import ResultsError, open_file
+    from ...results.members import member_dim
+    from ...results.reader import members_of
 
     try:
         ds, version = open_file(path)
@@ -198,7 +198,7 @@ def open_results(path, label, member=None):
 
 def run_dims(ds):
     """The dims that label a run: a combined file's member dim (``scene``/``job``), then RUN_DIMS."""
-    from ..results.members import member_dim
+    from ...results.members import member_dim
 
     dim = member_dim(ds)
     return ((dim,) if dim else ()) + RUN_DIMS
@@ -288,7 +288,7 @@ def data_config(text):
     """The flattened config of a file's ``config`` attr, without the keys that do not change data."""
     import yaml
 
-    from ..results.identity import RUN_ONLY, drop_neutral_defaults
+    from ...results.identity import RUN_ONLY, drop_neutral_defaults
 
     try:
         data = yaml.safe_load(text) or {}
@@ -383,8 +383,8 @@ def compare_variable(name, a, b, rtol, atol, exact, dims, coords, n_run_dims=len
 
 def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, scaled=None, names=("A", "B")):
     """Compare two opened results Datasets; see ``compare_files``."""
-    from ..results.members import member_dim, member_labels
-    from ..results.migrate import current
+    from ...results.members import member_dim, member_labels
+    from ...results.migrate import current
 
     da, db = current(da), current(db)
     ignored = dict(IGNORED)
@@ -415,8 +415,8 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
         ignored.update({v: "provenance of the combined files" for v in d.data_vars if "source" in d[v].dims})
     va = [v for v in da.data_vars if v not in ignored and v not in INPUT_VARIABLES]
     vb = [v for v in db.data_vars if v not in ignored and v not in INPUT_VARIABLES]
-    from ..results.layout import SAMPLE_VARIABLES, held_variables
-    from ..results.migrate import ABSENT_BEFORE, file_layout_version
+    from ...results.layout import SAMPLE_VARIABLES, held_variables
+    from ...results.migrate import ABSENT_BEFORE, file_layout_version
 
     # A file of an older layout lacks some variables: compare the rest, and say so.
     older = {name: set(ABSENT_BEFORE.get(file_layout_version(d), ())) for name, d in zip(names, (da, db))}

@@ -1,6 +1,6 @@
 """Captions for the README's figures, every number computed from the data the figure is drawn from.
 
-    python -m gyrolab.analysis.captions --default outputs/<run>/results.h5 --seed multirun/<seed run> \\
+    python -m gyrolab.analysis.reports.captions --default outputs/<run>/results.h5 --seed multirun/<seed run> \\
         --work-precision outputs/<wp run>/work_precision.h5 --stability multirun/<stability run> \\
         -o docs/figure_captions.md
 
@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..results import open_results
-from . import yardstick
-from .io import invariant_error, relative_error
+from ...results import open_results
+from ..figures import yardstick
+from ..io import invariant_error, relative_error
 
 
 def worst_error(ds, quantity, **at):
@@ -102,7 +102,7 @@ def energy_caption(path):
 
 
 def invariants_caption(path):
-    from .io import drawable_invariants
+    from ..io import drawable_invariants
 
     ds = open_results(path)
     dt = float(ds.dt.values.max())
@@ -135,7 +135,7 @@ def invariants_caption(path):
 
 
 def work_precision_caption(path):
-    from .work_precision import reference_name, work_precision_data
+    from ..figures.work_precision import reference_name, work_precision_data
 
     ds = open_results(path)
     data = work_precision_data(ds, retime=False, peers=False)
@@ -156,7 +156,7 @@ def work_precision_caption(path):
 
 
 def stability_caption(paths):
-    from .stability import _logerr, default_measure
+    from ..figures.stability import _logerr, default_measure
 
     out = []
     for path in paths:
@@ -193,7 +193,7 @@ def stability_caption(paths):
 
 
 def seed_captions(directory):
-    from .seed_figures import load_jobs
+    from ..figures.seed import load_jobs
 
     jobs = load_jobs([directory])
     lines = []
@@ -250,7 +250,7 @@ def build(default=None, seed=None, work_precision=None, stability=()):
         sections.append(("stability_heavy_top.png, stability_free_asymmetric.png", stability_caption(stability)))
     body = "\n\n".join(f"### {name}\n\n{text}" for name, text in sections if text)
     return (
-        "# Figure captions (generated)\n\nWritten by `python -m gyrolab.analysis.captions`; every number is "
+        "# Figure captions (generated)\n\nWritten by `python -m gyrolab.analysis.reports.captions`; every number is "
         "read from the results file the figure is drawn from.\n\n" + body + "\n"
     )
 
@@ -263,9 +263,9 @@ def _stability_files(paths):
 
 
 def main(argv=None):
-    """``python -m gyrolab.analysis.captions``: write the captions file."""
+    """``python -m gyrolab.analysis.reports.captions``: write the captions file."""
     p = argparse.ArgumentParser(
-        prog="python -m gyrolab.analysis.captions",
+        prog="python -m gyrolab.analysis.reports.captions",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

@@ -513,7 +513,7 @@ def method_stability_threshold(
     import numba
 
     if integrate is None:
-        from ..kernels.batch import integrate
+        from ...kernels.batch import integrate
     omega = float(np.linalg.norm(scene.omega0))
     if omega == 0.0:
         raise ValueError("the scene does not rotate (|omega0| = 0): no |omega| dt to measure")

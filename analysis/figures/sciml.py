@@ -21,7 +21,7 @@ scene forced_body with ``window: [0, 10]``):
   tests/test_forced_body.py checks that it agrees with lie_poisson4 and
   split6_exact to 1e-10 at t = 10).
 
-    python -m gyrolab.analysis.sciml RESULTS.h5 -o docs/sciml_rigid_body.md \\
+    python -m gyrolab.analysis.figures.sciml RESULTS.h5 -o docs/sciml_rigid_body.md \\
         --png docs/sciml_rigid_body_work_precision.png
 
 writes the table (every point of the figure) and the figure.
@@ -36,10 +36,10 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ..results import open_results
-from ..results.layout import GRID_DIMS
-from .figure import add_note, legend_below, select_note, suptitle
-from .io import SelectionError, build_run_scene, color, scene_label, select
+from ...results import open_results
+from ...results.layout import GRID_DIMS
+from ..io import SelectionError, build_run_scene, color, scene_label, select
+from .record import add_note, legend_below, select_note, suptitle
 
 METHOD_DIM = GRID_DIMS[0]
 # SciMLBenchmarks RigidBody_wpd: abstols = 1 ./ 10 .^ (6:13), reltols = 1 ./ 10 .^ (3:10), paired.
@@ -65,8 +65,8 @@ def _system(scene):
     w0 = np.asarray(scene.omega0, dtype=float)
     if not (b.mgl or b.mgc1 or b.mgc2):
         return omega_rhs, w0, (b.I1, b.I2, b.I3, b.tau1, b.tau2, b.tau3, b.drive_rate, b.drive_on, b.drive_off)
-    from ..kernels.closed_form import scene_rotation
-    from ..kernels.reference import rhs
+    from ...kernels.closed_form import scene_rotation
+    from ...kernels.reference import rhs
 
     y0 = np.concatenate((w0, scene_rotation(scene).as_matrix().ravel()))
     return rhs, y0, tuple(float(v) for v in b)
@@ -102,7 +102,7 @@ def peer_points(scene, t_end, ref, solver, repeats=5, tolerances=TOLERANCES):
 
 def reference_omega(scene, t_end):
     """ω(t_end) (rad/s) from kernels/reference.py's DOP853 at rtol = atol = REFERENCE_TOL."""
-    from ..kernels.reference import dop853
+    from ...kernels.reference import dop853
 
     return dop853(scene, t_end, t_end, rtol=REFERENCE_TOL, atol=REFERENCE_TOL)[-1, 3:6]
 
@@ -222,7 +222,7 @@ def table(data):
 
 
 def _make_figure():
-    from .figure import Figure
+    from .record import Figure
 
     return Figure(
         "sciml",
@@ -243,9 +243,9 @@ FIGURE = _make_figure()
 
 
 def main(argv=None):
-    """``python -m gyrolab.analysis.sciml FILE -o TABLE.md [--png FIGURE.png]``."""
+    """``python -m gyrolab.analysis.figures.sciml FILE -o TABLE.md [--png FIGURE.png]``."""
     p = argparse.ArgumentParser(
-        prog="python -m gyrolab.analysis.sciml",
+        prog="python -m gyrolab.analysis.figures.sciml",
         description=__doc__.split("\n\n")[0],
     )
     p.add_argument("file", help="results file of experiment=sciml_rigid_body")
@@ -260,7 +260,7 @@ def main(argv=None):
         sys.stderr.write(f"sciml: error: {args.file}: {' '.join(str(err).split())}\n")
         return 2
     text = (
-        f"# SciMLBenchmarks rigid body (generated)\n\nWritten by `python -m gyrolab.analysis.sciml` from "
+        f"# SciMLBenchmarks rigid body (generated)\n\nWritten by `python -m gyrolab.analysis.figures.sciml` from "
         f"`{Path(args.file).name}`; times are best of {args.repeats} on this machine.\n\n{table(data)}\n"
     )
     out = Path(args.output)
@@ -268,7 +268,7 @@ def main(argv=None):
     part.write_text(text)
     part.replace(out)  # never a half-written table
     if args.png:
-        from .io import save_figure
+        from ..io import save_figure
 
         save_figure(sciml_figure(ds, data=data), args.png)
     print(f"wrote {args.output}" + (f" and {args.png}" if args.png else ""))

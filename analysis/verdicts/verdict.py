@@ -81,7 +81,7 @@ class VerdictError(ValueError):
 
 def load(paths):
     """[(path, Dataset)] of gyrolab results files (layout_version ≥ 1); VerdictError otherwise."""
-    from ..results import ResultsError, find_results, open_members
+    from ...results import ResultsError, find_results, open_members
 
     out = []
     try:
@@ -122,7 +122,7 @@ def _text(v):
 
 def scene_key(ds):
     """(scene name, 'k=v ...' of its options): files with the same key describe the same physics."""
-    from .io import scene_name, scene_options
+    from ..io import scene_name, scene_options
 
     opts = " ".join(f"{k}={_text(v)}" for k, v in sorted(scene_options(ds).items()))
     return scene_name(ds), opts
@@ -130,14 +130,14 @@ def scene_key(ds):
 
 def declared_preserves(method):
     """The invariants a registered method declares it preserves, or None if it is not registered."""
-    from ..kernels.registry import METHODS
+    from ...kernels.registry import METHODS
 
     mod = METHODS.get(str(method))
     return None if mod is None else tuple(mod.PRESERVES)
 
 
 def declared_order(method):
-    from ..kernels.registry import METHODS
+    from ...kernels.registry import METHODS
 
     mod = METHODS.get(str(method))
     return None if mod is None else int(mod.ORDER)
@@ -161,19 +161,19 @@ class References:
 
     def get(self, ds, f, theta0):
         """(axis (3,), ω (3,) rad/s, label, yardstick (method, dt) or None) at the file's last sample time."""
-        from ..results.layout import closed_form
-        from .io import build_run_scene
+        from ...results.layout import closed_form
+        from ..io import build_run_scene
 
         t = float(ds.time.values[-1])
         scene = build_run_scene(ds, f, theta0)
         form = closed_form(ds)
         if self.how in ("auto", "closed_form") and form == "free_symmetric":
-            from ..kernels.closed_form import free_symmetric_solution
+            from ...kernels.closed_form import free_symmetric_solution
 
             axis, omega = free_symmetric_solution(scene, [t])
             return axis[0], omega[0], f"closed form ({form})", None
         if self.how in ("auto", "closed_form") and form == "euler_poinsot":
-            from ..kernels.euler_poinsot import free_body
+            from ...kernels.euler_poinsot import free_body
 
             omega, q = free_body(scene.body[:3], scene.omega0, scene.q0, np.array([t]))
             a, b, c, d = q[0]
@@ -208,7 +208,7 @@ class References:
             raise VerdictError(f"--reference yardstick: no ok run of {' or '.join(YARDSTICKS)} in the file")
         key = (scene.body, scene.omega0, scene.q0, t)
         if key not in self.cache:
-            from ..kernels.reference import dop853
+            from ...kernels.reference import dop853
 
             s = dop853(scene, t, t, rtol=DOP853_TOL, atol=DOP853_TOL)[-1]
             self.cache[key] = (s[0:3], s[3:6])
@@ -218,7 +218,7 @@ class References:
 
 def order_records(ds, refs):
     """Order records of every (method, f, θ0) of ``ds`` with ≥ MIN_LADDER step sizes."""
-    from .io import scene_name
+    from ..io import scene_name
 
     if ds.sizes["dt"] < MIN_LADDER or ds.sizes["time"] < 2:
         return []
@@ -290,9 +290,9 @@ def preserved_ulps(n_steps):
 
 def drift_records(ds):
     """Run records (one per run and declared invariant) of every run with ≥ MIN_DRIFT_SAMPLES samples."""
-    from ..kernels.invariants import has_invariant, invariant
-    from ..results.layout import conserved
-    from .io import scene_name
+    from ...kernels.invariants import has_invariant, invariant
+    from ...results.layout import conserved
+    from ..io import scene_name
 
     if ds.sizes["time"] < MIN_DRIFT_SAMPLES:
         return []
@@ -350,8 +350,8 @@ def drift_records(ds):
 
 def threshold_records(datasets, t_end, rtol=1e-3):
     """One record per (scene, method) of the files: (|ω| dt)_crit over t_end s at the first (f, θ0)."""
+    from ..io import build_run_scene, scene_name
     from .classify import method_stability_threshold
-    from .io import build_run_scene, scene_name
 
     done, out = set(), []
     for _, ds in datasets:
@@ -397,8 +397,8 @@ def _blank(**kw):
 
 def summaries(datasets, orders, runs, thresholds):
     """Summary records: per (scene, method, declared invariant) the order, drift, preserved and threshold."""
-    from ..results.layout import conserved
-    from .io import scene_name
+    from ...results.layout import conserved
+    from ..io import scene_name
 
     scenes = {}
     for _, ds in datasets:
@@ -585,13 +585,13 @@ def fmt_preserved(recs):
 
 def markdown(records, title="Verdicts measured by gyrolab"):
     """The verdict as a Markdown document: per scene, one table row per method, with the conditions."""
-    from ..kernels.scenes import scenes as scene_table
+    from ...kernels.scenes import scenes as scene_table
 
     summ = [r for r in records if r["kind"] == "summary"]
     lines = [
         f"# {title}",
         "",
-        "Generated by `gyrolab-verdict` (analysis/verdict.py) from stored results; do not edit by hand.  "
+        "Generated by `gyrolab-verdict` (analysis/verdicts/verdict.py) from stored results; do not edit by hand.  "
         "Regenerate docs/: `gyrolab experiment=verdict hydra.callbacks.verdict.docs_dir=$PWD/docs`.",
         "Order: fitted p of err ≈ C dtᵖ over the asymptotic range of the dt ladder [95 % CI], err = the final "
         "state's error max(‖axis − ref‖∞, ‖ω − ref‖∞/|ω0|).  Drift: class of e(t) = (X(t) − X0)/|X0| of each "
@@ -707,7 +707,7 @@ def write_outputs(records, json_path=None, markdown_path=None, figures_dir=None,
         Path(markdown_path).write_text(markdown(records) + "\n")
         written.append(Path(markdown_path))
     if figures_dir:
-        from .verdict_study import draw_figures
+        from .study import draw_figures
 
         written += draw_figures(records, datasets or [], figures_dir)
     return written

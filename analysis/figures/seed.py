@@ -20,8 +20,8 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ..results import find_results, open_results
-from .io import DT_STYLES, FLOOR, color, fmt_dt, relative_error, save_figure, scene_options
+from ...results import find_results, open_results
+from ..io import DT_STYLES, FLOOR, color, fmt_dt, relative_error, save_figure, scene_options
 from .nutation import closed_form_nutation
 
 REGIME_TITLES = {

@@ -3,7 +3,7 @@
 Error: max over the stored samples of |axis(t) − axis_ref(t)| (the chord
 between unit symmetry axes, ≈ the angle in rad), against the scene's exact
 motion when it declares one that gives a trajectory (free bodies:
-analysis/yardstick.py; the free asymmetric body's Euler–Poinsot flow), else
+analysis/figures/yardstick.py; the free asymmetric body's Euler–Poinsot flow), else
 against scipy DOP853 at rtol = atol = 1e-12 (kernels.reference), at the same
 sample times.  Cost: wall time per simulated second (left) and method steps
 per simulated second (right).  Steps are not equal work: a step of
@@ -25,9 +25,9 @@ import time
 import matplotlib.pyplot as plt
 import numpy as np
 
+from ..io import build_run_scene, color, scene_label, select
 from . import yardstick
-from .figure import add_note, choose, coincidence_text, coincident, legend_below, panel_size, suptitle
-from .io import build_run_scene, color, scene_label, select
+from .record import add_note, choose, coincidence_text, coincident, legend_below, panel_size, suptitle
 
 PEER_TOLERANCES = {"DOP853": (1e-4, 1e-6, 1e-8, 1e-10), "RK45": (1e-4, 1e-6, 1e-8)}
 STAGES = {"DOP853": 12, "RK45": 6}
@@ -40,7 +40,7 @@ def axis_error(axis, ref_axis):
 
 
 def reference_axis(scene, t_end, every):
-    from ..kernels.reference import dop853
+    from ...kernels.reference import dop853
 
     return dop853(scene, t_end, every)[:, 0:3]
 
@@ -49,7 +49,7 @@ def time_method(method, scene, dt, t_end, every, repeats=3):
     """Best-of-``repeats`` wall time (s) of one run on one thread, after a warm-up call."""
     import numba
 
-    from ..kernels.batch import integrate, sample_schedule
+    from ...kernels.batch import integrate, sample_schedule
 
     stride, n_samples = sample_schedule(dt, every, t_end)
     args = (
@@ -79,8 +79,8 @@ def peer_points(scene, t_end, every, ref_axis, solver):
     """[(tolerance, wall s, steps, error)] of scipy ``solver`` on the same scene."""
     from scipy.integrate import solve_ivp
 
-    from ..kernels.closed_form import scene_rotation
-    from ..kernels.reference import rhs
+    from ...kernels.closed_form import scene_rotation
+    from ...kernels.reference import rhs
 
     times = np.arange(ref_axis.shape[0]) * every
     y0 = np.concatenate((np.asarray(scene.omega0, float), scene_rotation(scene).as_matrix().ravel()))
@@ -221,7 +221,7 @@ def work_precision_figure(ds, sel=None, retime=True, peers=True, data=None):
 
 
 def _make_figure():
-    from .figure import Figure
+    from .record import Figure
 
     return Figure(
         "work-precision",

@@ -1,6 +1,6 @@
 """Tables of pinned problems' results, every number read from their results files.
 
-    python -m gyrolab.analysis.peer_table outputs/<hlw run>/hlw_free_body.h5 \\
+    python -m gyrolab.analysis.reports.peer_table outputs/<hlw run>/hlw_free_body.h5 \\
         outputs/<bruls run>/bruls_heavy_top.h5 -o docs/peer_problems.md
 
 For each file: the scene, its options and grid, then per method the axis error at
@@ -15,10 +15,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..results import ResultsError, open_results
+from ...results import ResultsError, open_results
+from ..figures.work_precision import reference_name, work_precision_data
+from ..io import drawable_invariants, scene_name, scene_options
 from .captions import fmt_error, worst_error
-from .io import drawable_invariants, scene_name, scene_options
-from .work_precision import reference_name, work_precision_data
 
 
 def file_section(path):
@@ -52,9 +52,9 @@ def file_section(path):
 
 
 def main(argv=None):
-    """``python -m gyrolab.analysis.peer_table FILE... -o OUT``: write the tables."""
+    """``python -m gyrolab.analysis.reports.peer_table FILE... -o OUT``: write the tables."""
     p = argparse.ArgumentParser(
-        prog="python -m gyrolab.analysis.peer_table",
+        prog="python -m gyrolab.analysis.reports.peer_table",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -67,8 +67,8 @@ def main(argv=None):
         sys.stderr.write(f"peer_table: error: {' '.join(str(err).split())}\n")
         return 2
     text = (
-        "# Peer problems (generated)\n\nWritten by `python -m gyrolab.analysis.peer_table`; every number is read "
-        "from the results file named in its heading.\n\n" + "\n\n".join(sections) + "\n"
+        "# Peer problems (generated)\n\nWritten by `python -m gyrolab.analysis.reports.peer_table`; every number is "
+        "read from the results file named in its heading.\n\n" + "\n\n".join(sections) + "\n"
     )
     Path(args.output).write_text(text)
     print(f"peer_table: wrote {args.output}")

@@ -1,7 +1,7 @@
 """Stability map: log10 of the worst error over a (dt × f) grid, one panel per method (rows of 5).
 
 The error is the max relative energy error, or, for a scene whose closed
-form gives the exact motion (free bodies, analysis/yardstick.py), the max
+form gives the exact motion (free bodies, analysis/figures/yardstick.py), the max
 deviation of the axis from the exact one (rad): energy alone cannot tell
 methods apart that advance ω alike (seed_next, seed_prev and rk4 on the free
 box).  Methods whose maps are identical are named in the panel titles.
@@ -20,9 +20,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.ticker import NullFormatter
 
+from ..io import pick, relative_error, scene_label, select
 from . import yardstick
-from .figure import add_note, choose, facet, panel_size, suptitle, wrap_note
-from .io import pick, relative_error, scene_label, select
+from .record import add_note, choose, facet, panel_size, suptitle, wrap_note
 
 VMIN, VMAX = -16.0, 1.0
 
@@ -196,7 +196,7 @@ def stability_figure(ds, sel=None, theta0=None, measure=None):
 
 
 def _make_figure():
-    from .figure import Figure
+    from .record import Figure
 
     return Figure(
         "stability",
