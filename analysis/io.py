@@ -19,6 +19,7 @@ import xarray as xr  # noqa: E402
 
 from ..layout import GRID_DIMS, MEMBER_DIMS, member_dim, member_labels  # noqa: E402
 from ..layout import member as member_of  # noqa: E402
+from ..safe_files import atomic_replace  # noqa: E402
 
 FORMATS = ("png", "svg", "pdf")
 # Fixed colours of the first methods and the peers; any other method gets one from PALETTE
@@ -336,7 +337,10 @@ def save_figure(fig, out, formats=("png",)):
         if fmt not in FORMATS:
             raise SelectionError(f"--format={fmt}: choose from {', '.join(FORMATS)}")
         p = out.with_suffix("." + fmt)
-        fig.savefig(p, dpi=110 if fmt == "png" else None, bbox_inches="tight")
+        # through a private temporary (gyrolab/safe_files.py): never through a link planted at p
+        atomic_replace(
+            p, lambda tmp, fmt=fmt: fig.savefig(tmp, format=fmt, dpi=110 if fmt == "png" else None, bbox_inches="tight")
+        )
         paths.append(p)
     plt.close(fig)
     return paths[0]

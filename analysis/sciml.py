@@ -37,6 +37,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ..layout import GRID_DIMS
+from ..safe_files import write_text
 from .figure import add_note, legend_below, select_note, suptitle
 from .io import SelectionError, build_run_scene, color, open_results, scene_label, select
 
@@ -262,10 +263,7 @@ def main(argv=None):
         f"# SciMLBenchmarks rigid body (generated)\n\nWritten by `python -m gyrolab.analysis.sciml` from "
         f"`{Path(args.file).name}`; times are best of {args.repeats} on this machine.\n\n{table(data)}\n"
     )
-    out = Path(args.output)
-    part = out.with_name(f".{out.name}.part")
-    part.write_text(text)
-    part.replace(out)  # never a half-written table
+    write_text(args.output, text)  # never a half-written table, never through a link
     if args.png:
         from .io import save_figure
 

@@ -46,6 +46,7 @@ from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from ..layout import RAW_PER_SAMPLE, scene_attrs
+from ..safe_files import UnsafePathError, check_replaceable
 from .config import ConfigError, config_hash, register_configs
 from .execute import BackendError
 from .grid import build_grid, estimate_seconds, estimate_writing_seconds, plan_chunks
@@ -177,7 +178,8 @@ def check_run_dirs(argv):
 def resolve_output(path, run_dir):
     """The results file: ``output.path`` relative to Hydra's output directory."""
     out = Path(os.path.expanduser(str(path)))
-    return (out if out.is_absolute() else Path(run_dir) / out).resolve()
+    out = out if out.is_absolute() else Path(run_dir) / out
+    return out.parent.resolve() / out.name  # the name itself not resolved: a link there is refused, not followed
 
 
 def check_writable(out):
@@ -194,6 +196,15 @@ def check_writable(out):
             pass
     except OSError as err:
         raise ConfigError(f"output.path={out}: cannot write in {ancestor} ({err.strerror})") from None
+
+
+def check_output_paths(out):
+    """UnsafePathError when a link or special file sits where the results file or its journal
+    directory will be: gyrolab never writes through one (gyrolab/safe_files.py)."""
+    check_replaceable(out)
+    journal = partial_dir(out)
+    if journal.is_symlink() or (journal.exists() and not journal.is_dir()):
+        raise UnsafePathError(f"{journal}: not a directory (a link or a file); remove it to run this sweep")
 
 
 def stored_hash(path):
@@ -406,6 +417,7 @@ def sweep(cfg, run_dir, stack):
     threads = 1 if cfg.runner.backend == "dask" else resolve_threads(cfg.runner.threads)
     out = resolve_output(cfg.output.path, run_dir)
     check_writable(out)
+    check_output_paths(out)
     OutputLock(out).check_free()
     chash = config_hash(cfg)
     overwrite, resume = bool(cfg.output.overwrite), bool(cfg.runner.resume)
@@ -596,7 +608,7 @@ def hydra_main(cfg):
     run_dir = HydraConfig.get().runtime.output_dir
     try:
         return run_sweep(cfg, run_dir)
-    except ConfigError as err:
+    except (ConfigError, UnsafePathError) as err:
         remove_empty_dirs(run_dir, os.getcwd())
         fail(err)
     finally:
@@ -664,7 +676,7 @@ def main():
     try:
         check_run_dirs(sys.argv[1:])
         hydra_main()
-    except ConfigError as err:
+    except (ConfigError, UnsafePathError) as err:
         fail(err)
     except (HydraException, OmegaConfBaseException) as err:
         fail(describe_hydra_error(err, sys.argv[1:]))

@@ -56,6 +56,7 @@ from ..layout import (
     held_variables,
     sample_dims,
 )
+from ..safe_files import UnsafePathError
 from .config import ConfigError
 from .provenance import VOLATILE_ATTRS
 from .store import OutputLock, atomic_replace, remove_stale_temporaries
@@ -403,7 +404,7 @@ def main(argv=None):
         files = find_results(args.paths, exclude=out, skip_unfinished=args.skip_unfinished)
         ds = combine(files, args.allow_identical_overlap)
         write(ds, out)
-    except (CombineError, ConfigError) as err:
+    except (CombineError, ConfigError, UnsafePathError) as err:
         sys.stderr.write(f"gyrolab-combine: error: {' '.join(str(err).split())}\n")
         return 2
     except OSError as err:  # a full disk while writing: the old output, if any, is untouched

@@ -22,6 +22,7 @@ import hashlib
 import json
 import os
 import shutil
+import socket
 import time
 from pathlib import Path
 
@@ -42,6 +43,7 @@ from ..layout import (
     sample_dims,
     sample_variables,
 )
+from ..safe_files import atomic_replace, atomic_write, open_regular, remove_entry, temporary_prefix
 from .assembly import JournalChunk, MemoryChunk, box_runs, boxes, chunk_layout, gather, max_runs
 from .config import ConfigError
 
@@ -54,72 +56,44 @@ def lock_path(out):
     return Path(f"{out}.lock")
 
 
-def fsync_dir(directory):
-    fd = os.open(directory, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
 def temporary_name(path):
-    """The temporary name ``atomic_replace`` writes ``path`` under (hidden, with this process's pid)."""
+    """The start of the names of the private directories ``atomic_replace`` writes ``path`` in
+    (hidden, with this process's pid; gyrolab/safe_files.py adds a random part)."""
     path = Path(path)
-    return path.with_name(f".{path.name}.tmp{os.getpid()}")
+    return path.with_name(temporary_prefix(path))
 
 
 def remove_stale_temporaries(path):
-    """Remove the ``.<name>.tmp<pid>`` files next to ``path`` that a killed assembly or combine
-    left; returns the removed paths.  Call with the output's lock held: every writer of
-    ``path`` holds it, so no such file is in use."""
+    """Remove the ``.<name>.tmp<pid>`` files and ``.<name>.tmp<pid>.<random>`` private directories
+    next to ``path`` that a killed assembly or combine left (links removed, never followed); returns
+    the removed paths.  Call with the output's lock held: every writer of ``path`` holds it, so
+    none is in use."""
     path = Path(path)
     removed = []
     if not path.parent.is_dir():
         return removed
     for tmp in path.parent.glob(f".{path.name}.tmp*"):
-        if tmp.name[len(f".{path.name}.tmp") :].isdigit():
-            try:
-                tmp.unlink()
-                removed.append(tmp)
-            except OSError:
-                pass
+        pid, dot, _ = tmp.name[len(f".{path.name}.tmp") :].partition(".")
+        if pid.isdigit() and (not dot or (tmp.is_dir() and not tmp.is_symlink())):
+            remove_entry(tmp)
+            removed.append(tmp)
     return removed
 
 
-def atomic_replace(path, write_to, before_replace=None):
-    """Call ``write_to(tmp_path)``, fsync that file and rename it to ``path``; the
-    temporary file is removed if anything fails, so ``path`` is old or whole.
-    ``before_replace()``, if given, runs just before the rename and may raise to cancel it."""
-    path = Path(path)
-    tmp = temporary_name(path)
-    try:
-        write_to(tmp)
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        if before_replace is not None:
-            before_replace()
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    fsync_dir(path.parent)
-
-
-def atomic_write(path, write):
-    """Call ``write(fileobj)`` on a temporary file, then as :func:`atomic_replace`."""
-
-    def write_to(tmp):
-        with open(tmp, "wb") as fh:
-            write(fh)
-
-    atomic_replace(path, write_to)
+def lock_identity():
+    """What the lock file holds: ``<pid> <host> <start time, UTC>`` of the writer."""
+    started = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+    return f"{os.getpid()} {socket.gethostname()} {started}\n"
 
 
 class OutputLock:
-    """Exclusive, non-blocking lock on ``<out>.lock``; ConfigError naming the holder's pid if taken.
+    """Exclusive, non-blocking lock on ``<out>.lock``; ConfigError naming the holder if taken.
 
-    The lock file is removed on release; the inode check after locking makes
-    that safe against a writer that opened the file just before the removal.
+    The lock file (``lock_identity``: pid, host, start time) is opened with O_NOFOLLOW and must be a
+    regular file of ours (else UnsafePathError: a link or a FIFO planted there is never followed);
+    a lock left by a killed writer holds no flock and is simply taken over.  The file is removed
+    on release; the inode check after locking makes that safe against a writer that opened the
+    file just before the removal.
     """
 
     def __init__(self, out):
@@ -130,7 +104,7 @@ class OutputLock:
     def check_free(self):
         """ConfigError if another process holds the lock; creates nothing."""
         try:
-            fd = os.open(self.path, os.O_RDONLY)
+            fd = open_regular(self.path, os.O_RDONLY)
         except FileNotFoundError:
             return
         try:
@@ -140,36 +114,39 @@ class OutputLock:
         os.close(fd)
 
     def _refuse(self, fd):
-        holder = os.read(fd, 64).decode(errors="replace").strip() or "?"
+        words = os.read(fd, 200).decode(errors="replace").split()
         os.close(fd)
+        holder = words[0] if words and words[0].isdigit() else "?"
+        where = f" (host {words[1]}, since {words[2]})" if len(words) >= 3 else ""
         raise ConfigError(
-            f"output.path={self.out}: another gyrolab (pid {holder}) is writing it right now; "
+            f"output.path={self.out}: another gyrolab (pid {holder}) is writing it right now{where}; "
             "wait for it to finish or choose another output.path"
         )
 
     def acquire(self):
         while True:
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            fd = open_regular(self.path, os.O_RDWR | os.O_CREAT)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
                 self._refuse(fd)
             try:
-                same = os.stat(self.path).st_ino == os.fstat(fd).st_ino
+                same = os.lstat(self.path).st_ino == os.fstat(fd).st_ino
             except FileNotFoundError:
                 same = False
             if same:
                 break
             os.close(fd)  # the previous holder removed the file under us: lock the new one
         os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()}\n".encode())
+        os.write(fd, lock_identity().encode())
         self.fd = fd
         return self
 
     def release(self):
         if self.fd is not None:
             try:
-                self.path.unlink()
+                if os.lstat(self.path).st_ino == os.fstat(self.fd).st_ino:
+                    self.path.unlink()
             except FileNotFoundError:
                 pass
             os.close(self.fd)
@@ -240,8 +217,7 @@ class Journal:
         atomic_write(self.manifest_path, lambda fh: fh.write(text))
 
     def discard(self):
-        if self.dir.exists():
-            shutil.rmtree(self.dir)
+        remove_entry(self.dir)  # a link there is removed, not followed
 
     def chunk_files(self):
         return sorted(self.dir.glob("chunk-*.npz"))
@@ -249,7 +225,7 @@ class Journal:
     def clean_temporaries(self):
         """Remove half-written chunk and manifest files a killed process left behind."""
         for tmp in [*self.dir.glob(".chunk-*.tmp*"), *self.dir.glob(".manifest.json.tmp*")]:
-            tmp.unlink()
+            remove_entry(tmp)  # a file, a private directory of safe_files.atomic_replace, or a link
 
     def write_chunk(self, number, runs, samples, status, n_steps, wall_time):
         """Store one finished chunk durably: runs (flat numbers), raw samples (n, time, RAW_PER_SAMPLE),

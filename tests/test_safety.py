@@ -1,0 +1,228 @@
+"""An adversary sharing the machine (issue 27): links and special files planted where gyrolab writes
+are refused in one line and never followed (the victim keeps its bytes); labels read from a file
+cannot choose where a figure goes."""
+
+import os
+import subprocess
+
+import h5py
+import numpy as np
+import pytest
+
+from gyrolab.analysis import cli
+from gyrolab.runner.combine import main as combine_main
+from gyrolab.runner.store import Journal, OutputLock, atomic_replace, atomic_write
+from gyrolab.safe_files import UnsafePathError, inside, safe_name
+
+from helpers import gyrolab, make_file
+
+SECRET = b"the victim's own bytes\n"
+ONE_RUN = [
+    "sweep.method=[seed_next]",
+    "sweep.f=[10]",
+    "sweep.theta0=[30]",
+    "sweep.dt=[1e-3]",
+    "sweep.t_end=0.01",
+    "output.every=1e-3",
+    "output.figures=false",
+]
+
+
+@pytest.fixture
+def victim(tmp_path):
+    path = tmp_path / "victim"
+    path.write_bytes(SECRET)
+    return path
+
+
+def one_line(text):
+    lines = text.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in text, text
+    return lines[0]
+
+
+# --------------------------------------------------------------------------- the write layer
+
+
+def test_atomic_replace_refuses_a_link_at_the_destination(tmp_path, victim):
+    out = tmp_path / "results.h5"
+    out.symlink_to(victim)
+    with pytest.raises(UnsafePathError, match="symbolic link"):
+        atomic_replace(out, lambda tmp: tmp.write_bytes(b"data"))
+    assert victim.read_bytes() == SECRET and out.is_symlink()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["results.h5", "victim"]  # no temporary left
+
+
+def test_atomic_replace_refuses_a_fifo_and_a_directory(tmp_path):
+    fifo, directory = tmp_path / "fifo.png", tmp_path / "dir.png"
+    os.mkfifo(fifo)
+    directory.mkdir()
+    for path, kind in ((fifo, "a FIFO"), (directory, "a directory")):
+        with pytest.raises(UnsafePathError, match=kind):
+            atomic_write(path, lambda fh: fh.write(b"x"))
+
+
+def test_a_link_at_the_old_temporary_names_is_never_followed(tmp_path, victim):
+    """Before issue 27 the temporaries were ``.<name>.tmp<pid>``, the pid readable in the lock: a link
+    planted there was written through.  Now they live in a fresh private directory."""
+    out = tmp_path / "results.h5"
+    planted = tmp_path / f".results.h5.tmp{os.getpid()}"
+    planted.symlink_to(victim)
+    atomic_replace(out, lambda tmp: tmp.write_bytes(b"data"))
+    assert victim.read_bytes() == SECRET
+    assert out.read_bytes() == b"data" and not out.is_symlink()
+
+
+def test_journal_chunk_and_manifest_temporaries_do_not_follow_links(tmp_path, victim):
+    out = tmp_path / "results.h5"
+    journal = Journal(out)
+    journal.create({"config_hash": "x", "n_runs": 1, "shape": [1, 1, 1, 1], "n_samples": 2})
+    for name in (".chunk-00000.npz.tmp", ".manifest.json.tmp"):
+        (journal.dir / f"{name}{os.getpid()}").symlink_to(victim)
+    journal.write_chunk(0, np.array([0]), np.zeros((1, 2, 8)), np.zeros(1, np.int8), np.ones(1), np.ones(1))
+    assert victim.read_bytes() == SECRET
+    chunk = journal.dir / "chunk-00000.npz"
+    assert chunk.is_file() and not chunk.is_symlink() and "chunk-00000.npz" in journal.manifest()["chunks"]
+
+
+@pytest.mark.parametrize("kind", ["link", "directory", "fifo", "dangling link"])
+def test_the_lock_is_never_opened_through_a_link_or_special_file(tmp_path, victim, kind):
+    out = tmp_path / "results.h5"
+    lock = tmp_path / "results.h5.lock"
+    {
+        "link": lambda: lock.symlink_to(victim),
+        "directory": lock.mkdir,
+        "fifo": lambda: os.mkfifo(lock),
+        "dangling link": lambda: lock.symlink_to(tmp_path / "absent"),
+    }[kind]()
+    for call in (OutputLock(out).check_free, OutputLock(out).acquire):
+        with pytest.raises(UnsafePathError, match="results.h5.lock"):
+            call()
+    assert victim.read_bytes() == SECRET and not (tmp_path / "absent").exists()
+
+
+def test_the_lock_holds_its_owner_and_a_stale_one_is_taken_over(tmp_path):
+    out = tmp_path / "results.h5"
+    (tmp_path / "results.h5.lock").write_text("12345 otherhost 2020-01-01T00:00:00Z\n")  # its writer died
+    with OutputLock(out) as lock:
+        pid, host, started = lock.path.read_text().split()
+        assert int(pid) == os.getpid() and host == os.uname().nodename and started.endswith("Z")
+    assert not lock.path.exists()
+
+
+# --------------------------------------------------------------------------- the commands
+
+
+@pytest.mark.parametrize("planted", ["results.h5.lock", "results.h5"])
+def test_gyrolab_refuses_a_link_where_it_would_write(tmp_path, victim, planted):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / planted).symlink_to(victim)
+    result = gyrolab(*ONE_RUN, "output.overwrite=true", f"hydra.run.dir={run}", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert one_line(result.stderr).startswith(f"gyrolab: error: {run / planted}: is a symbolic link")
+    assert victim.read_bytes() == SECRET
+    assert sorted(p.name for p in run.iterdir()) == [planted]
+
+
+@pytest.fixture(scope="module")
+def two_scenes(tmp_path_factory):
+    root = tmp_path_factory.mktemp("two_scenes")
+    (root / "a").mkdir()
+    (root / "b").mkdir()
+    a = make_file(root / "a" / "results.h5", "sweep.f=[10]")
+    b = make_file(root / "b" / "results.h5", "sweep.f=[5]", "scene=free_symmetric")
+    return a, b
+
+
+def test_combine_refuses_a_link_as_its_output(tmp_path, victim, two_scenes, capsys):
+    out = tmp_path / "combined.h5"
+    out.symlink_to(victim)
+    assert combine_main([*map(str, two_scenes), "-o", str(out), "--overwrite"]) == 2
+    assert one_line(capsys.readouterr().err).startswith(f"gyrolab-combine: error: {out}: is a symbolic link")
+    assert victim.read_bytes() == SECRET
+
+
+def test_plot_refuses_a_link_as_its_figure(tmp_path, victim, two_scenes, capsys):
+    out = tmp_path / "energy.png"
+    out.symlink_to(victim)
+    with pytest.raises(SystemExit) as done:
+        cli.main(["energy", str(two_scenes[0]), "-o", str(out)])
+    assert done.value.code == 2
+    assert "is a symbolic link" in one_line(capsys.readouterr().err)
+    assert victim.read_bytes() == SECRET
+
+
+def test_docs_tables_refuse_a_link_before_any_work(tmp_path, victim, two_scenes, capsys):
+    from gyrolab.analysis import peer_table
+
+    out = tmp_path / "peer_problems.md"
+    out.symlink_to(victim)
+    assert peer_table.main([str(two_scenes[0]), "-o", str(out)]) == 2
+    assert "is a symbolic link" in one_line(capsys.readouterr().err)
+    assert victim.read_bytes() == SECRET
+
+
+def test_peer_table_needs_an_output():
+    """Without -o it overwrote ./docs/peer_problems.md of whatever directory it ran in."""
+    from gyrolab.analysis import peer_table
+
+    with pytest.raises(SystemExit) as done:
+        peer_table.main(["x.h5"])
+    assert done.value.code == 2
+
+
+# --------------------------------------------------------------------------- labels from files
+
+
+def test_safe_name_keeps_ordinary_labels_and_defuses_paths():
+    assert safe_name("heavy_top", 0) == "heavy_top" and safe_name("job1", 0) == "job1"
+    assert safe_name("../..", 3) == "3" and safe_name("/", "m0") == "m0" and safe_name("", 1) == "1"
+    assert "/" not in safe_name("/etc/cron.d/evil", 0) and not safe_name("../../x", 0).startswith(".")
+    with pytest.raises(UnsafePathError):
+        inside("/tmp/a", "/tmp/a/../b")
+
+
+@pytest.fixture(scope="module")
+def evil(two_scenes, tmp_path_factory):
+    """A combined file whose scene labels are an absolute path and ``../..`` (the adversary's file)."""
+    root = tmp_path_factory.mktemp("evil") / "deep" / "er"
+    root.mkdir(parents=True)
+    path = root / "evil.h5"
+    assert combine_main([*map(str, two_scenes), "-o", str(path)]) == 0
+    with h5py.File(path, "r+") as fh:
+        labels = fh["scene"]
+        assert labels.shape == (2,)
+        labels[...] = np.array([str(root.parent.parent / "abs_evil"), "../.."], dtype=object)
+    return path
+
+
+def files_under(root):
+    return sorted(str(p.relative_to(root)) for p in root.rglob("*") if p.is_file())
+
+
+@pytest.mark.parametrize("kind", ["standard", "energy"])
+def test_plot_labels_cannot_write_outside(evil, kind):
+    top = evil.parent.parent.parent
+    before = files_under(top)
+    result = subprocess.run(
+        ["python", "-m", "gyrolab.analysis.cli", kind, str(evil)], capture_output=True, text=True, cwd=top
+    )
+    assert "Traceback" not in result.stderr, result.stderr
+    new = sorted(set(files_under(top)) - set(before))
+    assert new and all(p.startswith("deep/er/") for p in new), new
+    assert not (top / "abs_evil").exists()
+
+
+def test_verdict_figures_cannot_write_outside(tmp_path, monkeypatch):
+    import matplotlib.pyplot as plt
+
+    from gyrolab.analysis import verdict_study
+
+    monkeypatch.setattr(verdict_study, "scene_figure", lambda *a: plt.figure(figsize=(1, 1)))
+    out = tmp_path / "figs"
+    out.mkdir()
+    records = [{"kind": "summary", "scene": "../../.."}, {"kind": "summary", "scene": "heavy_top"}]
+    paths = verdict_study.draw_figures(records, [], out)
+    assert [p.name for p in paths] == ["verdict_0.png", "verdict_heavy_top.png"]
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*.png")) == [p.relative_to(tmp_path) for p in paths]
