@@ -148,11 +148,11 @@ def atomic_replace(path, write_to, before_replace=None):
     fsync_dir(path.parent)
 
 
-def atomic_write(path, write):
-    """Call ``write(fileobj)`` on a new binary file, then as :func:`atomic_replace`."""
+def atomic_write(path, write, mode=0o644):
+    """Call ``write(fileobj)`` on a new binary file (permissions ``mode``), then as :func:`atomic_replace`."""
 
     def write_to(tmp):
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, mode)
         with os.fdopen(fd, "wb") as fh:
             write(fh)
 

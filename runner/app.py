@@ -235,11 +235,13 @@ def output_state(out, chash, overwrite, resume):
             )
     if journal.exists():
         if resume:
-            if journal.manifest().get("config_hash") != chash:
+            manifest = journal.manifest()
+            if manifest.get("config_hash") != chash:
                 raise ConfigError(
                     f"runner.resume=true: {journal.dir} holds runs of a different config; "
                     "set output.overwrite=true to discard them"
                 )
+            check_same_code(journal, manifest)
             return "resume"
         if not overwrite:
             raise ConfigError(
@@ -254,6 +256,21 @@ def output_state(out, chash, overwrite, resume):
             f"{journal.dir}); leave out runner.resume=true to start this sweep"
         )
     return "fresh"
+
+
+def check_same_code(journal, manifest):
+    """ConfigError when the journal's runs were computed by other kernel code than this gyrolab's:
+    one results file must not hold runs of two kernel versions."""
+    from ..kernels import SOURCE_HASH
+
+    recorded = manifest.get("kernel_source_hash")
+    if recorded != SOURCE_HASH:
+        made = f"kernel_source_hash {recorded[:12]}" if isinstance(recorded, str) else "no kernel_source_hash"
+        raise ConfigError(
+            f"runner.resume=true: {journal.dir} was computed by other kernel code ({made}, this gyrolab's is "
+            f"{SOURCE_HASH[:12]}: kernels/ changed); resume with the code that made it, or start over with "
+            "output.overwrite=true"
+        )
 
 
 def available_memory():
@@ -492,7 +509,7 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
         try:
             journal.create(
                 {"config_hash": chash, "n_runs": grid.n_runs, "shape": list(grid.shape), "n_samples": grid.n_samples}
-            )
+            )  # and this code's kernel_source_hash
         except OSError as err:
             print(f"gyrolab: error: {io_error(err, journal.dir)}; nothing was computed", file=sys.stderr)
             raise

@@ -19,10 +19,14 @@ The results layout (dims, variables, units, attrs) is gyrolab/layout.py's.
 import errno
 import fcntl
 import hashlib
+import hmac
 import json
 import os
+import re
 import shutil
 import socket
+import stat
+import sys
 import time
 from pathlib import Path
 
@@ -164,6 +168,25 @@ class JournalError(ConfigError):
 
 
 CHUNK_KEYS = ("runs", "samples", "status", "n_steps", "wall_time")
+# Each chunk proves it belongs to its sweep: ``binding`` (the config hash and the kernel-source hash
+# the journal was started with) and ``mac``, an HMAC-SHA256 under the journal's secret key (a 0600
+# file in the 0700 journal directory) of the chunk's file name, its binding and every array's bytes.
+# A chunk of another sweep, one made up, or one copied under another name fails it, whatever its
+# manifest entry says.
+PROOF_KEYS = ("binding", "mac")
+KEY_FILE = "key"
+JOURNAL_NAME = re.compile(r"chunk-(\d{5,9})\.npz")
+
+
+def chunk_mac(key, name, binding, arrays):
+    """HMAC-SHA256 (hex) under ``key`` of a chunk's file name, binding and CHUNK_KEYS arrays."""
+    mac = hmac.new(key, digestmod=hashlib.sha256)
+    mac.update(f"{name}\0{binding}\0".encode())
+    for k in CHUNK_KEYS:
+        value = np.ascontiguousarray(arrays[k])
+        mac.update(f"{k}:{value.dtype.str}:{value.shape}\0".encode())
+        mac.update(value.tobytes())
+    return mac.hexdigest()
 
 
 def sha256(path):
@@ -206,11 +229,37 @@ class Journal:
         return manifest
 
     def create(self, manifest):
-        """Start an empty journal (removing any old one)."""
+        """Start an empty journal (removing any old one): a directory only we may enter, a fresh
+        secret key, the manifest (``kernel_source_hash``: this code's, unless given)."""
+        from ..kernels import SOURCE_HASH
+
         self.discard()
-        self.dir.mkdir(parents=True)
-        self._manifest = {**manifest, "chunks": {}}
+        self.dir.parent.mkdir(parents=True, exist_ok=True)
+        self.dir.mkdir(mode=0o700)
+        key = os.urandom(32).hex().encode()
+        atomic_write(self.dir / KEY_FILE, lambda fh: fh.write(key), mode=0o600)
+        self._manifest = {"kernel_source_hash": SOURCE_HASH, **manifest, "chunks": {}}
         self._write_manifest()
+
+    def key(self):
+        """The journal's secret key; JournalError (one line) if it is missing or not our file."""
+        if getattr(self, "_key", None) is None:
+            try:
+                fd = open_regular(self.dir / KEY_FILE, os.O_RDONLY)
+                with os.fdopen(fd, "rb") as fh:
+                    self._key = fh.read(200)
+            except (OSError, ValueError) as err:
+                raise JournalError(
+                    f"{self.dir}: no usable journal key ({_reason(err)}; a journal of an older gyrolab?); "
+                    "start over with output.overwrite=true"
+                ) from None
+        return self._key
+
+    def binding(self):
+        """What every chunk of this journal records: ``<config hash> <kernel-source hash>``."""
+        if self._manifest is None:
+            self._manifest = self.manifest()
+        return f"{self._manifest['config_hash']} {self._manifest.get('kernel_source_hash', '')}"
 
     def _write_manifest(self):
         text = json.dumps(self._manifest, indent=1).encode()
@@ -220,7 +269,36 @@ class Journal:
         remove_entry(self.dir)  # a link there is removed, not followed
 
     def chunk_files(self):
-        return sorted(self.dir.glob("chunk-*.npz"))
+        """The regular files named ``chunk-NNNNN.npz`` (never a link, a directory or a FIFO)."""
+        return sorted(p for p in self.dir.glob("chunk-*.npz") if JOURNAL_NAME.fullmatch(p.name) and _is_regular(p))
+
+    def odd_entries(self):
+        """Entries of the journal directory that are none of its own files: each (name, what)."""
+        odd = []
+        for p in sorted(self.dir.iterdir()):
+            if p.name in ("manifest.json", KEY_FILE) and _is_regular(p):
+                continue
+            if p.name == "rejected" and p.is_dir() and not p.is_symlink():
+                continue
+            if p.name.startswith((".chunk-", ".manifest.json.", f".{KEY_FILE}.")):
+                continue  # a killed writer's temporary: clean_temporaries
+            if JOURNAL_NAME.fullmatch(p.name) and _is_regular(p):
+                continue
+            odd.append((p.name, _what(p)))
+        return odd
+
+    def set_aside_odd_entries(self):
+        """Move every odd entry (a link, directory, FIFO, misnamed file) into ``rejected/`` without
+        opening or following it; returns [(name, reason)]."""
+        moved = []
+        if self.rejected_dir.is_symlink() or (self.rejected_dir.exists() and not self.rejected_dir.is_dir()):
+            what = _what(self.rejected_dir)
+            moved.append(("rejected", f"{what} where the rejected chunks go; removed, never followed"))
+            self.rejected_dir.unlink()
+        for name, what in self.odd_entries():
+            self._reject(self.dir / name)
+            moved.append((name, f"{what}, not a journal chunk; never read"))
+        return moved
 
     def clean_temporaries(self):
         """Remove half-written chunk and manifest files a killed process left behind."""
@@ -231,11 +309,16 @@ class Journal:
         """Store one finished chunk durably: runs (flat numbers), raw samples (n, time, RAW_PER_SAMPLE),
         per-run arrays; then record its checksum in the manifest."""
 
-        def write(fh):
-            np.savez(fh, runs=runs, samples=samples, status=status, n_steps=n_steps, wall_time=wall_time)
-
         start = time.perf_counter()
         path = self.dir / f"chunk-{number:05d}.npz"
+        arrays = dict(runs=runs, samples=samples, status=status, n_steps=n_steps, wall_time=wall_time)
+        arrays = {k: np.asarray(v) for k, v in arrays.items()}
+        binding = self.binding()
+        mac = chunk_mac(self.key(), path.name, binding, arrays)
+
+        def write(fh):
+            np.savez(fh, **arrays, binding=np.array(binding), mac=np.array(mac))
+
         atomic_write(path, write)
         self.record_chunk(path, len(runs))
         self.write_seconds += time.perf_counter() - start
@@ -258,10 +341,10 @@ class Journal:
         ``rejected/``.  Returns [(chunk file name, reason)] of the chunks set aside."""
         manifest = self._manifest = self.manifest()
         listed = manifest.get("chunks")
-        rejected, seen, changed = [], set(), listed is None
+        rejected, seen, changed = self.set_aside_odd_entries(), set(), listed is None
         listed = manifest["chunks"] = listed if listed is not None else {}
         for path in self.chunk_files():
-            problem = _chunk_problem(path, listed, n_runs, n_samples, seen)
+            problem = _chunk_problem(path, listed, n_runs, n_samples, seen, self.key(), self.binding())
             if problem:
                 rejected.append((path.name, problem))
                 self._reject(path)
@@ -282,7 +365,7 @@ class Journal:
         self.rejected_dir.mkdir(exist_ok=True)
         target = self.rejected_dir / path.name
         k = 1
-        while target.exists():
+        while target.exists() or target.is_symlink():
             target, k = self.rejected_dir / f"{path.stem}.{k}{path.suffix}", k + 1
         os.replace(path, target)
 
@@ -294,7 +377,7 @@ class Journal:
             with np.load(path, allow_pickle=False) as data:
                 runs.append(data["runs"])
         done = np.concatenate(runs) if runs else np.empty(0, dtype=np.int64)
-        numbers = [int(p.stem.split("-")[1]) for p in files]
+        numbers = [int(JOURNAL_NAME.fullmatch(p.name).group(1)) for p in files]
         numbers += [
             int(p.stem.split("-")[1].split(".")[0])
             for p in self.rejected_dir.glob("chunk-*.npz")
@@ -328,7 +411,28 @@ def _manifest_problem(manifest):
     return None
 
 
-def _chunk_problem(path, listed, n_runs, n_samples, seen):
+def _is_regular(path):
+    try:
+        return stat.S_ISREG(os.lstat(path).st_mode)
+    except OSError:
+        return False
+
+
+def _what(path):
+    try:
+        mode = os.lstat(path).st_mode
+    except OSError:
+        return "gone"
+    if stat.S_ISLNK(mode):
+        return "a symbolic link"
+    if stat.S_ISDIR(mode):
+        return "a directory"
+    if stat.S_ISREG(mode):
+        return "a file of another name"
+    return "a special file"
+
+
+def _chunk_problem(path, listed, n_runs, n_samples, seen, key, binding):
     """Why the chunk file ``path`` cannot be used, or None (then its runs are added to ``seen``)."""
     # A chunk missing from the manifest was renamed into place just before a kill, ahead of its
     # manifest entry: whole (atomic rename, fsync), so it is judged by its content alone.
@@ -340,9 +444,15 @@ def _chunk_problem(path, listed, n_runs, n_samples, seen):
             missing = [k for k in CHUNK_KEYS if k not in data.files]
             if missing:
                 return f"not a gyrolab chunk (no array {missing[0]!r})"
-            arrays = {k: data[k] for k in CHUNK_KEYS}
+            if any(k not in data.files for k in PROOF_KEYS):
+                return "no proof of its sweep (a chunk of an older gyrolab or not one of this journal's)"
+            arrays = {k: data[k] for k in (*CHUNK_KEYS, *PROOF_KEYS)}
     except Exception as err:  # zipfile, numpy and zlib raise many kinds on damaged input
         return f"unreadable ({_reason(err)})"
+    if str(arrays["binding"]) != binding:
+        return "made by another sweep or other kernel code (its config or kernel-source hash differs)"
+    if not hmac.compare_digest(str(arrays["mac"]), chunk_mac(key, path.name, binding, arrays)):
+        return "does not prove it belongs to this journal (its HMAC does not match: foreign, made up or altered)"
     runs = arrays["runs"]
     if runs.ndim != 1 or runs.size == 0 or runs.dtype.kind not in "iu":
         return f"runs has shape {runs.shape} and dtype {runs.dtype}"
@@ -387,7 +497,65 @@ def assemble(out, grid, journal, attrs, before_replace=None):
     if delay:
         after_read = lambda: time.sleep(delay)  # noqa: E731
     sources = [JournalChunk(path, grid.n_samples, RAW_PER_SAMPLE) for path in journal.chunk_files()]
-    atomic_replace(out, lambda tmp: write_results(tmp, grid, sources, attrs, after_read), before_replace)
+    atomic_replace(
+        out, lambda tmp: in_child(lambda: write_results(tmp, grid, sources, attrs, after_read), out), before_replace
+    )
+
+
+CHILD_ERROR = "gyrolab-child-error: "  # marks the child's own one-line reason among libhdf5's output
+
+
+def in_child(work, where):
+    """Run ``work()`` (writing the file ``where``) in a forked child process and wait for it.
+
+    libhdf5 can crash (SIGSEGV) or print hundreds of lines of error stack when the disk fills or
+    fails while it writes or closes a file; in a child, that stays there: its stderr goes to a
+    private temporary, and any failure comes back here as one OSError (ENOSPC when the device of
+    ``where`` is full, else EIO; filename ``where``) with the child's last line as the reason.  A signal here (the
+    child ignores the terminal's) kills the child and is raised as usual."""
+    import signal
+    import tempfile
+
+    sys.stdout.flush()
+    sys.stderr.flush()
+    with tempfile.TemporaryFile() as log:
+        pid = os.fork()
+        if pid == 0:  # the child: no Python clean-up of the parent's objects, only os._exit
+            status = 1
+            try:
+                for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+                    signal.signal(sig, signal.SIG_IGN)
+                os.dup2(log.fileno(), 2)
+                work()
+                status = 0
+            except BaseException as err:  # noqa: BLE001 - reported to the parent as one line
+                os.write(2, f"\n{CHILD_ERROR}{_reason(err)}\n".encode(errors="replace"))
+            finally:
+                os._exit(status)
+        try:
+            _, status = os.waitpid(pid, 0)
+        except BaseException:  # an interrupt: the child must not outlive its parent
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            raise
+        if os.waitstatus_to_exitcode(status) == 0:
+            return
+        log.seek(0)
+        noise = log.read()[-20000:].decode(errors="replace")
+    code = os.waitstatus_to_exitcode(status)
+    said = [line.split(CHILD_ERROR, 1)[1] for line in noise.splitlines() if CHILD_ERROR in line]
+    reason = said[-1] if said else (f"killed by {signal.Signals(-code).name}" if code < 0 else f"status {code}")
+    text = " ".join(reason.split())[:200]
+    full = "No space left" in noise or "errno = 28" in noise or _nearly_full(where)
+    raise OSError(errno.ENOSPC if full else errno.EIO, f"writing the results failed ({text})", str(where))
+
+
+def _nearly_full(where):
+    """True when the device of ``where`` has less than 1 MiB free (a crash there is a full disk)."""
+    try:
+        return shutil.disk_usage(Path(where).parent).free < 2**20
+    except OSError:
+        return False
 
 
 def write_results(path, grid, chunks, attrs, after_read=None):

@@ -226,3 +226,148 @@ def test_verdict_figures_cannot_write_outside(tmp_path, monkeypatch):
     paths = verdict_study.draw_figures(records, [], out)
     assert [p.name for p in paths] == ["verdict_0.png", "verdict_heavy_top.png"]
     assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*.png")) == [p.relative_to(tmp_path) for p in paths]
+
+
+# --------------------------------------------------------------------------- faults at the HDF5 layer
+
+
+def test_a_crash_while_writing_the_results_is_one_oserror(tmp_path, capfd):
+    """libhdf5 segfaulted on a full disk; in_child keeps the crash and its noise in a child."""
+    import signal
+
+    from gyrolab.runner.store import in_child
+
+    def crash():
+        os.write(2, b"HDF5-DIAG: Error detected in HDF5 (1.14.2)\n" * 400)
+        os.kill(os.getpid(), signal.SIGSEGV)
+
+    with pytest.raises(OSError) as err:
+        in_child(crash, tmp_path / "results.h5")
+    assert "killed by SIGSEGV" in str(err.value) and err.value.filename == str(tmp_path / "results.h5")
+    assert capfd.readouterr().err == ""
+
+
+def test_a_full_disk_in_the_child_is_enospc(tmp_path):
+    import errno
+
+    from gyrolab.runner.store import in_child
+
+    def full():
+        raise OSError(errno.ENOSPC, "Can't write data (file write failed: errno = 28, No space left on device)")
+
+    with pytest.raises(OSError) as err:
+        in_child(full, tmp_path / "results.h5")
+    assert err.value.errno == errno.ENOSPC and "No space left" in str(err.value)
+
+
+def test_the_child_writes_what_the_parent_asked(tmp_path):
+    from gyrolab.runner.store import in_child
+
+    in_child(lambda: (tmp_path / "x").write_bytes(b"done"), tmp_path / "x")
+    assert (tmp_path / "x").read_bytes() == b"done"
+
+
+# --------------------------------------------------------------------------- the journal's proof
+
+
+@pytest.fixture(scope="module")
+def tiny_grid():
+    from hydra import compose, initialize_config_module
+
+    from gyrolab.runner.config import register_configs
+    from gyrolab.runner.grid import build_grid
+
+    register_configs()
+    with initialize_config_module(config_module="gyrolab.conf", version_base=None):
+        cfg = compose("config", overrides=[*ONE_RUN[:2], "sweep.theta0=[30,45]", *ONE_RUN[3:]])
+    return build_grid(cfg)
+
+
+def journal_with_chunks(root, grid, config_hash="h"):
+    from gyrolab.runner.execute import run_chunk
+
+    journal = Journal(root / "results.h5")
+    journal.create({"config_hash": config_hash, "n_runs": grid.n_runs})
+    journal.write_chunk(0, **run_chunk(grid, np.array([0]), 1))
+    return journal
+
+
+def reseal_unlisted(journal, name):
+    """The adversary's trick: drop the chunk's manifest entry (it is then judged by content alone)."""
+    import json
+
+    manifest = json.loads(journal.manifest_path.read_text())
+    manifest["chunks"].pop(name, None)
+    journal.manifest_path.write_text(json.dumps(manifest))
+
+
+def test_a_chunk_of_another_sweep_is_refused_even_unlisted(tmp_path, tiny_grid):
+    """A chunk-*.npz copied from a ``scene.M=2`` run's journal (same grid shape) into ours."""
+    ours = journal_with_chunks(tmp_path / "ours", tiny_grid)
+    other = journal_with_chunks(tmp_path / "other", tiny_grid, config_hash="scene.M=2's hash")
+    foreign = ours.dir / "chunk-00001.npz"
+    (other.dir / "chunk-00000.npz").rename(foreign)
+    reseal_unlisted(ours, foreign.name)
+    rejected = Journal(tmp_path / "ours" / "results.h5").verify(tiny_grid.n_runs, tiny_grid.n_samples)
+    assert [name for name, _ in rejected] == ["chunk-00001.npz"]
+    assert "another sweep" in rejected[0][1]
+
+
+def test_invented_zeros_with_status_0_are_refused(tmp_path, tiny_grid):
+    journal = journal_with_chunks(tmp_path, tiny_grid)
+    path = journal.dir / "chunk-00001.npz"
+    n = 1
+    with open(path, "wb") as fh:
+        np.savez(
+            fh,
+            runs=np.array([1]),
+            samples=np.zeros((n, tiny_grid.n_samples, 8)),
+            status=np.zeros(n, np.int8),
+            n_steps=np.ones(n, np.int64),
+            wall_time=np.ones(n),
+            binding=np.array(journal.binding()),  # even with the right binding, read from the manifest
+            mac=np.array("0" * 64),
+        )
+    rejected = Journal(tmp_path / "results.h5").verify(tiny_grid.n_runs, tiny_grid.n_samples)
+    assert [(name, "HMAC" in why) for name, why in rejected] == [("chunk-00001.npz", True)]
+    assert sorted(Journal(tmp_path / "results.h5").done_runs()[0]) == [0]
+
+
+def test_a_chunk_copied_under_another_name_is_refused(tmp_path, tiny_grid):
+    import shutil
+
+    journal = journal_with_chunks(tmp_path, tiny_grid)
+    shutil.copy(journal.dir / "chunk-00000.npz", journal.dir / "chunk-00007.npz")
+    rejected = Journal(tmp_path / "results.h5").verify(tiny_grid.n_runs, tiny_grid.n_samples)
+    assert [name for name, _ in rejected] == ["chunk-00007.npz"]
+
+
+def test_odd_journal_entries_are_set_aside_unread(tmp_path, tiny_grid, victim):
+    journal = journal_with_chunks(tmp_path, tiny_grid)
+    (journal.dir / "chunk-abc.npz").write_bytes(b"x")
+    (journal.dir / "chunk-00001.npz.npz").write_bytes(b"x")
+    (journal.dir / "chunk--1.npz").write_bytes(b"x")
+    (journal.dir / "chunk-00002.npz").symlink_to(victim)
+    (journal.dir / "chunk-00003.npz").mkdir()
+    os.mkfifo(journal.dir / "chunk-00004.npz")  # opened for reading, it would hang
+    (journal.dir / "rejected").write_bytes(b"a file where the rejected chunks go")
+    rejected = Journal(tmp_path / "results.h5").verify(tiny_grid.n_runs, tiny_grid.n_samples)
+    names = sorted(name for name, _ in rejected)
+    assert names == sorted(
+        ["rejected", "chunk-abc.npz", "chunk-00001.npz.npz", "chunk--1.npz", *(f"chunk-0000{k}.npz" for k in (2, 3, 4))]
+    )
+    assert victim.read_bytes() == SECRET
+    assert sorted(Journal(tmp_path / "results.h5").done_runs()[0]) == [0]
+    assert Journal(tmp_path / "results.h5").verify(tiny_grid.n_runs, tiny_grid.n_samples) == []
+
+
+def test_resume_after_a_kernel_edit_is_refused(tmp_path):
+    from gyrolab.runner.app import output_state
+    from gyrolab.runner.config import ConfigError
+
+    out = tmp_path / "results.h5"
+    Journal(out).create({"config_hash": "h", "kernel_source_hash": "0123456789abcdef-old-code"})
+    with pytest.raises(ConfigError, match=r"other kernel code \(kernel_source_hash 0123456789ab.*overwrite"):
+        output_state(out, "h", False, True)
+    Journal(out).create({"config_hash": "h"})  # this code's hash
+    assert output_state(out, "h", False, True) == "resume"
