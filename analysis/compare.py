@@ -187,10 +187,14 @@ def open_results(path, label, member=None):
 
     from ..layout import current, file_layout_version, member_dim, member_labels
     from ..layout import member as member_of
+    from ..limits import LimitError, check_file_sizes
 
     try:
+        check_file_sizes(path)  # before loading: a small file declaring gigabytes
         with xr.open_dataset(path, engine="h5netcdf") as ds:
             ds = ds.load()
+    except LimitError as err:
+        raise CompareError(f"{label}: {err}") from None
     except FileNotFoundError:
         raise CompareError(f"{label}: {path}: no such file") from None
     except Exception as err:  # h5py/h5netcdf raise many kinds on non-HDF5 input
@@ -308,10 +312,11 @@ def data_config(text):
     import yaml
 
     from ..layout import RUN_ONLY, drop_neutral_defaults
+    from ..limits import LimitError, safe_yaml
 
     try:
-        data = yaml.safe_load(text) or {}
-    except yaml.YAMLError:
+        data = safe_yaml(text) or {}
+    except (yaml.YAMLError, LimitError):  # bad syntax, or a bomb / recursive alias: compared as text
         data = None
     if not isinstance(data, dict):
         return {"config": str(text)}  # not a gyrolab config (a foreign or hand-made file): compared as text

@@ -84,9 +84,14 @@ def _load(path):
     path = Path(path)
     if not path.is_file():
         raise SelectionError(f"FILE={path}: no such results file")
+    from ..limits import LimitError, check_file_sizes
+
     try:
+        check_file_sizes(path)  # before loading: a small file declaring gigabytes
         with xr.open_dataset(path, engine="h5netcdf") as ds:
             ds = ds.load()
+    except LimitError as err:
+        raise SelectionError(f"FILE={err}") from None
     except Exception as err:  # h5py/h5netcdf/xarray raise many kinds on damaged or foreign files
         text = " ".join(str(err).split())[:120]
         raise SelectionError(f"FILE={path}: not a readable results file ({type(err).__name__}: {text})") from None

@@ -116,9 +116,14 @@ def find_results(paths, exclude=None, skip_unfinished=False):
 def load(path):
     """The results Dataset of ``path`` in memory, checked against the layout; CombineError naming
     the file and the first problem."""
+    from ..limits import LimitError, check_file_sizes
+
     try:
+        check_file_sizes(path)  # before loading: a small file declaring gigabytes
         with xr.open_dataset(path, engine="h5netcdf") as ds:
             ds = ds.load()
+    except LimitError as err:
+        raise CombineError(str(err)) from None
     except Exception as err:  # h5py/h5netcdf/xarray raise many kinds on damaged or foreign files
         text = " ".join(str(err).split())[:120]
         raise CombineError(f"{path}: not a readable results file ({type(err).__name__}: {text})") from None

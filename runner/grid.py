@@ -8,6 +8,7 @@ first.  A chunk is a set of runs of ONE method and ONE step count, so the
 batch kernel's prange hands every thread the same amount of work.
 """
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,6 +45,11 @@ BLOCK_SPEEDUP = {
 }
 DEFAULT_BLOCK_SPEEDUP = 2.7
 MAX_CHUNK_BYTES = 256 * 2**20
+# The most runs one sweep holds: the runner keeps per-run arrays (inputs, status, steps, wall time,
+# chunk plan, assembly's owner/row maps: ~PER_RUN_BYTES a run) and plans chunks run by run, so a
+# bigger grid is refused up front, in O(axes), rather than after minutes of planning.
+MAX_RUNS = 10**7
+PER_RUN_BYTES = 200
 # Effective rates of the pipeline around the kernels on the development machine (docs/benchmarks.md,
 # benchmarks/bench_pipeline.py): journal bytes (raw samples) per second, results bytes per second
 # of assembly (journal read, variables derived, file written), and seconds per run of assembly.
@@ -121,9 +127,23 @@ class Grid:
         return self.n_samples * (RAW_PER_SAMPLE + stored_per_sample(self.variables)) * 8
 
 
+def check_grid_size(shape):
+    """ConfigError when the grid of ``shape`` (methods, f, theta0, dt) has more than MAX_RUNS runs;
+    O(axes): nothing per run is built before this."""
+    n = math.prod(shape)
+    if n > MAX_RUNS:
+        m, f, t, d = shape
+        raise ConfigError(
+            f"sweep: {m} method x {f} f x {t} theta0 x {d} dt = {n:.3g} runs, more than the {MAX_RUNS:.0e} one "
+            "sweep may hold (its per-run bookkeeping alone would need ~{:.3g} GB); split it into jobs "
+            "(gyrolab -m ...) and join them with gyrolab-combine".format(n * PER_RUN_BYTES / 1e9)
+        )
+
+
 def build_grid(cfg):
     """Check the whole config and build every run's inputs; ConfigError on bad input."""
     check_values(cfg)
+    check_grid_size((len(cfg.sweep.method), len(cfg.sweep.f), len(cfg.sweep.theta0), len(cfg.sweep.dt)))
     sweep, scene_cfg = cfg.sweep, OmegaConf.to_container(cfg.scene, resolve=True)
     for m in sweep.method:
         if m not in METHODS:

@@ -371,3 +371,80 @@ def test_resume_after_a_kernel_edit_is_refused(tmp_path):
         output_state(out, "h", False, True)
     Journal(out).create({"config_hash": "h"})  # this code's hash
     assert output_state(out, "h", False, True) == "resume"
+
+
+# --------------------------------------------------------------------------- bounded readers
+
+
+@pytest.fixture(scope="module")
+def sparse_bomb(two_scenes, tmp_path_factory):
+    """A results file (a real one's attrs and coordinates) whose energy declares 2.4 GB in chunks
+    never written: ~40 kB on disk."""
+    path = tmp_path_factory.mktemp("bomb") / "bomb.h5"
+    with h5py.File(path, "w") as fh, h5py.File(two_scenes[0], "r") as good:
+        for key, value in good.attrs.items():
+            fh.attrs[key] = value
+        fh.create_dataset("energy", shape=(300, 1000, 1000), dtype="f8", chunks=(1, 100, 1000))
+    assert path.stat().st_size < 100_000
+    return path
+
+
+def test_a_small_file_declaring_gigabytes_is_refused_without_loading(sparse_bomb, tmp_path, capsys):
+    from gyrolab.analysis.compare import main as compare_main
+
+    with pytest.raises(SystemExit) as done:
+        cli.main(["energy", str(sparse_bomb), "-o", str(tmp_path / "e.png")])
+    assert done.value.code == 2
+    assert compare_main([str(sparse_bomb), str(sparse_bomb)]) == 2
+    assert combine_main([str(sparse_bomb), "-o", str(tmp_path / "c.h5")]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 3 and all("declare 2.4 GB" in line for line in lines), lines
+    assert not list(tmp_path.iterdir())
+
+
+def test_the_memory_budget_refuses_a_file_too_big_to_load(two_scenes, monkeypatch):
+    from gyrolab.limits import LimitError, check_file_sizes, declared_bytes
+
+    check_file_sizes(two_scenes[0])  # an ordinary file passes
+    with pytest.raises(LimitError, match="more than the"):
+        check_file_sizes(two_scenes[0], budget=declared_bytes(two_scenes[0]) - 1)
+
+
+def test_yaml_attrs_are_parsed_with_limits():
+    import yaml
+
+    from gyrolab.limits import LimitError, safe_yaml
+
+    laughs = "a: &a [x, x, x, x, x, x, x, x, x]\n" + "".join(
+        f"{c}: &{c} [{', '.join([f'*{p}'] * 9)}]\n" for p, c in zip("abcdefgh", "bcdefghi")
+    )
+    with pytest.raises(LimitError, match="nodes"):
+        safe_yaml(laughs)
+    with pytest.raises(LimitError, match="itself|deeper"):
+        safe_yaml("&a [*a]")
+    with pytest.raises(LimitError, match="characters"):
+        safe_yaml("x: " + "y" * (2 << 20))
+    config = "sweep:\n  f: [10, 50]\n  dt: [0.001]\nscene:\n  name: heavy_top\n"
+    assert safe_yaml(config) == yaml.safe_load(config)
+
+
+def test_a_billion_run_grid_is_refused_in_well_under_a_second():
+    import time
+
+    from hydra import compose, initialize_config_module
+
+    from gyrolab.runner.config import ConfigError, register_configs
+    from gyrolab.runner.grid import build_grid
+
+    register_configs()
+    axes = [
+        "sweep.f=${linspace:1,100,1000}",
+        "sweep.theta0=${linspace:1,89,1000}",
+        "sweep.dt=${logspace:1e-4,1e-3,1000}",
+    ]
+    with initialize_config_module(config_module="gyrolab.conf", version_base=None):
+        cfg = compose("config", overrides=["sweep.method=[seed_next]", *axes, "runner.dry_run=true"])
+    started = time.process_time()
+    with pytest.raises(ConfigError, match=r"= 1e\+09 runs, more than the 1e\+07") as err:
+        build_grid(cfg)
+    assert time.process_time() - started < 1.0 and "\n" not in str(err.value)
