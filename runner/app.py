@@ -408,15 +408,16 @@ def file_attrs(cfg, grid, threads, chash):
     return attrs
 
 
-def open_cluster(runner):
-    """The Dask cluster of runner.backend=dask (runner/dask_backend.py); ConfigError on bad input."""
+def open_cluster(runner, dry_run=False):
+    """The Dask cluster of runner.backend=dask (runner/dask_backend.py; a dry run starts none of its
+    own, only plans it); ConfigError on bad input."""
     try:
         from .dask_backend import open_cluster
     except ImportError as err:
         if (err.name or "").split(".")[0] in ("dask", "distributed"):
             raise ConfigError("runner.backend=dask: needs dask.distributed (pip install 'gyrolab[dask]')") from None
         raise
-    return open_cluster(runner)
+    return open_cluster(runner, dry_run)
 
 
 def run_sweep(cfg, run_dir):
@@ -440,7 +441,8 @@ def sweep(cfg, run_dir, stack):
     overwrite, resume = bool(cfg.output.overwrite), bool(cfg.runner.resume)
     state = output_state(out, chash, overwrite, resume)
     if cfg.runner.backend == "dask" and (state != "done" or cfg.runner.dry_run):
-        cluster = stack.enter_context(open_cluster(cfg.runner))  # unreachable: ConfigError, before any work
+        # unreachable: ConfigError, before any work; a dry run plans runner.address=local, starts nothing
+        cluster = stack.enter_context(open_cluster(cfg.runner, dry_run=bool(cfg.runner.dry_run)))
         threads = cluster.threads
         chunks = cluster.plan(grid, np.arange(grid.n_runs), cfg.runner.chunk_seconds)
     else:

@@ -448,3 +448,46 @@ def test_a_billion_run_grid_is_refused_in_well_under_a_second():
     with pytest.raises(ConfigError, match=r"= 1e\+09 runs, more than the 1e\+07") as err:
         build_grid(cfg)
     assert time.process_time() - started < 1.0 and "\n" not in str(err.value)
+
+
+# --------------------------------------------------------------------------- the embedded Dask cluster
+
+INTRUDER = """
+import sys
+from distributed import Client
+
+address = sys.argv[1]
+for attempt in (address, address.replace("tls://", "tcp://")):
+    try:
+        client = Client(attempt, timeout=5)
+    except Exception as err:
+        print("refused", type(err).__name__)
+        continue
+    print("ran", client.submit(lambda: 42).result(timeout=10))
+"""
+
+
+def test_another_local_process_cannot_submit_work_to_the_embedded_cluster(tmp_path):
+    pytest.importorskip("distributed")
+    from gyrolab.runner.dask_backend import DaskCluster
+
+    with DaskCluster.start_local(1) as cluster:
+        scheduler = cluster.local.scheduler
+        assert scheduler.address.startswith("tls://127.0.0.1:")
+        listening = [s.getsockname()[0] for s in scheduler.http_server._sockets.values()]
+        assert listening and set(listening) == {"127.0.0.1"}, listening  # the dashboard too
+        assert all(w.startswith("tls://127.0.0.1:") for w in cluster.workers)
+        intruder = subprocess.run(
+            ["python", "-c", INTRUDER, scheduler.address], capture_output=True, text=True, timeout=120
+        )
+        assert "ran" not in intruder.stdout and intruder.stdout.count("refused") == 2, intruder
+        assert cluster.client.submit(lambda: 42).result(timeout=30) == 42  # gyrolab itself can
+
+
+def test_a_dry_run_starts_no_cluster_and_plans_at_most_the_cores():
+    from gyrolab.runner.dask_backend import DaskCluster
+
+    cores = len(os.sched_getaffinity(0))
+    planned = DaskCluster.planned_local(40)
+    assert planned.client is None and len(planned.workers) == min(40, cores)
+    planned.close()
