@@ -205,8 +205,16 @@ def open_results(path, label, member=None):
     missing = [d for d in RUN_DIMS + ("time",) if d not in ds.coords]
     if missing:
         raise CompareError(f"{label}: {path}: not a gyrolab results file (no coordinate {missing[0]})")
-    if file_layout_version(ds) is None:
+    from ..layout import LAYOUT_VERSION
+
+    version = file_layout_version(ds)
+    if version is None:
         raise CompareError(f"{label}: {path}: not a gyrolab results file (no layout_version attr)")
+    if version > LAYOUT_VERSION:  # as every other reader: a newer layout may mean what this one cannot read
+        raise CompareError(
+            f"{label}: {path}: layout_version={version} is newer than this gyrolab reads ({LAYOUT_VERSION}); "
+            "upgrade gyrolab"
+        )
     if "status" not in ds.data_vars:
         raise CompareError(f"{label}: {path}: not a complete gyrolab results file (no variable 'status')")
     for key, value in (member or {}).items():

@@ -55,6 +55,7 @@ from .grid import estimate_seconds, plan_chunks
 
 LOCAL = "local"  # runner.address that starts a LocalCluster in this process
 CHUNKS_PER_WORKER = 4  # at least this many chunks per worker: balance and small losses on a worker crash
+MAX_SCHEDULER_FILE = 1 << 20  # bytes; a Dask scheduler file is a few hundred
 RETRIES = 2  # reruns of a chunk whose task raised (a lost worker is handled by Dask's allowed-failures)
 
 # --------------------------------------------------------------------------- worker side
@@ -130,14 +131,20 @@ def worker_info(dask_worker):
 
 def read_scheduler_file(path):
     """The scheduler address in a Dask scheduler file (JSON); ConfigError naming the key."""
+    from ..safe_files import UnsafePathError, open_regular
+
     key = f"runner.scheduler_file={path}"
-    try:
-        with open(os.path.expanduser(path)) as fh:
-            text = fh.read()
+    try:  # a regular file, read up to MAX_SCHEDULER_FILE bytes (/dev/zero or a FIFO: refused)
+        with os.fdopen(open_regular(os.path.expanduser(path), os.O_RDONLY), "rb") as fh:
+            text = fh.read(MAX_SCHEDULER_FILE + 1).decode(errors="replace")
     except FileNotFoundError:
         raise ConfigError(f"{key}: no such file") from None
+    except UnsafePathError as err:
+        raise ConfigError(f"{key}: {str(err).split(': ', 1)[1]}") from None
     except OSError as err:
         raise ConfigError(f"{key}: cannot read it ({err.strerror})") from None
+    if len(text) > MAX_SCHEDULER_FILE:
+        raise ConfigError(f"{key}: not a Dask scheduler file (more than {MAX_SCHEDULER_FILE} bytes)")
     try:
         address = json.loads(text)["address"]
     except (ValueError, KeyError, TypeError):

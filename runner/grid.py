@@ -168,6 +168,15 @@ def build_grid(cfg):
             except ValueError as err:
                 raise ConfigError(_prefix_sweep(str(err))) from None
             bodies[j, k], omega0[j, k], q0[j, k] = sc.body, sc.omega0, sc.q0
+    with np.errstate(over="ignore", invalid="ignore"):
+        rates = np.square(omega0).sum(axis=-1)
+    if not (np.isfinite(rates).all() and np.isfinite(bodies).all() and np.isfinite(q0).all()):
+        j, k = np.argwhere(~np.isfinite(rates) | ~np.isfinite(bodies).all(-1) | ~np.isfinite(q0).all(-1))[0]
+        raise ConfigError(
+            f"scene: the initial state at f={sweep.f[int(j)]}, theta0={sweep.theta0[int(k)]} overflows float64 "
+            f"(|omega0|^2 = {rates[j, k]:.3g} rad^2/s^2: a scene option such as scene.omega1 is too large); "
+            "every run would be infinite from t = 0"
+        )
     if is_driven(bodies):
         blind = [m for m in sweep.method if not sees_time(METHODS[m])]
         if blind:

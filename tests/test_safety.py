@@ -491,3 +491,105 @@ def test_a_dry_run_starts_no_cluster_and_plans_at_most_the_cores():
     planned = DaskCluster.planned_local(40)
     assert planned.client is None and len(planned.workers) == min(40, cores)
     planned.close()
+
+
+# --------------------------------------------------------------------------- config, combine and compare gaps
+
+GAPS = [
+    (["output.variables=[]"], "output.variables=[]: names no variable"),
+    (["sweep.t_end=0.1005"], "sweep.t_end=0.1005: not a multiple of output.every=0.001"),
+    (["scene=heavy_body", "scene.omega1=1e200"], "scene: the initial state at f=10.0, theta0=30.0 overflows float64"),
+    (["sweep.theta0=${sweep.t_end}"], "sweep.theta0=0.01: a sweep axis is a list"),
+    (["runner.connect_timeout=1e308"], "runner.connect_timeout=1e+308: must be > 0 s and at most"),
+]
+
+
+@pytest.mark.parametrize("overrides, message", GAPS)
+def test_config_gaps_are_one_line(overrides, message):
+    from hydra import compose, initialize_config_module
+
+    from gyrolab.runner.config import ConfigError, register_configs
+    from gyrolab.runner.grid import build_grid
+
+    register_configs()
+    with initialize_config_module(config_module="gyrolab.conf", version_base=None):
+        cfg = compose("config", overrides=[*ONE_RUN, *overrides])
+    with pytest.raises(ConfigError) as err:
+        build_grid(cfg)
+    assert str(err.value).startswith(message) and "\n" not in str(err.value), err.value
+
+
+def test_a_scheduler_file_that_is_a_device_is_refused_unread():
+    from gyrolab.runner.config import ConfigError
+    from gyrolab.runner.dask_backend import read_scheduler_file
+
+    with pytest.raises(ConfigError, match=r"runner.scheduler_file=/dev/zero: is a device"):
+        read_scheduler_file("/dev/zero")
+
+
+def altered(source, root, change):
+    import shutil
+
+    path = root / f"{change.__name__}.h5"
+    shutil.copy(source, path)
+    with h5py.File(path, "r+") as fh:
+        change(fh)
+    return path
+
+
+def energy_as_float32(fh):
+    values = fh["energy"][...]
+    attrs = dict(fh["energy"].attrs)
+    dims = fh["energy"].attrs.get("DIMENSION_LIST")
+    del fh["energy"]
+    fh.create_dataset("energy", data=values.astype(np.float32))
+    for key, value in attrs.items():
+        if key != "DIMENSION_LIST":
+            fh["energy"].attrs[key] = value
+    assert dims is not None
+
+
+def nan_f(fh):
+    fh["f"][0] = np.nan
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (nan_f, "coordinate f has a non-finite value"),
+        (energy_as_float32, "variable energy has dtype float32, expected float64"),
+    ],
+)
+def test_combine_refuses_a_nan_coordinate_and_a_foreign_dtype(two_scenes, tmp_path, capsys, change, message):
+    bad = altered(two_scenes[0], tmp_path, change)
+    assert combine_main([str(two_scenes[1]), str(bad), "-o", str(tmp_path / "c.h5")]) == 2
+    line = one_line(capsys.readouterr().err)
+    assert message in line, line
+    assert not (tmp_path / "c.h5").exists()
+
+
+def test_compare_refuses_a_newer_layout(two_scenes, tmp_path, capsys):
+    from gyrolab.analysis.compare import main as compare_main
+
+    newer = altered(two_scenes[0], tmp_path, lambda fh: fh.attrs.modify("layout_version", 99))
+    assert compare_main([str(newer), str(two_scenes[0])]) == 2
+    assert "layout_version=99 is newer" in one_line(capsys.readouterr().err)
+
+
+def test_combine_on_sigterm_leaves_no_temporary_nor_lock(two_scenes, tmp_path, monkeypatch, capsys):
+    import signal
+
+    from gyrolab.runner import combine
+
+    out = tmp_path / "c.h5"
+    real = combine.xr.Dataset.to_netcdf
+
+    def killed_while_writing(ds, path, *args, **kwargs):
+        real(ds, path, *args, **kwargs)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(combine.xr.Dataset, "to_netcdf", killed_while_writing)
+    assert combine_main([*map(str, two_scenes), "-o", str(out)]) == 128 + signal.SIGTERM
+    assert one_line(capsys.readouterr().err) == f"gyrolab-combine: interrupted (SIGTERM); {out} is untouched"
+    assert list(tmp_path.iterdir()) == []
+    assert signal.getsignal(signal.SIGTERM) is not combine._interrupted
