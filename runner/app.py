@@ -473,17 +473,25 @@ def sweep(cfg, run_dir, stack):
         except (BackendError, OSError):
             ignore_signals()
             sys.exit(EXIT_FAILED)
-    elapsed = time.perf_counter() - started
-    with h5py.File(out, "r") as fh:
-        failed = int((fh["status"][...] != 0).sum())
-    print(
-        f"gyrolab: results: {out} ({_size(out.stat().st_size)}, {grid.n_runs} runs, "
-        f"{failed} diverged) in {elapsed:.1f} s ({timing['integrating']:.1f} s integrating, "
-        f"{timing['journal']:.1f} s journal, {timing['assembly']:.1f} s assembly)"
-    )
-    figures = cfg.output.figures
-    if figures:
-        make_figures(out, OmegaConf.to_container(figures) if OmegaConf.is_list(figures) else figures)
+    try:
+        elapsed = time.perf_counter() - started
+        with h5py.File(out, "r") as fh:
+            failed = int((fh["status"][...] != 0).sum())
+        print(
+            f"gyrolab: results: {out} ({_size(out.stat().st_size)}, {grid.n_runs} runs, "
+            f"{failed} diverged) in {elapsed:.1f} s ({timing['integrating']:.1f} s integrating, "
+            f"{timing['journal']:.1f} s journal, {timing['assembly']:.1f} s assembly)"
+        )
+        figures = cfg.output.figures
+        if figures:
+            make_figures(out, OmegaConf.to_container(figures) if OmegaConf.is_list(figures) else figures)
+    except KeyboardInterrupt as err:  # the results are complete: say so, not "nothing was saved"
+        ignore_signals()
+        sys.stderr.write(
+            f"\ngyrolab: interrupted ({signal_name(err)}) after the results were complete: {out}; "
+            f"draw the figures with gyrolab-plot standard {out}\n"
+        )
+        sys.exit(exit_status(err))
     return str(out)
 
 
@@ -514,6 +522,7 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
             )  # and this code's kernel_source_hash
         except OSError as err:
             print(f"gyrolab: error: {io_error(err, journal.dir)}; nothing was computed", file=sys.stderr)
+            journal.discard()  # a half-made journal would block both the rerun and a resume
             raise
         done, number = np.empty(0, dtype=np.int64), 0
     todo = np.setdiff1d(np.arange(grid.n_runs), done)
@@ -539,6 +548,7 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
         bar.set_postfix_str(f"runs {counter['runs']}/{grid.n_runs}", refresh=False)
         bar.update(steps)
 
+    previous = _inode(out)  # an old file being replaced; a new inode after an interrupt is ours, complete
     try:
         if todo.size:
             (cluster.warm_up if cluster is not None else warm_up)(grid)
@@ -557,6 +567,10 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
         ignore_signals()
         bar.close()
         why = "interrupted" if type(err) is KeyboardInterrupt else f"interrupted by {signal_name(err)}"
+        if _inode(out) not in (None, previous) and stored_hash(out) == chash:  # just after our rename: whole
+            print(f"\ngyrolab: {why} after the results were complete: {out}", file=sys.stderr)
+            journal.discard()
+            raise
         print(
             f"\ngyrolab: {why}; {counter['runs']} of {grid.n_runs} runs are saved in {journal.dir}.\n"
             f"Finish with: {resume_command(run_dir)}",
@@ -583,6 +597,13 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
         raise
     journal.discard()
     return {"integrating": computing, "journal": journal.write_seconds, "assembly": assembly}
+
+
+def _inode(path):
+    try:
+        return os.lstat(path).st_ino
+    except OSError:
+        return None
 
 
 def io_error(err, where):

@@ -593,3 +593,73 @@ def test_combine_on_sigterm_leaves_no_temporary_nor_lock(two_scenes, tmp_path, m
     assert one_line(capsys.readouterr().err) == f"gyrolab-combine: interrupted (SIGTERM); {out} is untouched"
     assert list(tmp_path.iterdir()) == []
     assert signal.getsignal(signal.SIGTERM) is not combine._interrupted
+
+
+# --------------------------------------------------------------------------- signals and half-made journals
+
+
+def one_run_cfg(*extra):
+    from hydra import compose, initialize_config_module
+
+    from gyrolab.runner.config import register_configs
+
+    register_configs()
+    with initialize_config_module(config_module="gyrolab.conf", version_base=None):
+        return compose("config", overrides=[*ONE_RUN, *extra])
+
+
+def test_a_failed_first_manifest_write_leaves_no_journal(tmp_path, monkeypatch, capsys):
+    import errno
+
+    from gyrolab.runner import app, store
+
+    real = store.atomic_write
+
+    def failing(path, write, **kwargs):
+        if path.name == "manifest.json":
+            raise OSError(errno.EIO, "Input/output error", str(path))
+        return real(path, write, **kwargs)
+
+    monkeypatch.setattr(store, "atomic_write", failing)
+    with pytest.raises(SystemExit) as done:
+        app.run_sweep(one_run_cfg(), str(tmp_path))
+    assert done.value.code == app.EXIT_FAILED
+    assert "I/O error writing" in one_line(capsys.readouterr().err)
+    assert list(tmp_path.iterdir()) == []  # no .partial to block the rerun or a resume
+
+
+def test_an_interrupt_just_after_the_rename_reports_a_complete_file(tmp_path, monkeypatch, capsys):
+    import signal
+
+    from gyrolab import safe_files
+    from gyrolab.runner import app
+
+    real = safe_files.fsync_dir
+
+    def interrupted(directory):
+        real(directory)
+        if (tmp_path / "results.h5").exists():
+            raise app.Interrupted(signal.SIGTERM)
+
+    monkeypatch.setattr(safe_files, "fsync_dir", interrupted)
+    with pytest.raises(SystemExit) as done:
+        app.run_sweep(one_run_cfg(), str(tmp_path))
+    assert done.value.code == 128 + signal.SIGTERM
+    err = capsys.readouterr().err
+    assert "after the results were complete" in one_line(err) and "Finish with" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["results.h5"]
+
+
+def test_an_interrupt_in_the_figure_step_says_the_results_are_complete(tmp_path, monkeypatch, capsys):
+    from gyrolab.runner import app
+
+    def interrupted(out, names):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(app, "make_figures", interrupted)
+    with pytest.raises(SystemExit) as done:
+        app.run_sweep(one_run_cfg("output.figures=true"), str(tmp_path))
+    assert done.value.code == 130
+    line = one_line(capsys.readouterr().err)
+    assert "after the results were complete" in line and "nothing was saved" not in line
+    assert (tmp_path / "results.h5").is_file()
