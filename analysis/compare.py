@@ -236,18 +236,20 @@ def run_dims(ds):
 
 
 def _match(values_a, values_b):
-    """Index into values_b of each of values_a (None where absent); floats match to COORD_RTOL."""
+    """Index into values_b of each of values_a (None where absent); floats match to COORD_RTOL, to
+    the nearest such value (an exact one first): a grid may hold values closer than COORD_RTOL
+    (sweep.dt=[1e-3,1.0000000001e-3]), and each must pair with itself, not with its neighbour."""
     out = []
     for va in values_a:
-        hit = None
+        hit, best = None, None
         for j, vb in enumerate(values_b):
             if isinstance(va, str) or isinstance(vb, str):
-                same = str(va) == str(vb)
+                gap = 0.0 if str(va) == str(vb) else None
             else:
-                same = abs(float(va) - float(vb)) <= COORD_RTOL * max(abs(float(va)), abs(float(vb)))
-            if same:
-                hit = j
-                break
+                gap = abs(float(va) - float(vb))
+                gap = gap if gap <= COORD_RTOL * max(abs(float(va)), abs(float(vb))) else None
+            if gap is not None and (best is None or gap < best):
+                hit, best = j, gap
         out.append(hit)
     return out
 

@@ -144,7 +144,7 @@ def check_values(cfg):
     check_finite(OmegaConf.to_container(cfg, resolve=True))
     sweep, output, runner = cfg.sweep, cfg.output, cfg.runner
     for axis in ("method", "f", "theta0", "dt"):
-        if not OmegaConf.is_list(sweep[axis]):
+        if not (OmegaConf.is_list(sweep[axis]) or isinstance(sweep[axis], (list, tuple))):  # a resolver's list
             raise ConfigError(f"sweep.{axis}={sweep[axis]}: a sweep axis is a list (e.g. sweep.{axis}=[{sweep[axis]}])")
         values = list(sweep[axis])
         if not values:

@@ -663,3 +663,11 @@ def test_an_interrupt_in_the_figure_step_says_the_results_are_complete(tmp_path,
     line = one_line(capsys.readouterr().err)
     assert "after the results were complete" in line and "nothing was saved" not in line
     assert (tmp_path / "results.h5").is_file()
+
+
+def test_compare_pairs_near_duplicate_coordinates_with_themselves():
+    from gyrolab.analysis.compare import _match
+
+    dts = [1e-3, 1.0000000001e-3]
+    assert _match(dts, dts) == [0, 1] and _match(dts, dts[::-1]) == [1, 0]
+    assert _match([1e-3 * (1 + 1e-12)], dts) == [0]  # still within tolerance of the nearest
