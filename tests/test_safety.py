@@ -671,3 +671,15 @@ def test_compare_pairs_near_duplicate_coordinates_with_themselves():
     dts = [1e-3, 1.0000000001e-3]
     assert _match(dts, dts) == [0, 1] and _match(dts, dts[::-1]) == [1, 0]
     assert _match([1e-3 * (1 + 1e-12)], dts) == [0]  # still within tolerance of the nearest
+
+
+def test_two_labels_that_sanitise_alike_do_not_share_a_file():
+    from gyrolab.analysis.cli import _member_tag
+
+    class Member:
+        def __init__(self, label):
+            self.attrs = {"combined_member": f"scene={label}"}
+
+    used = set()
+    tags = [_member_tag(Member(label), k, used) for k, label in enumerate(["x", "../x", "/x"])]
+    assert tags == ["x", "x_1", "x_2"]
