@@ -683,3 +683,19 @@ def test_two_labels_that_sanitise_alike_do_not_share_a_file():
     used = set()
     tags = [_member_tag(Member(label), k, used) for k, label in enumerate(["x", "../x", "/x"])]
     assert tags == ["x", "x_1", "x_2"]
+
+
+def test_a_killed_writers_private_directory_is_removed_and_a_link_there_not_followed(tmp_path, victim):
+    from gyrolab.runner.store import remove_stale_temporaries
+
+    out = tmp_path / "results.h5"
+    stale = tmp_path / ".results.h5.tmp123.abcd"
+    stale.mkdir()
+    (stale / "results.h5").write_bytes(b"half")
+    linked = tmp_path / ".results.h5.tmp124.efgh"
+    linked.symlink_to(victim.parent / "elsewhere", target_is_directory=True)
+    (victim.parent / "elsewhere").mkdir()
+    (victim.parent / "elsewhere" / "keep").write_bytes(SECRET)
+    removed = remove_stale_temporaries(out)
+    assert removed == [stale] and not stale.exists()
+    assert (victim.parent / "elsewhere" / "keep").read_bytes() == SECRET  # a link is no private directory
