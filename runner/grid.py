@@ -142,8 +142,13 @@ def check_grid_size(shape):
 
 def build_grid(cfg):
     """Check the whole config and build every run's inputs; ConfigError on bad input."""
+    try:  # first, before any check that costs time (check_values imports the figure modules)
+        shape = tuple(len(cfg.sweep[axis]) for axis in ("method", "f", "theta0", "dt"))
+    except Exception:  # an axis that is not a list or does not resolve: check_values says which
+        shape = None
+    if shape is not None:
+        check_grid_size(shape)
     check_values(cfg)
-    check_grid_size((len(cfg.sweep.method), len(cfg.sweep.f), len(cfg.sweep.theta0), len(cfg.sweep.dt)))
     sweep, scene_cfg = cfg.sweep, OmegaConf.to_container(cfg.scene, resolve=True)
     for m in sweep.method:
         if m not in METHODS:
