@@ -18,7 +18,8 @@ import numpy as np  # noqa: E402
 
 from ..results import ResultsError  # noqa: E402
 from ..results.layout import GRID_DIMS  # noqa: E402
-from ..results.members import MEMBER_DIMS
+from ..results.members import MEMBER_DIMS  # noqa: E402
+from ..safe_files import atomic_replace  # noqa: E402
 
 FORMATS = ("png", "svg", "pdf")
 # Fixed colours of the first methods and the peers; any other method gets one from PALETTE
@@ -249,7 +250,10 @@ def save_figure(fig, out, formats=("png",)):
         if fmt not in FORMATS:
             raise SelectionError(f"--format={fmt}: choose from {', '.join(FORMATS)}")
         p = out.with_suffix("." + fmt)
-        fig.savefig(p, dpi=110 if fmt == "png" else None, bbox_inches="tight")
+        # through a private temporary (gyrolab/safe_files.py): never through a link planted at p
+        atomic_replace(
+            p, lambda tmp, fmt=fmt: fig.savefig(tmp, format=fmt, dpi=110 if fmt == "png" else None, bbox_inches="tight")
+        )
         paths.append(p)
     plt.close(fig)
     return paths[0]

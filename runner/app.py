@@ -46,6 +46,7 @@ from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from ..results.layout import RAW_PER_SAMPLE, scene_attrs
+from ..safe_files import UnsafePathError, check_replaceable
 from .config import ConfigError, config_hash, register_configs
 from .execute import BackendError
 from .grid import build_grid, estimate_seconds, estimate_writing_seconds, plan_chunks
@@ -177,7 +178,8 @@ def check_run_dirs(argv):
 def resolve_output(path, run_dir):
     """The results file: ``output.path`` relative to Hydra's output directory."""
     out = Path(os.path.expanduser(str(path)))
-    return (out if out.is_absolute() else Path(run_dir) / out).resolve()
+    out = out if out.is_absolute() else Path(run_dir) / out
+    return out.parent.resolve() / out.name  # the name itself not resolved: a link there is refused, not followed
 
 
 def check_writable(out):
@@ -194,6 +196,15 @@ def check_writable(out):
             pass
     except OSError as err:
         raise ConfigError(f"output.path={out}: cannot write in {ancestor} ({err.strerror})") from None
+
+
+def check_output_paths(out):
+    """UnsafePathError when a link or special file sits where the results file or its journal
+    directory will be: gyrolab never writes through one (gyrolab/safe_files.py)."""
+    check_replaceable(out)
+    journal = partial_dir(out)
+    if journal.is_symlink() or (journal.exists() and not journal.is_dir()):
+        raise UnsafePathError(f"{journal}: not a directory (a link or a file); remove it to run this sweep")
 
 
 def stored_hash(path):
@@ -224,11 +235,13 @@ def output_state(out, chash, overwrite, resume):
             )
     if journal.exists():
         if resume:
-            if journal.manifest().get("config_hash") != chash:
+            manifest = journal.manifest()
+            if manifest.get("config_hash") != chash:
                 raise ConfigError(
                     f"runner.resume=true: {journal.dir} holds runs of a different config; "
                     "set output.overwrite=true to discard them"
                 )
+            check_same_code(journal, manifest)
             return "resume"
         if not overwrite:
             raise ConfigError(
@@ -243,6 +256,21 @@ def output_state(out, chash, overwrite, resume):
             f"{journal.dir}); leave out runner.resume=true to start this sweep"
         )
     return "fresh"
+
+
+def check_same_code(journal, manifest):
+    """ConfigError when the journal's runs were computed by other kernel code than this gyrolab's:
+    one results file must not hold runs of two kernel versions."""
+    from ..kernels import SOURCE_HASH
+
+    recorded = manifest.get("kernel_source_hash")
+    if recorded != SOURCE_HASH:
+        made = f"kernel_source_hash {recorded[:12]}" if isinstance(recorded, str) else "no kernel_source_hash"
+        raise ConfigError(
+            f"runner.resume=true: {journal.dir} was computed by other kernel code ({made}, this gyrolab's is "
+            f"{SOURCE_HASH[:12]}: kernels/ changed); resume with the code that made it, or start over with "
+            "output.overwrite=true"
+        )
 
 
 def available_memory():
@@ -380,15 +408,16 @@ def file_attrs(cfg, grid, threads, chash):
     return attrs
 
 
-def open_cluster(runner):
-    """The Dask cluster of runner.backend=dask (runner/dask_backend.py); ConfigError on bad input."""
+def open_cluster(runner, dry_run=False):
+    """The Dask cluster of runner.backend=dask (runner/dask_backend.py; a dry run starts none of its
+    own, only plans it); ConfigError on bad input."""
     try:
         from .dask_backend import open_cluster
     except ImportError as err:
         if (err.name or "").split(".")[0] in ("dask", "distributed"):
             raise ConfigError("runner.backend=dask: needs dask.distributed (pip install 'gyrolab[dask]')") from None
         raise
-    return open_cluster(runner)
+    return open_cluster(runner, dry_run)
 
 
 def run_sweep(cfg, run_dir):
@@ -406,12 +435,14 @@ def sweep(cfg, run_dir, stack):
     threads = 1 if cfg.runner.backend == "dask" else resolve_threads(cfg.runner.threads)
     out = resolve_output(cfg.output.path, run_dir)
     check_writable(out)
+    check_output_paths(out)
     OutputLock(out).check_free()
     chash = config_hash(cfg)
     overwrite, resume = bool(cfg.output.overwrite), bool(cfg.runner.resume)
     state = output_state(out, chash, overwrite, resume)
     if cfg.runner.backend == "dask" and (state != "done" or cfg.runner.dry_run):
-        cluster = stack.enter_context(open_cluster(cfg.runner))  # unreachable: ConfigError, before any work
+        # unreachable: ConfigError, before any work; a dry run plans runner.address=local, starts nothing
+        cluster = stack.enter_context(open_cluster(cfg.runner, dry_run=bool(cfg.runner.dry_run)))
         threads = cluster.threads
         chunks = cluster.plan(grid, np.arange(grid.n_runs), cfg.runner.chunk_seconds)
     else:
@@ -442,17 +473,25 @@ def sweep(cfg, run_dir, stack):
         except (BackendError, OSError):
             ignore_signals()
             sys.exit(EXIT_FAILED)
-    elapsed = time.perf_counter() - started
-    with h5py.File(out, "r") as fh:
-        failed = int((fh["status"][...] != 0).sum())
-    print(
-        f"gyrolab: results: {out} ({_size(out.stat().st_size)}, {grid.n_runs} runs, "
-        f"{failed} diverged) in {elapsed:.1f} s ({timing['integrating']:.1f} s integrating, "
-        f"{timing['journal']:.1f} s journal, {timing['assembly']:.1f} s assembly)"
-    )
-    figures = cfg.output.figures
-    if figures:
-        make_figures(out, OmegaConf.to_container(figures) if OmegaConf.is_list(figures) else figures)
+    try:
+        elapsed = time.perf_counter() - started
+        with h5py.File(out, "r") as fh:
+            failed = int((fh["status"][...] != 0).sum())
+        print(
+            f"gyrolab: results: {out} ({_size(out.stat().st_size)}, {grid.n_runs} runs, "
+            f"{failed} diverged) in {elapsed:.1f} s ({timing['integrating']:.1f} s integrating, "
+            f"{timing['journal']:.1f} s journal, {timing['assembly']:.1f} s assembly)"
+        )
+        figures = cfg.output.figures
+        if figures:
+            make_figures(out, OmegaConf.to_container(figures) if OmegaConf.is_list(figures) else figures)
+    except KeyboardInterrupt as err:  # the results are complete: say so, not "nothing was saved"
+        ignore_signals()
+        sys.stderr.write(
+            f"\ngyrolab: interrupted ({signal_name(err)}) after the results were complete: {out}; "
+            f"draw the figures with gyrolab-plot standard {out}\n"
+        )
+        sys.exit(exit_status(err))
     return str(out)
 
 
@@ -480,9 +519,10 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
         try:
             journal.create(
                 {"config_hash": chash, "n_runs": grid.n_runs, "shape": list(grid.shape), "n_samples": grid.n_samples}
-            )
+            )  # and this code's kernel_source_hash
         except OSError as err:
             print(f"gyrolab: error: {io_error(err, journal.dir)}; nothing was computed", file=sys.stderr)
+            journal.discard()  # a half-made journal would block both the rerun and a resume
             raise
         done, number = np.empty(0, dtype=np.int64), 0
     todo = np.setdiff1d(np.arange(grid.n_runs), done)
@@ -508,6 +548,7 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
         bar.set_postfix_str(f"runs {counter['runs']}/{grid.n_runs}", refresh=False)
         bar.update(steps)
 
+    previous = _inode(out)  # an old file being replaced; a new inode after an interrupt is ours, complete
     try:
         if todo.size:
             (cluster.warm_up if cluster is not None else warm_up)(grid)
@@ -526,6 +567,10 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
         ignore_signals()
         bar.close()
         why = "interrupted" if type(err) is KeyboardInterrupt else f"interrupted by {signal_name(err)}"
+        if _inode(out) not in (None, previous) and stored_hash(out) == chash:  # just after our rename: whole
+            print(f"\ngyrolab: {why} after the results were complete: {out}", file=sys.stderr)
+            journal.discard()
+            raise
         print(
             f"\ngyrolab: {why}; {counter['runs']} of {grid.n_runs} runs are saved in {journal.dir}.\n"
             f"Finish with: {resume_command(run_dir)}",
@@ -552,6 +597,13 @@ def execute(cfg, grid, out, threads, chash, resume, run_dir, cluster=None):
         raise
     journal.discard()
     return {"integrating": computing, "journal": journal.write_seconds, "assembly": assembly}
+
+
+def _inode(path):
+    try:
+        return os.lstat(path).st_ino
+    except OSError:
+        return None
 
 
 def io_error(err, where):
@@ -596,7 +648,7 @@ def hydra_main(cfg):
     run_dir = HydraConfig.get().runtime.output_dir
     try:
         return run_sweep(cfg, run_dir)
-    except ConfigError as err:
+    except (ConfigError, UnsafePathError) as err:
         remove_empty_dirs(run_dir, os.getcwd())
         fail(err)
     finally:
@@ -664,7 +716,7 @@ def main():
     try:
         check_run_dirs(sys.argv[1:])
         hydra_main()
-    except ConfigError as err:
+    except (ConfigError, UnsafePathError) as err:
         fail(err)
     except (HydraException, OmegaConfBaseException) as err:
         fail(describe_hydra_error(err, sys.argv[1:]))

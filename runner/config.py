@@ -123,6 +123,13 @@ def check_variables(names):
 
     if names is None:
         return
+    if not OmegaConf.is_list(names) and not isinstance(names, (list, tuple)):
+        raise ConfigError(f"output.variables={names}: a list of variable names, e.g. output.variables=[energy]")
+    if len(names) == 0:
+        raise ConfigError(
+            "output.variables=[]: names no variable, so the file would hold none; "
+            "leave it out (null: all) or name at least one"
+        )
     try:
         chosen_variables(list(names))
     except ValueError as err:
@@ -137,6 +144,8 @@ def check_values(cfg):
     check_finite(OmegaConf.to_container(cfg, resolve=True))
     sweep, output, runner = cfg.sweep, cfg.output, cfg.runner
     for axis in ("method", "f", "theta0", "dt"):
+        if not (OmegaConf.is_list(sweep[axis]) or isinstance(sweep[axis], (list, tuple))):  # a resolver's list
+            raise ConfigError(f"sweep.{axis}={sweep[axis]}: a sweep axis is a list (e.g. sweep.{axis}=[{sweep[axis]}])")
         values = list(sweep[axis])
         if not values:
             raise ConfigError(f"sweep.{axis}=[]: needs at least one value")
@@ -162,6 +171,12 @@ def check_values(cfg):
         raise ConfigError(f"output.every={output.every}: the sample interval must be > 0 s")
     if sweep.t_end < output.every:
         raise ConfigError(f"sweep.t_end={sweep.t_end}: shorter than the sample interval output.every={output.every}")
+    samples = sweep.t_end / output.every
+    if abs(samples - round(samples)) > 1e-6 * max(1.0, samples):  # else the runs silently end early
+        raise ConfigError(
+            f"sweep.t_end={sweep.t_end}: not a multiple of output.every={output.every} (the last sample "
+            f"would be at t = {int(samples) * output.every:g} s); make it one"
+        )
     check_sizes(sweep, output)
     check_variables(output.variables)
     check_figures(output.figures)
@@ -224,6 +239,9 @@ def check_scene_options(scene):
             raise ConfigError(f"scene.phidot0={phidot0}: only used with scene.init=precession (here scene.init={init})")
 
 
+MAX_CONNECT_TIMEOUT = 86400.0  # s; beyond a day the event loop's timers overflow (1e308 did)
+
+
 def check_cluster(runner):
     """ConfigError unless the cluster keys fit the backend (no network: dask_backend connects)."""
     given = [k for k in ("address", "scheduler_file") if runner[k] is not None]
@@ -238,8 +256,10 @@ def check_cluster(runner):
             f"runner.scheduler_file={runner.scheduler_file}: give runner.address "
             f"(here {runner.address}) or runner.scheduler_file, not both"
         )
-    if not runner.connect_timeout > 0:
-        raise ConfigError(f"runner.connect_timeout={runner.connect_timeout}: must be > 0 s")
+    if not 0 < runner.connect_timeout <= MAX_CONNECT_TIMEOUT:
+        raise ConfigError(
+            f"runner.connect_timeout={runner.connect_timeout}: must be > 0 s and at most {MAX_CONNECT_TIMEOUT:g} s"
+        )
 
 
 def check_resolvable(cfg):

@@ -18,15 +18,26 @@ allowed-failures`` worker deaths per chunk); task errors are retried
 ``RETRIES`` times.
 
 ``runner.address=local`` starts a LocalCluster inside the process
-(``runner.threads`` or all cores as one-thread worker processes).
+(``runner.threads`` or all cores as one-thread worker processes, never more
+than the cores).  It is private to this process: every service (scheduler,
+workers, the dashboard) listens on 127.0.0.1 only, and every connection is
+TLS with a certificate generated for this sweep (``local_security``: Dask's
+``Security.temporary()`` when the ``cryptography`` package is installed,
+else one made by the ``openssl`` command in a private temporary directory);
+the scheduler requires the client certificate, so another process on the
+machine cannot connect, let alone submit work.  A dry run starts no
+cluster (``planned_local``: the plan of the workers it would start).
 """
 
 import asyncio
 import json
 import logging
 import os
+import shutil
 import signal
 import socket
+import subprocess
+import tempfile
 import threading
 import time
 import uuid
@@ -44,6 +55,7 @@ from .grid import estimate_seconds, plan_chunks
 
 LOCAL = "local"  # runner.address that starts a LocalCluster in this process
 CHUNKS_PER_WORKER = 4  # at least this many chunks per worker: balance and small losses on a worker crash
+MAX_SCHEDULER_FILE = 1 << 20  # bytes; a Dask scheduler file is a few hundred
 RETRIES = 2  # reruns of a chunk whose task raised (a lost worker is handled by Dask's allowed-failures)
 
 # --------------------------------------------------------------------------- worker side
@@ -119,14 +131,20 @@ def worker_info(dask_worker):
 
 def read_scheduler_file(path):
     """The scheduler address in a Dask scheduler file (JSON); ConfigError naming the key."""
+    from ..safe_files import UnsafePathError, open_regular
+
     key = f"runner.scheduler_file={path}"
-    try:
-        with open(os.path.expanduser(path)) as fh:
-            text = fh.read()
+    try:  # a regular file, read up to MAX_SCHEDULER_FILE bytes (/dev/zero or a FIFO: refused)
+        with os.fdopen(open_regular(os.path.expanduser(path), os.O_RDONLY), "rb") as fh:
+            text = fh.read(MAX_SCHEDULER_FILE + 1).decode(errors="replace")
     except FileNotFoundError:
         raise ConfigError(f"{key}: no such file") from None
+    except UnsafePathError as err:
+        raise ConfigError(f"{key}: {str(err).split(': ', 1)[1]}") from None
     except OSError as err:
         raise ConfigError(f"{key}: cannot read it ({err.strerror})") from None
+    if len(text) > MAX_SCHEDULER_FILE:
+        raise ConfigError(f"{key}: not a Dask scheduler file (more than {MAX_SCHEDULER_FILE} bytes)")
     try:
         address = json.loads(text)["address"]
     except (ValueError, KeyError, TypeError):
@@ -141,8 +159,8 @@ def check_scheduler(address, key, timeout):
         host, port = parts.hostname, parts.port
     except ValueError:
         host = port = None
-    if parts.scheme != "tcp" or not host or not port:
-        raise ConfigError(f"{key}: expected tcp://host:port (or local)")
+    if parts.scheme not in ("tcp", "tls") or not host or not port:
+        raise ConfigError(f"{key}: expected tcp://host:port, tls://host:port (or local)")
     try:
         socket.create_connection((host, port), timeout=timeout).close()
     except socket.gaierror:
@@ -162,8 +180,10 @@ def check_scheduler(address, key, timeout):
 
 async def _identity(address, timeout):
     from distributed.comm import connect
+    from distributed.security import Security
 
-    comm = await connect(address, timeout=timeout)
+    # TLS settings (a tls:// scheduler's CA and client certificate) from Dask's config
+    comm = await connect(address, timeout=timeout, **Security().get_connection_args("client"))
     try:
         await comm.write({"op": "identity", "reply": True})
         return await comm.read()
@@ -171,12 +191,60 @@ async def _identity(address, timeout):
         await comm.close()
 
 
-def open_cluster(runner):
+def local_security(directory):
+    """distributed.Security for a cluster private to this process: TLS on every connection, a
+    self-signed certificate made now (``directory``: a private temporary directory for its files
+    when ``openssl`` makes it), required of every client and worker.  ConfigError when neither
+    the ``cryptography`` package nor the ``openssl`` command is there to make one."""
+    from distributed.security import Security
+
+    try:
+        return Security.temporary()  # needs the cryptography package
+    except ImportError:
+        pass
+    openssl = shutil.which("openssl")
+    if openssl is None:
+        raise ConfigError(
+            f"runner.address={LOCAL}: the embedded cluster runs with TLS and needs the cryptography "
+            "package (pip install cryptography) or the openssl command to make its certificate"
+        )
+    key, cert = os.path.join(directory, "key.pem"), os.path.join(directory, "cert.pem")
+    made = subprocess.run(
+        [openssl, "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", key, "-out", cert, "-days", "7"]
+        + ["-subj", "/CN=gyrolab-local", "-addext", "subjectAltName=IP:127.0.0.1"],
+        capture_output=True,
+        timeout=120,
+    )
+    if made.returncode != 0:
+        raise ConfigError(f"runner.address={LOCAL}: openssl could not make the cluster's certificate")
+    os.chmod(key, 0o600)
+    return Security(
+        tls_ca_file=cert,
+        tls_client_cert=cert,
+        tls_client_key=key,
+        tls_scheduler_cert=cert,
+        tls_scheduler_key=key,
+        tls_worker_cert=cert,
+        tls_worker_key=key,
+        require_encryption=True,
+    )
+
+
+def local_workers(threads=None):
+    """Worker processes of the embedded cluster: ``runner.threads`` or every core, at most the cores."""
+    cores = len(os.sched_getaffinity(0))
+    return min(int(threads), cores) if threads is not None else cores
+
+
+def open_cluster(runner, dry_run=False):
     """Connect to the cluster of ``runner`` (its address or scheduler file), or start a
-    LocalCluster for ``address=local``.  ConfigError (one line naming the key and value)
-    when it cannot be reached, has no workers, or its workers run other versions."""
+    LocalCluster for ``address=local`` (for a dry run: only the plan of one, nothing started).
+    ConfigError (one line naming the key and value) when it cannot be reached, has no workers,
+    or its workers run other versions."""
     timeout = float(runner.connect_timeout)
     if runner.address == LOCAL:
+        if dry_run:
+            return DaskCluster.planned_local(runner.threads)
         return DaskCluster.start_local(runner.threads)
     if runner.threads is not None:
         raise ConfigError(
@@ -206,14 +274,30 @@ def open_cluster(runner):
 class DaskCluster:
     """A connected Dask client (and the LocalCluster it started, if any) that runs chunks."""
 
-    def __init__(self, client, local, address):
+    def __init__(self, client, local, address, private=None):
         self.client, self.local, self.address = client, local, address
+        self.private = private  # the temporary directory of the embedded cluster's certificate
         self.workers = {}
 
     @classmethod
+    def planned_local(cls, threads=None):
+        """The embedded cluster as a dry run plans it: its workers' threads, nothing started."""
+        n = local_workers(threads)
+        cluster = cls(None, None, LOCAL)
+        cluster.workers = {f"worker-{k}": {"nthreads": 1, "threads": 1} for k in range(n)}
+        return cluster
+
+    @classmethod
     def start_local(cls, threads=None):
-        """A LocalCluster of one-thread worker processes, one per core (or ``threads``)."""
-        n = int(threads) if threads is not None else len(os.sched_getaffinity(0))
+        """A LocalCluster of one-thread worker processes, one per core (or ``threads``, at most
+        the cores), on 127.0.0.1 only, with TLS and a certificate of its own (``local_security``)."""
+        n = local_workers(threads)
+        private = tempfile.TemporaryDirectory(prefix="gyrolab-dask-")
+        try:
+            security = local_security(private.name)
+        except BaseException:
+            private.cleanup()
+            raise
         # Worker processes inherit an ignored SIGINT: Ctrl-C in the terminal interrupts this
         # driver (which stops them), not each worker with a traceback of its own.
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -222,13 +306,20 @@ class DaskCluster:
                 n_workers=n,
                 threads_per_worker=1,
                 processes=True,
+                host="127.0.0.1",
+                protocol="tls://",
+                security=security,
                 dashboard_address=None,
-                scheduler_kwargs={"dashboard_address": ":0"},  # its HTTP port: any free one
+                worker_dashboard_address=None,
+                scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},  # its HTTP port: any free one, local
                 silence_logs=logging.ERROR,
             )
+        except BaseException:
+            private.cleanup()
+            raise
         finally:
             signal.signal(signal.SIGINT, previous)
-        cluster = cls(Client(local, set_as_default=False), local, LOCAL)
+        cluster = cls(Client(local, set_as_default=False, security=security), local, LOCAL, private)
         try:
             cluster.check_workers(f"runner.address={LOCAL}", 60.0)
         except BaseException:
@@ -339,6 +430,8 @@ class DaskCluster:
 
     def close(self):
         """Unregister the warm-up plugin, disconnect, stop a LocalCluster we started."""
+        if self.client is None:  # a dry run's plan: nothing was started
+            return
         try:
             if getattr(self, "plugin", None) and self.client.status == "running":
                 self.client.unregister_worker_plugin(self.plugin)
@@ -348,6 +441,8 @@ class DaskCluster:
             self.client.close()
             if self.local is not None:
                 self.local.close()
+            if self.private is not None:
+                self.private.cleanup()
 
     def __enter__(self):
         return self

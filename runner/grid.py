@@ -8,6 +8,7 @@ first.  A chunk is a set of runs of ONE method and ONE step count, so the
 batch kernel's prange hands every thread the same amount of work.
 """
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,6 +45,11 @@ BLOCK_SPEEDUP = {
 }
 DEFAULT_BLOCK_SPEEDUP = 2.7
 MAX_CHUNK_BYTES = 256 * 2**20
+# The most runs one sweep holds: the runner keeps per-run arrays (inputs, status, steps, wall time,
+# chunk plan, assembly's owner/row maps: ~PER_RUN_BYTES a run) and plans chunks run by run, so a
+# bigger grid is refused up front, in O(axes), rather than after minutes of planning.
+MAX_RUNS = 10**7
+PER_RUN_BYTES = 200
 # Effective rates of the pipeline around the kernels on the development machine (docs/benchmarks.md,
 # benchmarks/bench_pipeline.py): journal bytes (raw samples) per second, results bytes per second
 # of assembly (journal read, variables derived, file written), and seconds per run of assembly.
@@ -121,8 +127,27 @@ class Grid:
         return self.n_samples * (RAW_PER_SAMPLE + stored_per_sample(self.variables)) * 8
 
 
+def check_grid_size(shape):
+    """ConfigError when the grid of ``shape`` (methods, f, theta0, dt) has more than MAX_RUNS runs;
+    O(axes): nothing per run is built before this."""
+    n = math.prod(shape)
+    if n > MAX_RUNS:
+        m, f, t, d = shape
+        raise ConfigError(
+            f"sweep: {m} method x {f} f x {t} theta0 x {d} dt = {n:.3g} runs, more than the {MAX_RUNS:.0e} one "
+            "sweep may hold (its per-run bookkeeping alone would need ~{:.3g} GB); split it into jobs "
+            "(gyrolab -m ...) and join them with gyrolab-combine".format(n * PER_RUN_BYTES / 1e9)
+        )
+
+
 def build_grid(cfg):
     """Check the whole config and build every run's inputs; ConfigError on bad input."""
+    try:  # first, before any check that costs time (check_values imports the figure modules)
+        shape = tuple(len(cfg.sweep[axis]) for axis in ("method", "f", "theta0", "dt"))
+    except Exception:  # an axis that is not a list or does not resolve: check_values says which
+        shape = None
+    if shape is not None:
+        check_grid_size(shape)
     check_values(cfg)
     sweep, scene_cfg = cfg.sweep, OmegaConf.to_container(cfg.scene, resolve=True)
     for m in sweep.method:
@@ -155,6 +180,15 @@ def build_grid(cfg):
     chosen = select_methods(list(sweep.method), driven_scene=is_driven(bodies))
     if chosen != list(sweep.method):
         sweep.method = chosen
+    with np.errstate(over="ignore", invalid="ignore"):
+        rates = np.square(omega0).sum(axis=-1)
+    if not (np.isfinite(rates).all() and np.isfinite(bodies).all() and np.isfinite(q0).all()):
+        j, k = np.argwhere(~np.isfinite(rates) | ~np.isfinite(bodies).all(-1) | ~np.isfinite(q0).all(-1))[0]
+        raise ConfigError(
+            f"scene: the initial state at f={sweep.f[int(j)]}, theta0={sweep.theta0[int(k)]} overflows float64 "
+            f"(|omega0|^2 = {rates[j, k]:.3g} rad^2/s^2: a scene option such as scene.omega1 is too large); "
+            "every run would be infinite from t = 0"
+        )
     if is_driven(bodies):
         blind = [m for m in sweep.method if not sees_time(METHODS[m])]
         if blind:

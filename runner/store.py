@@ -19,9 +19,14 @@ The results layout (dims, variables, units, attrs) is gyrolab/results/layout.py'
 import errno
 import fcntl
 import hashlib
+import hmac
 import json
 import os
+import re
 import shutil
+import socket
+import stat
+import sys
 import time
 from pathlib import Path
 
@@ -42,6 +47,7 @@ from ..results.layout import (
     sample_dims,
     sample_variables,
 )
+from ..safe_files import atomic_replace, atomic_write, open_regular, remove_entry, temporary_prefix
 from .assembly import JournalChunk, MemoryChunk, box_runs, boxes, chunk_layout, gather, max_runs
 from .config import ConfigError
 
@@ -54,72 +60,44 @@ def lock_path(out):
     return Path(f"{out}.lock")
 
 
-def fsync_dir(directory):
-    fd = os.open(directory, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
 def temporary_name(path):
-    """The temporary name ``atomic_replace`` writes ``path`` under (hidden, with this process's pid)."""
+    """The start of the names of the private directories ``atomic_replace`` writes ``path`` in
+    (hidden, with this process's pid; gyrolab/safe_files.py adds a random part)."""
     path = Path(path)
-    return path.with_name(f".{path.name}.tmp{os.getpid()}")
+    return path.with_name(temporary_prefix(path))
 
 
 def remove_stale_temporaries(path):
-    """Remove the ``.<name>.tmp<pid>`` files next to ``path`` that a killed assembly or combine
-    left; returns the removed paths.  Call with the output's lock held: every writer of
-    ``path`` holds it, so no such file is in use."""
+    """Remove the ``.<name>.tmp<pid>`` files and ``.<name>.tmp<pid>.<random>`` private directories
+    next to ``path`` that a killed assembly or combine left (links removed, never followed); returns
+    the removed paths.  Call with the output's lock held: every writer of ``path`` holds it, so
+    none is in use."""
     path = Path(path)
     removed = []
     if not path.parent.is_dir():
         return removed
     for tmp in path.parent.glob(f".{path.name}.tmp*"):
-        if tmp.name[len(f".{path.name}.tmp") :].isdigit():
-            try:
-                tmp.unlink()
-                removed.append(tmp)
-            except OSError:
-                pass
+        pid, dot, _ = tmp.name[len(f".{path.name}.tmp") :].partition(".")
+        if pid.isdigit() and (not dot or (tmp.is_dir() and not tmp.is_symlink())):
+            remove_entry(tmp)
+            removed.append(tmp)
     return removed
 
 
-def atomic_replace(path, write_to, before_replace=None):
-    """Call ``write_to(tmp_path)``, fsync that file and rename it to ``path``; the
-    temporary file is removed if anything fails, so ``path`` is old or whole.
-    ``before_replace()``, if given, runs just before the rename and may raise to cancel it."""
-    path = Path(path)
-    tmp = temporary_name(path)
-    try:
-        write_to(tmp)
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        if before_replace is not None:
-            before_replace()
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    fsync_dir(path.parent)
-
-
-def atomic_write(path, write):
-    """Call ``write(fileobj)`` on a temporary file, then as :func:`atomic_replace`."""
-
-    def write_to(tmp):
-        with open(tmp, "wb") as fh:
-            write(fh)
-
-    atomic_replace(path, write_to)
+def lock_identity():
+    """What the lock file holds: ``<pid> <host> <start time, UTC>`` of the writer."""
+    started = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+    return f"{os.getpid()} {socket.gethostname()} {started}\n"
 
 
 class OutputLock:
-    """Exclusive, non-blocking lock on ``<out>.lock``; ConfigError naming the holder's pid if taken.
+    """Exclusive, non-blocking lock on ``<out>.lock``; ConfigError naming the holder if taken.
 
-    The lock file is removed on release; the inode check after locking makes
-    that safe against a writer that opened the file just before the removal.
+    The lock file (``lock_identity``: pid, host, start time) is opened with O_NOFOLLOW and must be a
+    regular file of ours (else UnsafePathError: a link or a FIFO planted there is never followed);
+    a lock left by a killed writer holds no flock and is simply taken over.  The file is removed
+    on release; the inode check after locking makes that safe against a writer that opened the
+    file just before the removal.
     """
 
     def __init__(self, out):
@@ -130,7 +108,7 @@ class OutputLock:
     def check_free(self):
         """ConfigError if another process holds the lock; creates nothing."""
         try:
-            fd = os.open(self.path, os.O_RDONLY)
+            fd = open_regular(self.path, os.O_RDONLY)
         except FileNotFoundError:
             return
         try:
@@ -140,36 +118,39 @@ class OutputLock:
         os.close(fd)
 
     def _refuse(self, fd):
-        holder = os.read(fd, 64).decode(errors="replace").strip() or "?"
+        words = os.read(fd, 200).decode(errors="replace").split()
         os.close(fd)
+        holder = words[0] if words and words[0].isdigit() else "?"
+        where = f" (host {words[1]}, since {words[2]})" if len(words) >= 3 else ""
         raise ConfigError(
-            f"output.path={self.out}: another gyrolab (pid {holder}) is writing it right now; "
+            f"output.path={self.out}: another gyrolab (pid {holder}) is writing it right now{where}; "
             "wait for it to finish or choose another output.path"
         )
 
     def acquire(self):
         while True:
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            fd = open_regular(self.path, os.O_RDWR | os.O_CREAT)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
                 self._refuse(fd)
             try:
-                same = os.stat(self.path).st_ino == os.fstat(fd).st_ino
+                same = os.lstat(self.path).st_ino == os.fstat(fd).st_ino
             except FileNotFoundError:
                 same = False
             if same:
                 break
             os.close(fd)  # the previous holder removed the file under us: lock the new one
         os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()}\n".encode())
+        os.write(fd, lock_identity().encode())
         self.fd = fd
         return self
 
     def release(self):
         if self.fd is not None:
             try:
-                self.path.unlink()
+                if os.lstat(self.path).st_ino == os.fstat(self.fd).st_ino:
+                    self.path.unlink()
             except FileNotFoundError:
                 pass
             os.close(self.fd)
@@ -187,6 +168,25 @@ class JournalError(ConfigError):
 
 
 CHUNK_KEYS = ("runs", "samples", "status", "n_steps", "wall_time")
+# Each chunk proves it belongs to its sweep: ``binding`` (the config hash and the kernel-source hash
+# the journal was started with) and ``mac``, an HMAC-SHA256 under the journal's secret key (a 0600
+# file in the 0700 journal directory) of the chunk's file name, its binding and every array's bytes.
+# A chunk of another sweep, one made up, or one copied under another name fails it, whatever its
+# manifest entry says.
+PROOF_KEYS = ("binding", "mac")
+KEY_FILE = "key"
+JOURNAL_NAME = re.compile(r"chunk-(\d{5,9})\.npz")
+
+
+def chunk_mac(key, name, binding, arrays):
+    """HMAC-SHA256 (hex) under ``key`` of a chunk's file name, binding and CHUNK_KEYS arrays."""
+    mac = hmac.new(key, digestmod=hashlib.sha256)
+    mac.update(f"{name}\0{binding}\0".encode())
+    for k in CHUNK_KEYS:
+        value = np.ascontiguousarray(arrays[k])
+        mac.update(f"{k}:{value.dtype.str}:{value.shape}\0".encode())
+        mac.update(value.tobytes())
+    return mac.hexdigest()
 
 
 def sha256(path):
@@ -229,37 +229,96 @@ class Journal:
         return manifest
 
     def create(self, manifest):
-        """Start an empty journal (removing any old one)."""
+        """Start an empty journal (removing any old one): a directory only we may enter, a fresh
+        secret key, the manifest (``kernel_source_hash``: this code's, unless given)."""
+        from ..kernels import SOURCE_HASH
+
         self.discard()
-        self.dir.mkdir(parents=True)
-        self._manifest = {**manifest, "chunks": {}}
+        self.dir.parent.mkdir(parents=True, exist_ok=True)
+        self.dir.mkdir(mode=0o700)
+        key = os.urandom(32).hex().encode()
+        atomic_write(self.dir / KEY_FILE, lambda fh: fh.write(key), mode=0o600)
+        self._manifest = {"kernel_source_hash": SOURCE_HASH, **manifest, "chunks": {}}
         self._write_manifest()
+
+    def key(self):
+        """The journal's secret key; JournalError (one line) if it is missing or not our file."""
+        if getattr(self, "_key", None) is None:
+            try:
+                fd = open_regular(self.dir / KEY_FILE, os.O_RDONLY)
+                with os.fdopen(fd, "rb") as fh:
+                    self._key = fh.read(200)
+            except (OSError, ValueError) as err:
+                raise JournalError(
+                    f"{self.dir}: no usable journal key ({_reason(err)}; a journal of an older gyrolab?); "
+                    "start over with output.overwrite=true"
+                ) from None
+        return self._key
+
+    def binding(self):
+        """What every chunk of this journal records: ``<config hash> <kernel-source hash>``."""
+        if self._manifest is None:
+            self._manifest = self.manifest()
+        return f"{self._manifest['config_hash']} {self._manifest.get('kernel_source_hash', '')}"
 
     def _write_manifest(self):
         text = json.dumps(self._manifest, indent=1).encode()
         atomic_write(self.manifest_path, lambda fh: fh.write(text))
 
     def discard(self):
-        if self.dir.exists():
-            shutil.rmtree(self.dir)
+        remove_entry(self.dir)  # a link there is removed, not followed
 
     def chunk_files(self):
-        return sorted(self.dir.glob("chunk-*.npz"))
+        """The regular files named ``chunk-NNNNN.npz`` (never a link, a directory or a FIFO)."""
+        return sorted(p for p in self.dir.glob("chunk-*.npz") if JOURNAL_NAME.fullmatch(p.name) and _is_regular(p))
+
+    def odd_entries(self):
+        """Entries of the journal directory that are none of its own files: each (name, what)."""
+        odd = []
+        for p in sorted(self.dir.iterdir()):
+            if p.name in ("manifest.json", KEY_FILE) and _is_regular(p):
+                continue
+            if p.name == "rejected" and p.is_dir() and not p.is_symlink():
+                continue
+            if p.name.startswith((".chunk-", ".manifest.json.", f".{KEY_FILE}.")):
+                continue  # a killed writer's temporary: clean_temporaries
+            if JOURNAL_NAME.fullmatch(p.name) and _is_regular(p):
+                continue
+            odd.append((p.name, _what(p)))
+        return odd
+
+    def set_aside_odd_entries(self):
+        """Move every odd entry (a link, directory, FIFO, misnamed file) into ``rejected/`` without
+        opening or following it; returns [(name, reason)]."""
+        moved = []
+        if self.rejected_dir.is_symlink() or (self.rejected_dir.exists() and not self.rejected_dir.is_dir()):
+            what = _what(self.rejected_dir)
+            moved.append(("rejected", f"{what} where the rejected chunks go; removed, never followed"))
+            self.rejected_dir.unlink()
+        for name, what in self.odd_entries():
+            self._reject(self.dir / name)
+            moved.append((name, f"{what}, not a journal chunk; never read"))
+        return moved
 
     def clean_temporaries(self):
         """Remove half-written chunk and manifest files a killed process left behind."""
         for tmp in [*self.dir.glob(".chunk-*.tmp*"), *self.dir.glob(".manifest.json.tmp*")]:
-            tmp.unlink()
+            remove_entry(tmp)  # a file, a private directory of safe_files.atomic_replace, or a link
 
     def write_chunk(self, number, runs, samples, status, n_steps, wall_time):
         """Store one finished chunk durably: runs (flat numbers), raw samples (n, time, RAW_PER_SAMPLE),
         per-run arrays; then record its checksum in the manifest."""
 
-        def write(fh):
-            np.savez(fh, runs=runs, samples=samples, status=status, n_steps=n_steps, wall_time=wall_time)
-
         start = time.perf_counter()
         path = self.dir / f"chunk-{number:05d}.npz"
+        arrays = dict(runs=runs, samples=samples, status=status, n_steps=n_steps, wall_time=wall_time)
+        arrays = {k: np.asarray(v) for k, v in arrays.items()}
+        binding = self.binding()
+        mac = chunk_mac(self.key(), path.name, binding, arrays)
+
+        def write(fh):
+            np.savez(fh, **arrays, binding=np.array(binding), mac=np.array(mac))
+
         atomic_write(path, write)
         self.record_chunk(path, len(runs))
         self.write_seconds += time.perf_counter() - start
@@ -282,10 +341,10 @@ class Journal:
         ``rejected/``.  Returns [(chunk file name, reason)] of the chunks set aside."""
         manifest = self._manifest = self.manifest()
         listed = manifest.get("chunks")
-        rejected, seen, changed = [], set(), listed is None
+        rejected, seen, changed = self.set_aside_odd_entries(), set(), listed is None
         listed = manifest["chunks"] = listed if listed is not None else {}
         for path in self.chunk_files():
-            problem = _chunk_problem(path, listed, n_runs, n_samples, seen)
+            problem = _chunk_problem(path, listed, n_runs, n_samples, seen, self.key(), self.binding())
             if problem:
                 rejected.append((path.name, problem))
                 self._reject(path)
@@ -306,7 +365,7 @@ class Journal:
         self.rejected_dir.mkdir(exist_ok=True)
         target = self.rejected_dir / path.name
         k = 1
-        while target.exists():
+        while target.exists() or target.is_symlink():
             target, k = self.rejected_dir / f"{path.stem}.{k}{path.suffix}", k + 1
         os.replace(path, target)
 
@@ -318,7 +377,7 @@ class Journal:
             with np.load(path, allow_pickle=False) as data:
                 runs.append(data["runs"])
         done = np.concatenate(runs) if runs else np.empty(0, dtype=np.int64)
-        numbers = [int(p.stem.split("-")[1]) for p in files]
+        numbers = [int(JOURNAL_NAME.fullmatch(p.name).group(1)) for p in files]
         numbers += [
             int(p.stem.split("-")[1].split(".")[0])
             for p in self.rejected_dir.glob("chunk-*.npz")
@@ -352,7 +411,28 @@ def _manifest_problem(manifest):
     return None
 
 
-def _chunk_problem(path, listed, n_runs, n_samples, seen):
+def _is_regular(path):
+    try:
+        return stat.S_ISREG(os.lstat(path).st_mode)
+    except OSError:
+        return False
+
+
+def _what(path):
+    try:
+        mode = os.lstat(path).st_mode
+    except OSError:
+        return "gone"
+    if stat.S_ISLNK(mode):
+        return "a symbolic link"
+    if stat.S_ISDIR(mode):
+        return "a directory"
+    if stat.S_ISREG(mode):
+        return "a file of another name"
+    return "a special file"
+
+
+def _chunk_problem(path, listed, n_runs, n_samples, seen, key, binding):
     """Why the chunk file ``path`` cannot be used, or None (then its runs are added to ``seen``)."""
     # A chunk missing from the manifest was renamed into place just before a kill, ahead of its
     # manifest entry: whole (atomic rename, fsync), so it is judged by its content alone.
@@ -364,9 +444,15 @@ def _chunk_problem(path, listed, n_runs, n_samples, seen):
             missing = [k for k in CHUNK_KEYS if k not in data.files]
             if missing:
                 return f"not a gyrolab chunk (no array {missing[0]!r})"
-            arrays = {k: data[k] for k in CHUNK_KEYS}
+            if any(k not in data.files for k in PROOF_KEYS):
+                return "no proof of its sweep (a chunk of an older gyrolab or not one of this journal's)"
+            arrays = {k: data[k] for k in (*CHUNK_KEYS, *PROOF_KEYS)}
     except Exception as err:  # zipfile, numpy and zlib raise many kinds on damaged input
         return f"unreadable ({_reason(err)})"
+    if str(arrays["binding"]) != binding:
+        return "made by another sweep or other kernel code (its config or kernel-source hash differs)"
+    if not hmac.compare_digest(str(arrays["mac"]), chunk_mac(key, path.name, binding, arrays)):
+        return "does not prove it belongs to this journal (its HMAC does not match: foreign, made up or altered)"
     runs = arrays["runs"]
     if runs.ndim != 1 or runs.size == 0 or runs.dtype.kind not in "iu":
         return f"runs has shape {runs.shape} and dtype {runs.dtype}"
@@ -411,7 +497,65 @@ def assemble(out, grid, journal, attrs, before_replace=None):
     if delay:
         after_read = lambda: time.sleep(delay)  # noqa: E731
     sources = [JournalChunk(path, grid.n_samples, RAW_PER_SAMPLE) for path in journal.chunk_files()]
-    atomic_replace(out, lambda tmp: write_results(tmp, grid, sources, attrs, after_read), before_replace)
+    atomic_replace(
+        out, lambda tmp: in_child(lambda: write_results(tmp, grid, sources, attrs, after_read), out), before_replace
+    )
+
+
+CHILD_ERROR = "gyrolab-child-error: "  # marks the child's own one-line reason among libhdf5's output
+
+
+def in_child(work, where):
+    """Run ``work()`` (writing the file ``where``) in a forked child process and wait for it.
+
+    libhdf5 can crash (SIGSEGV) or print hundreds of lines of error stack when the disk fills or
+    fails while it writes or closes a file; in a child, that stays there: its stderr goes to a
+    private temporary, and any failure comes back here as one OSError (ENOSPC when the device of
+    ``where`` is full, else EIO; filename ``where``) with the child's last line as the reason.  A signal here (the
+    child ignores the terminal's) kills the child and is raised as usual."""
+    import signal
+    import tempfile
+
+    sys.stdout.flush()
+    sys.stderr.flush()
+    with tempfile.TemporaryFile() as log:
+        pid = os.fork()
+        if pid == 0:  # the child: no Python clean-up of the parent's objects, only os._exit
+            status = 1
+            try:
+                for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+                    signal.signal(sig, signal.SIG_IGN)
+                os.dup2(log.fileno(), 2)
+                work()
+                status = 0
+            except BaseException as err:  # noqa: BLE001 - reported to the parent as one line
+                os.write(2, f"\n{CHILD_ERROR}{_reason(err)}\n".encode(errors="replace"))
+            finally:
+                os._exit(status)
+        try:
+            _, status = os.waitpid(pid, 0)
+        except BaseException:  # an interrupt: the child must not outlive its parent
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            raise
+        if os.waitstatus_to_exitcode(status) == 0:
+            return
+        log.seek(0)
+        noise = log.read()[-20000:].decode(errors="replace")
+    code = os.waitstatus_to_exitcode(status)
+    said = [line.split(CHILD_ERROR, 1)[1] for line in noise.splitlines() if CHILD_ERROR in line]
+    reason = said[-1] if said else (f"killed by {signal.Signals(-code).name}" if code < 0 else f"status {code}")
+    text = " ".join(reason.split())[:200]
+    full = "No space left" in noise or "errno = 28" in noise or _nearly_full(where)
+    raise OSError(errno.ENOSPC if full else errno.EIO, f"writing the results failed ({text})", str(where))
+
+
+def _nearly_full(where):
+    """True when the device of ``where`` has less than 1 MiB free (a crash there is a full disk)."""
+    try:
+        return shutil.disk_usage(Path(where).parent).free < 2**20
+    except OSError:
+        return False
 
 
 def write_results(path, grid, chunks, attrs, after_read=None):

@@ -1,5 +1,7 @@
 """Lock, journal and results file: one writer, durable chunks, the results layout (gyrolab/results/layout.py)."""
 
+import json
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -50,7 +52,7 @@ def test_journal_keeps_finished_chunks_and_drops_half_written_ones(tmp_path, gri
     done, number = journal.done_runs()
     assert sorted(done) == [0, 2] and number == 1
     journal.clean_temporaries()
-    assert sorted(p.name for p in journal.dir.iterdir()) == ["chunk-00000.npz", "manifest.json"]
+    assert sorted(p.name for p in journal.dir.iterdir()) == ["chunk-00000.npz", "key", "manifest.json"]
     (stored,) = list(journal.chunks())
     np.testing.assert_array_equal(stored["samples"], first["samples"])
     assert journal.manifest()["config_hash"] == "abc"
@@ -101,7 +103,9 @@ def test_a_journal_without_checksums_is_verified_by_content_and_then_sealed(tmp_
     journal = Journal(tmp_path / "results.h5")
     journal.create({"config_hash": "abc"})
     journal.write_chunk(0, **run_chunk(grid, np.array([0, 2]), threads=1))
-    journal.manifest_path.write_text('{"config_hash": "abc"}')  # as written before checksums
+    manifest = {k: v for k, v in journal.manifest().items() if k != "chunks"}  # as written before checksums
+    journal.manifest_path.write_text(json.dumps(manifest))
+    journal = Journal(tmp_path / "results.h5")
     assert journal.verify(grid.n_runs, grid.n_samples) == []
     assert list(journal.manifest()["chunks"]) == ["chunk-00000.npz"]
 

@@ -82,7 +82,9 @@ def animate(ds, out, sel=None, seconds=None, fps=20, max_frames=120):
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     anim = FuncAnimation(fig, draw, frames=frames, blit=False)
-    anim.save(out, writer=PillowWriter(fps=fps))
+    from ...safe_files import atomic_replace
+
+    atomic_replace(out, lambda tmp: anim.save(tmp, writer=PillowWriter(fps=fps)))
     plt.close(fig)
     return out
 

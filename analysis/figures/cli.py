@@ -109,16 +109,27 @@ def _check_output(args):
             raise ValueError(f"-o {args.output}: directory {parent} does not exist (create it, or pass --parents)")
 
 
-def _member_tag(ds):
-    """The member of a combined file's slice as output names carry it: heavy_top, job1."""
+def _member_tag(ds, index=0, used=None):
+    """The member of a combined file's slice as output names carry it: heavy_top, job1.  The label
+    is text from the file: made a safe basename (gyrolab/safe_files.py), else ``member<index>``;
+    a tag already in ``used`` (two labels made the same, e.g. ``x`` and ``../x``) gets ``_<index>``."""
+    from ...safe_files import safe_name
+
     dim, _, label = ds.attrs["combined_member"].partition("=")
-    return label if dim == "scene" else f"{dim}{label}"
+    tag = safe_name(label if dim == "scene" else f"{dim}{label}", f"member{index}")
+    if used is not None:
+        tag = f"{tag}_{index}" if tag in used else tag
+        used.add(tag)
+    return tag
 
 
-def _member_path(path, ds):
-    """``path`` with the member in its name: energy.png -> energy_heavy_top.png / energy_job1.png."""
+def _member_path(path, ds, index=0, used=None):
+    """``path`` with the member in its name: energy.png -> energy_heavy_top.png / energy_job1.png,
+    checked to stay in ``path``'s directory."""
+    from ...safe_files import inside
+
     path = Path(path)
-    return path.with_name(f"{path.stem}_{_member_tag(ds)}{path.suffix}")
+    return inside(path.parent, path.with_name(f"{path.stem}_{_member_tag(ds, index, used)}{path.suffix}"))
 
 
 def _split_member(words):
@@ -140,6 +151,7 @@ def run(args, notes=None):
     kind = args.kind
     _check_output(args)
     if kind == "standard":
+        from ...safe_files import inside
         from .registry import standard_figures
 
         member, grid = _split_member(args.selection)
@@ -147,10 +159,10 @@ def run(args, notes=None):
             raise SelectionError(f"{' '.join(args.selection)}: standard takes only scene=NAME or job=K")
         out = Path(args.output or Path(args.file).parent / "figures")
         members = open_members(args.file, member)  # a clear error before anything is written
-        paths = []
+        paths, used = [], set()
         log = lambda line: print(line.replace("gyrolab:", "gyrolab-plot:", 1))  # noqa: E731
-        for label, ds in members:
-            where = out if label is None or len(members) == 1 else out / _member_tag(ds)
+        for k, (label, ds) in enumerate(members):
+            where = out if label is None or len(members) == 1 else inside(out, out / _member_tag(ds, k, used))
             source = args.file if label is None else f"{args.file} {ds.attrs['combined_member']}"
             paths += standard_figures(args.file, where, log=log, ds=ds, label=source)
         if not paths:  # every figure failed (each said why on stderr): not a success
@@ -171,13 +183,13 @@ def run(args, notes=None):
     options = {
         flag.lstrip("-").replace("-", "_"): getattr(args, flag.lstrip("-").replace("-", "_")) for flag in figure.options
     }
-    paths = []
-    for label, ds in members:
+    paths, used = [], set()
+    for k, (label, ds) in enumerate(members):
         drawn = []
         if label is None:
             where, source = out, str(args.file)
         else:
-            where = out if args.output and len(members) == 1 else _member_path(out, ds)
+            where = out if args.output and len(members) == 1 else _member_path(out, ds, k, used)
             source = f"{args.file} {ds.attrs['combined_member']}"
         try:
             paths.append(figure.write(ds, where, sel, formats=args.format, notes=drawn, **options))

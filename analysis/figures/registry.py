@@ -72,11 +72,13 @@ def requested_figures(ds):
     """The figures the file's own config asked for (its ``config`` attr), else DEFAULT."""
     import yaml
 
+    from ...limits import safe_yaml
+
     try:
-        config = yaml.safe_load(ds.attrs.get("config", "")) or {}
+        config = safe_yaml(ds.attrs.get("config", "")) or {}
         setting = (config.get("output") or {}).get("figures", True)
         return figure_names(setting) or DEFAULT
-    except (yaml.YAMLError, AttributeError, ValueError):
+    except (yaml.YAMLError, AttributeError, ValueError):  # ValueError: limits.LimitError too
         return DEFAULT
 
 

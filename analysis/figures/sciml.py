@@ -38,6 +38,7 @@ import numpy as np
 
 from ...results import open_results
 from ...results.layout import GRID_DIMS
+from ...safe_files import write_text
 from ..io import SelectionError, build_run_scene, color, scene_label, select
 from .record import add_note, legend_below, select_note, suptitle
 
@@ -263,10 +264,7 @@ def main(argv=None):
         f"# SciMLBenchmarks rigid body (generated)\n\nWritten by `python -m gyrolab.analysis.figures.sciml` from "
         f"`{Path(args.file).name}`; times are best of {args.repeats} on this machine.\n\n{table(data)}\n"
     )
-    out = Path(args.output)
-    part = out.with_name(f".{out.name}.part")
-    part.write_text(text)
-    part.replace(out)  # never a half-written table
+    write_text(args.output, text)  # never a half-written table, never through a link
     if args.png:
         from ..io import save_figure
 

@@ -34,6 +34,7 @@ and rename (store.atomic_replace).
 
 import argparse
 import json
+import signal
 import sys
 from pathlib import Path
 
@@ -59,6 +60,7 @@ from ...results.migrate import file_layout_version
 from ...runner.config import ConfigError
 from ...runner.provenance import VOLATILE_ATTRS
 from ...runner.store import OutputLock, atomic_replace, remove_stale_temporaries
+from ...safe_files import UnsafePathError, check_replaceable
 
 KNOWN_LAYOUTS = tuple(range(LAYOUT_VERSION + 1))
 IDENTITY_PREFIXES = ("scene",)
@@ -117,6 +119,9 @@ def layout_problem(ds, version=None):
     for name in RUN_VARIABLES:
         if ds[name].dtype.kind not in "iu" and name != "wall_time":
             return f"variable {name} has dtype {ds[name].dtype}, expected integers"
+    for name in expected:
+        if name in SAMPLE_VARIABLES and ds[name].dtype != np.float64:
+            return f"variable {name} has dtype {ds[name].dtype}, expected float64"
     foreign = sorted(set(ds.data_vars) - set(expected))
     if foreign:
         return f"variable {foreign[0]!r} is not in the gyrolab layout"
@@ -126,6 +131,8 @@ def layout_problem(ds, version=None):
         units = COORD_ATTRS[dim].get("units")
         if ds[dim].attrs.get("units") != units:
             return f"coordinate {dim} has units {ds[dim].attrs.get('units')!r}, expected {units!r}"
+        if dim != "integrator" and not np.isfinite(np.asarray(ds[dim].values, dtype=float)).all():
+            return f"coordinate {dim} has a non-finite value (NaN or inf)"
         if len(set(ds[dim].values.tolist())) != ds.sizes[dim]:
             return f"coordinate {dim} has repeated values"
     return None
@@ -192,6 +199,12 @@ def join_tiles(group, allow_identical_overlap=False):
     for ds, path in group[1:]:
         if not np.array_equal(ds["time"].values, first["time"].values):
             raise CombineError(f"{path}: time coordinate differs from {first_path}'s")
+    for ds, path in group[1:]:
+        for name in (*held_variables(first), *RUN_VARIABLES):
+            if ds[name].dtype != first[name].dtype:  # the tile would be cast to the first file's dtype
+                raise CombineError(
+                    f"{path}: variable {name} is {ds[name].dtype}, {first_path}'s is {first[name].dtype}"
+                )
     axes = {d: _union([ds[d].values for ds, _ in group], d) for d in GRID_DIMS}
     shape = tuple(len(axes[d]) for d in GRID_DIMS)
     owner = np.full(shape, -1, dtype=np.int64)
@@ -342,6 +355,35 @@ def main(argv=None):
         help="leave out unfinished jobs (a journal or lock, no results file) with a warning",
     )
     args = parser.parse_args(argv)
+    previous = {sig: signal.signal(sig, _interrupted) for sig in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        return _run(args)
+    except KeyboardInterrupt as err:  # Ctrl-C, SIGTERM, SIGHUP: the temporary and the lock are gone by now
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, signal.SIG_IGN)
+        signum = getattr(err, "signum", signal.SIGINT)
+        sys.stderr.write(
+            f"gyrolab-combine: interrupted ({signal.Signals(signum).name}); {args.output or 'the output'} "
+            "is untouched\n"
+        )
+        return 128 + signum
+    finally:
+        for sig, handler in previous.items():
+            if signal.getsignal(sig) is _interrupted:
+                signal.signal(sig, handler)
+
+
+class _Interrupt(KeyboardInterrupt):
+    def __init__(self, signum):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _interrupted(signum, frame):
+    raise _Interrupt(signum)
+
+
+def _run(args):
     try:
         for path in args.paths:
             if not Path(path).exists():
@@ -355,10 +397,11 @@ def main(argv=None):
             raise CombineError(f"--output={out}: exists; add --overwrite to replace it")
         if not out.parent.is_dir():
             raise CombineError(f"--output={out}: {out.parent} is not a directory")
+        check_replaceable(out)  # a link or special file there: refused before any work
         files = find_results(args.paths, exclude=out, unfinished="skip" if args.skip_unfinished else "refuse")
         ds = combine(files, args.allow_identical_overlap)
         write(ds, out)
-    except (CombineError, ConfigError, ResultsError) as err:
+    except (CombineError, ConfigError, ResultsError, UnsafePathError) as err:
         sys.stderr.write(f"gyrolab-combine: error: {' '.join(str(err).split())}\n")
         return 2
     except OSError as err:  # a full disk while writing: the old output, if any, is untouched

@@ -205,18 +205,20 @@ def run_dims(ds):
 
 
 def _match(values_a, values_b):
-    """Index into values_b of each of values_a (None where absent); floats match to COORD_RTOL."""
+    """Index into values_b of each of values_a (None where absent); floats match to COORD_RTOL, to
+    the nearest such value (an exact one first): a grid may hold values closer than COORD_RTOL
+    (sweep.dt=[1e-3,1.0000000001e-3]), and each must pair with itself, not with its neighbour."""
     out = []
     for va in values_a:
-        hit = None
+        hit, best = None, None
         for j, vb in enumerate(values_b):
             if isinstance(va, str) or isinstance(vb, str):
-                same = str(va) == str(vb)
+                gap = 0.0 if str(va) == str(vb) else None
             else:
-                same = abs(float(va) - float(vb)) <= COORD_RTOL * max(abs(float(va)), abs(float(vb)))
-            if same:
-                hit = j
-                break
+                gap = abs(float(va) - float(vb))
+                gap = gap if gap <= COORD_RTOL * max(abs(float(va)), abs(float(vb))) else None
+            if gap is not None and (best is None or gap < best):
+                hit, best = j, gap
         out.append(hit)
     return out
 
@@ -288,11 +290,12 @@ def data_config(text):
     """The flattened config of a file's ``config`` attr, without the keys that do not change data."""
     import yaml
 
+    from ...limits import LimitError, safe_yaml
     from ...results.identity import RUN_ONLY, drop_neutral_defaults
 
     try:
-        data = yaml.safe_load(text) or {}
-    except yaml.YAMLError:
+        data = safe_yaml(text) or {}
+    except (yaml.YAMLError, LimitError):  # bad syntax, or a bomb / recursive alias: compared as text
         data = None
     if not isinstance(data, dict):
         return {"config": str(text)}  # not a gyrolab config (a foreign or hand-made file): compared as text

@@ -12,11 +12,13 @@ disagree with its figure.  A section whose input is not given is left out.
 
 import argparse
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from ...results import open_results
+from ...safe_files import UnsafePathError, check_output, write_text
 from ..figures import yardstick
 from ..io import invariant_error, relative_error
 
@@ -275,8 +277,13 @@ def main(argv=None):
     p.add_argument("--stability", nargs="*", default=[], help="stability.h5 files or the multirun directory")
     p.add_argument("-o", "--output", default="docs/figure_captions.md")
     args = p.parse_args(argv)
+    try:
+        check_output(args.output)
+    except UnsafePathError as err:
+        sys.stderr.write(f"captions: error: {err}\n")
+        return 2
     text = build(args.default, args.seed, args.work_precision, _stability_files(args.stability))
-    Path(args.output).write_text(text)
+    write_text(Path(args.output), text)
     print(f"captions: wrote {args.output}")
     return 0
 

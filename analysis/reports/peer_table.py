@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 from ...results import ResultsError, open_results
+from ...safe_files import UnsafePathError, check_output, write_text
 from ..figures.work_precision import reference_name, work_precision_data
 from ..io import drawable_invariants, scene_name, scene_options
 from .captions import fmt_error, worst_error
@@ -59,18 +60,20 @@ def main(argv=None):
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("files", nargs="+", help="results files of pinned experiments")
-    p.add_argument("-o", "--output", default="docs/peer_problems.md")
+    # required: a default would overwrite whatever docs/ the current directory has
+    p.add_argument("-o", "--output", required=True, help="the Markdown file to write (docs/peer_problems.md)")
     args = p.parse_args(argv)
     try:
+        check_output(args.output)  # before the work: a missing directory or a link there
         sections = [file_section(f) for f in args.files]  # every file read before anything is written
-    except ResultsError as err:  # a bad file or selection (SelectionError is one)
+    except (ResultsError, UnsafePathError) as err:  # a bad file or selection (SelectionError is one)
         sys.stderr.write(f"peer_table: error: {' '.join(str(err).split())}\n")
         return 2
     text = (
         "# Peer problems (generated)\n\nWritten by `python -m gyrolab.analysis.reports.peer_table`; every number is "
         "read from the results file named in its heading.\n\n" + "\n\n".join(sections) + "\n"
     )
-    Path(args.output).write_text(text)
+    write_text(Path(args.output), text)
     print(f"peer_table: wrote {args.output}")
     return 0
 

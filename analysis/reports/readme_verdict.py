@@ -15,6 +15,8 @@ import json
 import sys
 from pathlib import Path
 
+from ...safe_files import check_output, write_text
+
 BEGIN, END = "<!-- verdict-table:begin -->", "<!-- verdict-table:end -->"
 
 
@@ -96,6 +98,8 @@ def main(argv=None):
         records = json.loads(Path(args.verdicts).read_text())
         text = Path(args.readme).read_text()
         new = render(text, records)
+        if not args.check:
+            check_output(args.readme)
     except (OSError, ValueError, KeyError, StopIteration) as err:
         sys.stderr.write(f"readme_verdict: error: {err}\n")
         return 2
@@ -107,7 +111,7 @@ def main(argv=None):
             )
             return 1
         return 0
-    Path(args.readme).write_text(new)
+    write_text(Path(args.readme), new)
     print(f"readme_verdict: wrote the methods table of {args.readme}")
     return 0
 

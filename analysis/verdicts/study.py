@@ -168,10 +168,15 @@ def scene_figure(scene, records, datasets):
 
 def draw_figures(records, datasets, out_dir):
     """verdict_<scene>.png per scene of ``records`` into ``out_dir``; returns the paths."""
+    from ...safe_files import inside, safe_name
+
     ds_list = [d for _, d in datasets]
     out = []
-    for scene in dict.fromkeys(r["scene"] for r in records if r["kind"] == "summary"):
-        out.append(save_figure(scene_figure(scene, records, ds_list), Path(out_dir) / f"verdict_{scene}.png"))
+    scenes = dict.fromkeys(r["scene"] for r in records if r["kind"] == "summary")
+    for k, scene in enumerate(scenes):
+        # the scene is text from a file: a safe basename (else its index), checked to stay in out_dir
+        path = inside(out_dir, Path(out_dir) / f"verdict_{safe_name(scene, k)}.png")
+        out.append(save_figure(scene_figure(scene, records, ds_list), path))
     return out
 
 

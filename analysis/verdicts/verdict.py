@@ -45,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...safe_files import UnsafePathError, check_replaceable, write_text
 from .classify import EPS, classify_drift, fit_order
 
 EXIT_BAD_INPUT = 2
@@ -701,10 +702,10 @@ def write_outputs(records, json_path=None, markdown_path=None, figures_dir=None,
     """Write the JSON list, the Markdown and the figures asked for; returns the paths written."""
     written = []
     if json_path:
-        Path(json_path).write_text(json.dumps(jsonable(records), indent=1) + "\n")
+        write_text(Path(json_path), json.dumps(jsonable(records), indent=1) + "\n")
         written.append(Path(json_path))
     if markdown_path:
-        Path(markdown_path).write_text(markdown(records) + "\n")
+        write_text(Path(markdown_path), markdown(records) + "\n")
         written.append(Path(markdown_path))
     if figures_dir:
         from .study import draw_figures
@@ -721,13 +722,22 @@ def main(argv=None):
         path = getattr(args, flag)
         if path and not Path(path).resolve().parent.is_dir():
             fail(f"--{flag}={path}: no such directory {Path(path).resolve().parent}")
+        if path:
+            try:
+                check_replaceable(path)
+            except UnsafePathError as err:
+                fail(err)
     try:
         records = verdict(args.file, stability=args.stability, reference=args.reference)
         datasets = load(args.file) if args.figures else None
     except VerdictError as err:
         fail(err)
     print(table(records))
-    for path in write_outputs(records, args.json, args.markdown, args.figures, datasets):
+    try:
+        written = write_outputs(records, args.json, args.markdown, args.figures, datasets)
+    except UnsafePathError as err:
+        fail(err)
+    for path in written:
         print(f"gyrolab-verdict: wrote {path}")
     return 0
 

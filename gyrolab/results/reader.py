@@ -14,6 +14,7 @@ from pathlib import Path
 
 import xarray as xr
 
+from ..limits import LimitError, check_file_sizes
 from .layout import GRID_DIMS, LAYOUT_VERSION, required_variables
 from .members import member, member_dim, member_labels
 from .migrate import current, file_layout_version
@@ -38,8 +39,11 @@ def open_file(path):
     if not path.is_file():
         raise ResultsError(f"FILE={path}: no such results file")
     try:
+        check_file_sizes(path)  # before loading: a small file declaring gigabytes (gyrolab/limits.py)
         with xr.open_dataset(path, engine="h5netcdf") as ds:
             ds = ds.load()
+    except LimitError as err:
+        raise ResultsError(f"FILE={err}") from None
     except Exception as err:  # h5py/h5netcdf/xarray raise many kinds on damaged or foreign files
         text = " ".join(str(err).split())[:120]
         raise ResultsError(f"FILE={path}: not a readable results file ({type(err).__name__}: {text})") from None
