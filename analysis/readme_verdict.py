@@ -23,14 +23,10 @@ def _fmt(x, digits=3):
 
 
 def _drift(rec):
-    cls, rate, unit = rec.get("drift_class"), rec.get("drift_rate"), rec.get("drift_rate_unit") or ""
-    if cls in ("linear", "random_walk", "growing") and rate is not None:
-        return f"{cls} {rate:.2g} {unit}".strip()
-    if cls == "diverged" and rec.get("t_diverged") is not None:
-        return f"diverged at {rec['t_diverged']:.3g} s"
-    if cls == "bounded" and rec.get("amplitude") is not None:
-        return f"bounded (≤ {rec['amplitude']:.2g})"
-    return cls or "—"
+    """The energy drift cell: the verdict's own wording (analysis/verdict.fmt_drift)."""
+    from .verdict import fmt_drift
+
+    return fmt_drift(rec) if rec.get("drift_class") else "—"
 
 
 def table(records, scene="heavy_top"):

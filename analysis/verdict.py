@@ -50,6 +50,23 @@ from .classify import EPS, classify_drift, fit_order
 EXIT_BAD_INPUT = 2
 YARDSTICKS = ("lie_poisson4", "split6_exact")
 MIN_DRIFT_SAMPLES = 16
+# What a drift record carries beyond class and rate (classify.Drift): the fitted line, a period,
+# a collapse's size, time and what follows, a slowing trend's turning point, and the reason in words.
+DRIFT_DETAILS = (
+    "intercept",
+    "fit_t0",
+    "fit_t1",
+    "period",
+    "collapse_size",
+    "collapse_time",
+    "then_class",
+    "then_rate",
+    "then_rate_unit",
+    "then_intercept",
+    "t_turn",
+    "run_longer",
+    "drift_reason",
+)
 MIN_LADDER = 3
 DOP853_TOL = 1e-13
 STATE_CLOSED_FORMS = ("free_symmetric", "euler_poinsot")  # closed forms that give the full state at any time
@@ -320,10 +337,11 @@ def drift_records(ds):
                     for q in names:
                         e = signed_error(invariant(run, q).values)
                         d = classify_drift(t, e, preserved_ulps=preserved_ulps(n_steps))
+                        d.drift_reason = d.reason
                         # A drift whose total stays below 0.1 ulp per step is a rounding bias, not truncation.
                         rounding_drift = (
                             not d.preserved_to_rounding
-                            and d.drift_class in ("linear", "random_walk")
+                            and d.drift_class in ("linear", "wander")
                             and d.amplitude <= 0.1 * EPS * n_steps
                         )
                         out.append(
@@ -347,6 +365,7 @@ def drift_records(ds):
                                 t_diverged=d.t_diverged,
                                 preserved=d.preserved_to_rounding,
                                 rounding_drift=bool(rounding_drift),
+                                **{k: getattr(d, k) for k in DRIFT_DETAILS},
                                 declared_preserved=None if declared is None else q in declared,
                                 order=None,
                                 order_ci=None,
@@ -464,6 +483,7 @@ def summaries(datasets, orders, runs, thresholds):
                                 "t_diverged",
                                 "preserved",
                                 "rounding_drift",
+                                *DRIFT_DETAILS,
                                 "declared_preserved",
                                 "f",
                                 "theta0",
@@ -548,7 +568,14 @@ def fmt_order(rec):
 UNIT_TEXT = {"1/s": "/s", "1/sqrt(s)": "/√s", "1/s e-folding": "/s (e-fold)", "power": "(t^p)"}
 
 
+def _fmt_rate(c, rate, unit):
+    if unit == "power":
+        return f"growing ∝ t^{_g(rate)}"
+    return f"{c} {_g(rate)} {UNIT_TEXT.get(unit, unit)}"
+
+
 def fmt_drift(rec):
+    """The drift class in words, from the record's own numbers (classify.Drift's fields)."""
     c = rec.get("drift_class")
     if c is None:
         return "—"
@@ -557,14 +584,28 @@ def fmt_drift(rec):
         settles = (
             f", settles at {late:.2g}" if late is not None and amp and amp > 1e-6 and abs(late) > 0.5 * amp else ""
         )
-        return f"bounded (≤ {_g(amp, 2)}{settles})"
+        period = rec.get("period")
+        per = f", period {period:.3g} s" if period is not None and math.isfinite(period) else ""
+        return f"bounded (≤ {_g(amp, 2)}{settles}{per})"
     if c == "diverged":
         return f"diverged (t = {_g(rec.get('t_diverged'))} s)"
-    rate = rec.get("drift_rate")
-    unit = rec.get("drift_rate_unit") or ""
-    if unit == "power":
-        return f"growing ∝ t^{_g(rate)}"
-    return f"{c} {_g(rate)} {UNIT_TEXT.get(unit, unit)}"
+    if c == "undetermined":
+        return "undetermined (too few samples)"
+    if c == "collapse":
+        size, when = rec.get("collapse_size"), rec.get("collapse_time")
+        word = "collapses" if (size or 0) < 0 else "jumps"
+        then = rec.get("then_class") or "—"
+        if then in ("linear", "wander", "growing", "slow_oscillation") and rec.get("then_rate") is not None:
+            then = _fmt_rate(then, rec["then_rate"], rec.get("then_rate_unit") or "")
+        return f"{word} by {abs(size):.0%} within {_g(when, 2)} s, then {then}"
+    if c == "slow_oscillation":
+        return (
+            f"trend {_g(rec.get('drift_rate'))} /s over a record shorter than its oscillation "
+            f"(period ~ {_g(rec.get('period'), 2)} s); run > {_g(rec.get('run_longer'), 2)} s to decide"
+        )
+    if c == "slowing":
+        return f"trend slowing (would stop at t ~ {_g(rec.get('t_turn'), 2)} s); run > {_g(rec.get('run_longer'), 2)} s"
+    return _fmt_rate(c, rec.get("drift_rate"), rec.get("drift_rate_unit") or "")
 
 
 def fmt_threshold(rec):
@@ -606,7 +647,9 @@ def markdown(records, title="Verdicts measured by gyrolab"):
         "Regenerate docs/: `gyrolab experiment=verdict hydra.callbacks.verdict.docs_dir=$PWD/docs`.",
         "Order: fitted p of err ≈ C dtᵖ over the asymptotic range of the dt ladder [95 % CI], err = the final "
         "state's error max(‖axis − ref‖∞, ‖ω − ref‖∞/|ω0|).  Drift: class of e(t) = (X(t) − X0)/|X0| of each "
-        "declared invariant (|L(t) − L0|/|L0| for L) with its fitted rate; bounded shows max |e|.  "
+        "declared invariant (|L(t) − L0|/|L0| for L) with its fitted rate; bounded shows max |e|; a collapse "
+        "its size, the time it took and what follows; a trend that bends, how long a run would decide; "
+        "'wander' (σ√t) claims no randomness.  "
         "Preserved: max |e| ≤ max(500, 5√N) eps over N steps; 'rounding drift': a linear or √t drift whose "
         "total stays below 0.1 eps per step; '!' = declared in PRESERVES but not kept.  "
         "(‖ω‖dt)_crit: largest step, by bisection, whose run stays bounded (|E − E0| ≤ T0 + |Mgl|) over the "
