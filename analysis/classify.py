@@ -201,7 +201,8 @@ class Drift(_Record):
     """Drift class of an invariant's relative error series e(t).
 
     drift_class: one of DRIFT_CLASSES (see ``classify_drift``).  rate and
-    rate_unit: "1/s" (linear: e ≈ intercept + rate·t over [fit_t0, fit_t1] s),
+    rate_unit: "1/s" (linear: e ≈ intercept + rate·t over [fit_t0, fit_t1] s: from the first window's
+    centre, where the fit has data, to the record's end),
     "1/sqrt(s)" (wander: σ of e(t) ~ σ √t), "1/s e-folding" (λ of |e| ~ e^{λt})
     or "power" (p of |e| ~ t^p) for growing, "" (NaN rate) otherwise;
     rate_stderr: its standard error where there is one.  period (s): a fitted
@@ -562,7 +563,7 @@ def classify_drift(
     def linear(fit, why):
         rec.drift_class = "linear"
         rec.rate, rec.rate_unit, rec.rate_stderr = float(fit.slope), "1/s", float(fit.stderr)
-        rec.intercept, rec.fit_t0, rec.fit_t1 = float(fit.intercept), float(t[0]), float(t[-1])
+        rec.intercept, rec.fit_t0, rec.fit_t1 = float(fit.intercept), float(tw[0]), float(t[-1])
         rec.reason = why
         return rec
 
@@ -583,7 +584,7 @@ def classify_drift(
                 rec.drift_class = "linear"
                 rec.rate, rec.rate_unit, rec.rate_stderr = b, "1/s", se_b
                 rec.intercept = float(coef[0] - b * tw[0])
-                rec.fit_t0, rec.fit_t1 = float(t[0]), float(t[-1])
+                rec.fit_t0, rec.fit_t1 = float(tw[0]), float(t[-1])
                 rec.reason = f"trend under an oscillation of period {P:.3g} s"
                 return rec
             rec.reason = f"oscillation of period {P:.3g} s (amplitude {amp:.3g} of the window means)"
@@ -632,7 +633,7 @@ def classify_drift(
                     rec.period = period
                     rec.run_longer = float(t[0] + period)
                     rec.rate, rec.rate_unit, rec.rate_stderr = float(fit.slope), "1/s", float(fit.stderr)
-                    rec.intercept, rec.fit_t0, rec.fit_t1 = float(fit.intercept), float(t[0]), float(t[-1])
+                    rec.intercept, rec.fit_t0, rec.fit_t1 = float(fit.intercept), float(tw[0]), float(t[-1])
                     rec.reason = (
                         f"trend over a record shorter than its oscillation (period ~ {period:.2g} s from its "
                         f"curvature); run longer than {rec.run_longer:.2g} s to decide"

@@ -14,7 +14,8 @@ Per (scene, method) it reports, from whatever the files hold:
   yardstick method in the same file (``YARDSTICKS``: lie_poisson4 or
   split6_exact, whichever finest run differs least from its own next finest
   run; its reference point is left out of its own fit); else DOP853
-  (kernels/reference.py, rtol = atol = 1e-13) computed once per (scene, f, θ0).
+  (kernels/reference.py, rtol = atol = 1e-13, with its own error |y(tol) − y(10 tol)|) computed once
+  per (scene, f, θ0).
   The record says which (``reference``);
 - the **drift class** (``classify.classify_drift``) of every invariant the
   scene declares (layout.conserved; layout.invariant gives each series) for
@@ -237,12 +238,15 @@ class References:
             raise VerdictError(f"--reference yardstick: no ok run of {' or '.join(YARDSTICKS)} in the file")
         key = (scene.body, scene.omega0, scene.q0, t)
         if key not in self.cache:
-            from ..kernels.reference import dop853
+            from ..kernels.reference import dop853_with_error
 
-            s = dop853(scene, t, t, rtol=DOP853_TOL, atol=DOP853_TOL)[-1]
-            self.cache[key] = (s[0:3], s[3:6])
-        axis, omega = self.cache[key]
-        return axis, omega, f"DOP853 (rtol = atol = {DOP853_TOL:g})", None
+            y, err = dop853_with_error(scene, t, t, tol=DOP853_TOL)
+            s, e = y[-1], err[-1]
+            # its own error in the state_error measure: |y(tol) − y(10 tol)|
+            own = float(max(np.max(e[0:3]), np.max(e[3:6]) / float(np.linalg.norm(scene.omega0))))
+            self.cache[key] = (s[0:3], s[3:6], own)
+        axis, omega, own = self.cache[key]
+        return axis, omega, f"DOP853 (rtol = atol = {DOP853_TOL:g}; its error ≤ {own:.1e})", None
 
 
 def order_records(ds, refs):
@@ -618,7 +622,11 @@ def fmt_drift(rec, short=False):
         size, when = rec.get("collapse_size"), rec.get("collapse_time")
         word = "collapses" if (size or 0) < 0 else "jumps"
         then = rec.get("then_class") or "—"
-        if then in ("linear", "wander", "growing", "slow_oscillation") and rec.get("then_rate") is not None:
+        if then == "slow_oscillation":
+            then = f"a trend {_g(rec.get('then_rate'))} /s (oscillation ~ {_g(rec.get('period'), 2)} s > record)"
+        elif then == "slowing":
+            then = "a trend that slows"
+        elif then in ("linear", "wander", "growing") and rec.get("then_rate") is not None:
             then = _fmt_rate(then, rec["then_rate"], rec.get("then_rate_unit") or "")
         return f"{word} by {abs(size):.0%} within {_g(when, 2)} s, then {then}"
     if c == "slow_oscillation" and short:

@@ -242,3 +242,24 @@ def test_wording_comes_from_the_data():
     rec = {"order": None, "order_reason": "0 usable point(s) after excluding 3 flat; need 3", "ladder_err": []}
     assert V.fmt_order(rec, short=True) == "— (0 usable point(s))"
     assert V.fmt_order(rec) == "— (0 usable point(s) after excluding 3 flat; need 3)"
+
+
+def test_the_figures_fitted_line_lies_on_its_data(drift_files, tmp_path):
+    """Issue 26: the dashed line panel (c) draws for a linear run (verdict_study.fitted_line, from the
+    record's own intercept and rate) is within a factor 2 of |e| over the run's last eighth."""
+    from gyrolab.analysis.verdict_study import fitted_line
+    from gyrolab.layout import invariant
+
+    recs = records(drift_files, tmp_path)
+    ds = xr.open_dataset(drift_files[0], engine="h5netcdf")
+    t = ds.time.values
+    held = set(ds.integrator.values)
+    linear = [r for r in recs if r["kind"] == "run" and r["drift_class"] == "linear" and r["method"] in held]
+    assert linear
+    for r in linear:
+        run = ds.sel({"integrator": r["method"], "f": r["f"], "theta0": r["theta0"], "dt": r["dt"]})
+        e = np.abs(V.signed_error(invariant(run, r["quantity"]).values))
+        line = np.abs(fitted_line(r, t))
+        tail = e[t >= t[-1] - t[-1] / 8]
+        assert 0.5 * tail.min() <= line[-1] <= 2 * tail.max(), r
+        assert np.isnan(line[t < r["fit_t0"]]).all()
