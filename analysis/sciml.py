@@ -282,9 +282,14 @@ def main(argv=None):
     except (OSError, SelectionError, ValueError) as err:
         sys.stderr.write(f"sciml: error: {args.file}: {' '.join(str(err).split())}\n")
         return 2
+    import os
+
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
     text = (
         f"# SciMLBenchmarks rigid body (generated)\n\nWritten by `python -m gyrolab.analysis.sciml` from "
-        f"`{Path(args.file).name}`; times are best of {args.repeats} on this machine.\n\n{table(data)}\n"
+        f"`{Path(args.file).name}`; times are best of {args.repeats} on this machine, timed under a load "
+        f"average of {load:.1f} on {os.cpu_count()} cores (compare times within one table only).\n\n"
+        f"{table(data)}\n"
     )
     out = Path(args.output)
     part = out.with_name(f".{out.name}.part")
