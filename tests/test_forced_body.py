@@ -14,7 +14,7 @@ import pytest
 
 from gyrolab.analysis.verdicts.classify import fit_order
 from gyrolab.kernels.body import Body, is_driven
-from gyrolab.kernels.reference import dop853
+from gyrolab.kernels.reference import dop853, dop853_with_error, free_omega_reference, taylor_free_omega
 from gyrolab.kernels.registry import METHODS, driven_methods, sees_time
 from gyrolab.kernels.rigid_body import drive_torque, euler_rhs, gravity_torque
 from gyrolab.kernels.scenes import build_scene
@@ -34,6 +34,33 @@ def final_omega(name, sc, dts, t_end):
     """ω at t_end for each dt, in one batch (NaN where a run did not stay bounded)."""
     final, status = final_samples(name, sc, dts, t_end)
     return np.where((status == 0)[:, None], final[:, 3:6], np.nan)
+
+
+# ω(10) of SciML's problem with ω(0) = (1, 0, 0.9) exactly: a 30-digit Taylor/mpmath solution (issue 25).
+SCIML_OMEGA_10 = ("-0.6688624229801343016", "-0.5876984022040683950", "2.0107773930736108212")
+
+
+def test_the_extended_precision_reference_is_the_30_digit_solution():
+    """kernels/reference.py's longdouble Taylor series gives the pinned ω(10) to 1e-17 (measured 7e-19)
+    from SciML's exact ω3(0) = 0.9, and states an error (its two step sizes) below 1e-15."""
+    sc = build_scene("forced_body", SCIML_F, 0.0, **SCIML)
+    pinned = np.array(SCIML_OMEGA_10, dtype=np.longdouble)
+    w = taylor_free_omega(sc.body, (1.0, 0.0, np.longdouble("0.9")), 10.0)
+    assert w.dtype == np.longdouble and np.abs(w - pinned).max() < 1e-17
+    ref, err, label = free_omega_reference(sc.body, sc.omega0, 10.0)
+    assert 0 < err < 1e-15 and "Taylor" in label
+    # the scene's own ω3(0) = 2π f rounds to 0.8999999999999998: its ω(10) differs from the pin by ~3e-15
+    assert 1e-16 < np.abs(ref - pinned.astype(float)).max() < 1e-14
+
+
+def test_dop853_states_an_error_that_covers_its_own():
+    """DOP853 at 1e-13 is off by ~1.3e-13 at t = 10 (against the Taylor reference); its stated error
+    |y(1e-13) − y(1e-12)| is no smaller than that."""
+    sc = build_scene("forced_body", SCIML_F, 0.0, **SCIML)
+    y, err = dop853_with_error(sc, 10.0, 10.0, tol=1e-13)
+    ref, ref_err, _ = free_omega_reference(sc.body, sc.omega0, 10.0)
+    actual = np.abs(y[-1, 3:6] - ref).max()
+    assert 1e-14 < actual <= err[-1, 3:6].max() and ref_err < 1e-2 * actual  # the reference: 500x better
 
 
 def test_the_scene_is_the_published_problem():

@@ -14,6 +14,7 @@ import pytest
 import xarray as xr
 
 from gyrolab.analysis.verdicts import verdict as V
+from gyrolab.analysis.verdicts.classify import DRIFT_CLASSES
 
 from helpers import command, make_dataset
 
@@ -100,7 +101,7 @@ def test_json_schema(ladder_file, drift_files, tmp_path):
     for r in recs:
         if r["kind"] == "run":
             assert all(isinstance(r[k], float) for k in ("f", "theta0", "dt"))
-            assert r["drift_class"] in ("bounded", "linear", "random_walk", "growing", "diverged")
+            assert r["drift_class"] in DRIFT_CLASSES
         if r["kind"] == "order":
             assert len(r["order_ci"]) == 2
     summ = [r for r in recs if r["kind"] == "summary" and r["method"] == "rk4" and r["quantity"] == "energy"]
@@ -120,7 +121,8 @@ def test_markdown_states_the_conditions(ladder_file, drift_files, tmp_path):
 def test_cli_prints_a_table(ladder_file, tmp_path):
     result = run_cli(ladder_file, tmp_path=tmp_path)
     assert result.returncode == 0, result.stderr
-    assert "seed_next" in result.stdout and "order 1.0" in result.stdout
+    row = next(line for line in result.stdout.splitlines() if line.startswith("seed_next"))
+    assert row.split()[2].startswith("1.0"), row  # (method, invariant, measured order ...)
 
 
 def _bad_inputs(tmp_path, ladder_file):
@@ -189,3 +191,75 @@ def test_seed_next_drift_at_50_hz_is_linear_at_the_issue_rate(tmp_path):
     e = next(r for r in recs if r["kind"] == "summary" and r["quantity"] == "energy")
     assert e["drift_class"] == "linear" and e["drift_rate_unit"] == "1/s"
     assert e["drift_rate"] == pytest.approx(-3.2e-6, rel=0.1), e
+
+
+# ---------------------------------------------------------------- any file: one verdict per (method, f, θ0)
+
+
+@pytest.fixture(scope="module")
+def two_f_file(tmp_path_factory):
+    """Like the default study: two f, one θ0, a ladder of decades, 0.5 s sampled every 10 ms."""
+    grid = {"integrator": ["seed_next", "lie_poisson"], "f": [10.0, 50.0], "theta0": [45.0], "dt": [1e-3, 1e-4, 1e-5]}
+    return write(make_dataset(grid, t_end=0.5, every=1e-2), tmp_path_factory.mktemp("two") / "results.h5")
+
+
+def test_one_verdict_per_method_f_and_theta0(two_f_file, tmp_path):
+    """Issue 26: every (method, f, θ0) group with a ladder gets its own verdict, labelled; the terminal
+    table fits 120 columns, names each group and words the ladder from its steps (decades, not halving)."""
+    recs = records([two_f_file], tmp_path)
+    summ = [r for r in recs if r["kind"] == "summary"]
+    assert {(r["method"], r["f"], r["theta0"]) for r in summ} == {
+        (m, f, 45.0) for m in ("seed_next", "lie_poisson") for f in (10.0, 50.0)
+    }
+    for r in summ:
+        order = next(o for o in recs if o["kind"] == "order" and (o["method"], o["f"]) == (r["method"], r["f"]))
+        assert r["order"] == order["order"] and r["order_f"] == r["f"]  # the order of its own f
+    result = run_cli(two_f_file, tmp_path=tmp_path)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert max(map(len, lines)) <= 120
+    assert "heavy_top: f = 10 Hz, θ0 = 45°" in lines and "heavy_top: f = 50 Hz, θ0 = 45°" in lines
+    assert "decades" in result.stdout and "halving" not in result.stdout
+    md = tmp_path / "v.md"
+    V.main([str(two_f_file), "--markdown", str(md)])
+    assert "| method | f (Hz) | θ0 (°) |" in md.read_text()
+
+
+def test_at_picks_one_group_and_refuses_one_not_held(two_f_file, tmp_path):
+    recs = records([two_f_file], tmp_path, "--at", "f=50")
+    assert {r["f"] for r in recs if r["kind"] in ("summary", "order", "run")} == {50.0}
+    result = run_cli(two_f_file, "--at", "f=7", tmp_path=tmp_path)
+    assert result.returncode == 2 and "f=7" in result.stderr and "(10, 45)" in result.stderr
+    assert result.stderr.count("\n") == 1 and not result.stdout
+    result = run_cli(two_f_file, "--at", "dt=1", tmp_path=tmp_path)
+    assert result.returncode == 2 and "expected f=<Hz> or theta0=<deg>" in result.stderr
+
+
+def test_wording_comes_from_the_data():
+    assert V.ladder_words([1e-3, 1e-4, 1e-5]) == "3 steps, decades"
+    assert V.ladder_words([1e-2 / 2**k for k in range(13)]) == "13 steps, halving"
+    assert V.ladder_words([1e-3, 3e-4, 1e-4]).startswith("3 steps, uneven")
+    rec = {"order": None, "order_reason": "0 usable point(s) after excluding 3 flat; need 3", "ladder_err": []}
+    assert V.fmt_order(rec, short=True) == "— (0 usable point(s))"
+    assert V.fmt_order(rec) == "— (0 usable point(s) after excluding 3 flat; need 3)"
+
+
+def test_the_figures_fitted_line_lies_on_its_data(drift_files, tmp_path):
+    """Issue 26: the dashed line panel (c) draws for a linear run (verdict_study.fitted_line, from the
+    record's own intercept and rate) is within a factor 2 of |e| over the run's last eighth."""
+    from gyrolab.analysis.verdicts.study import fitted_line
+    from gyrolab.results.layout import invariant
+
+    recs = records(drift_files, tmp_path)
+    ds = xr.open_dataset(drift_files[0], engine="h5netcdf")
+    t = ds.time.values
+    held = set(ds.integrator.values)
+    linear = [r for r in recs if r["kind"] == "run" and r["drift_class"] == "linear" and r["method"] in held]
+    assert linear
+    for r in linear:
+        run = ds.sel({"integrator": r["method"], "f": r["f"], "theta0": r["theta0"], "dt": r["dt"]})
+        e = np.abs(V.signed_error(invariant(run, r["quantity"]).values))
+        line = np.abs(fitted_line(r, t))
+        tail = e[t >= t[-1] - t[-1] / 8]
+        assert 0.5 * tail.min() <= line[-1] <= 2 * tail.max(), r
+        assert np.isnan(line[t < r["fit_t0"]]).all()

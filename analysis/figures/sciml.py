@@ -17,9 +17,12 @@ scene forced_body with ``window: [0, 10]``):
   orientation; a body with gravity: the (ω, R) equations of
   kernels/reference.py) at SciML's tolerance pairs, timed alike (best of
   ``repeats``);
-- reference: DOP853 on (ω, R) at rtol = atol = 1e-13 (kernels/reference.py;
-  tests/test_forced_body.py checks that it agrees with lie_poisson4 and
-  split6_exact to 1e-10 at t = 10).
+- reference, with its own error: for a body without gravity (SciML's) the
+  extended-precision Taylor series of kernels/reference.py (error ~2e-16 rad/s,
+  tests/test_forced_body.py pins it to a 30-digit ω(10)); with gravity DOP853
+  on (ω, R) at rtol = atol = 1e-13 with |y(tol) − y(10 tol)| as its error.  An
+  error below the reference's own reads "≤ reference" in the table and is drawn
+  on the dotted line in the figure.
 
     python -m gyrolab.analysis.figures.sciml RESULTS.h5 -o docs/sciml_rigid_body.md \\
         --png docs/sciml_rigid_body_work_precision.png
@@ -102,10 +105,24 @@ def peer_points(scene, t_end, ref, solver, repeats=5, tolerances=TOLERANCES):
 
 
 def reference_omega(scene, t_end):
-    """ω(t_end) (rad/s) from kernels/reference.py's DOP853 at rtol = atol = REFERENCE_TOL."""
-    from ...kernels.reference import dop853
+    """(ω(t_end) (rad/s), its own error estimate (rad/s), label): for a body without gravity (SciML's)
+    kernels/reference.py's extended-precision Taylor series (error ~2e-16), else DOP853 at rtol = atol =
+    REFERENCE_TOL with |y(tol) − y(10 tol)| as its error."""
+    from ...kernels.reference import dop853_with_error, free_omega_reference
 
-    return dop853(scene, t_end, t_end, rtol=REFERENCE_TOL, atol=REFERENCE_TOL)[-1, 3:6]
+    b = scene.body
+    if not (b.mgl or b.mgc1 or b.mgc2):
+        return free_omega_reference(b, scene.omega0, t_end)
+    y, err = dop853_with_error(scene, t_end, t_end, tol=REFERENCE_TOL)
+    e = float(err[-1, 3:6].max())
+    return y[-1, 3:6], e, f"DOP853 (rtol = atol = {REFERENCE_TOL:g}; its error ≤ {e:.1e} rad/s)"
+
+
+def fmt_error(error, ref_error):
+    """An error (rad/s) as a table shows it: '≤ reference' below the reference's own error."""
+    if not math.isfinite(error):
+        return "diverged"
+    return f"≤ reference ({ref_error:.1e})" if error <= ref_error else f"{error:.2g}"
 
 
 def sciml_data(ds, sel=None, retime=True, peers=PEERS, repeats=5, tolerances=TOLERANCES):
@@ -121,7 +138,7 @@ def sciml_data(ds, sel=None, retime=True, peers=PEERS, repeats=5, tolerances=TOL
     sub = whole.sel(f=[f], theta0=[theta0])
     scene = build_run_scene(sub, f, theta0)
     t_end, every = float(sub.time[-1]), float(sub.time[1] - sub.time[0])
-    ref = reference_omega(scene, t_end)
+    ref, ref_error, ref_label = reference_omega(scene, t_end)
     methods = {}
     for m in sub[METHOD_DIM].values:
         pts = []
@@ -139,6 +156,8 @@ def sciml_data(ds, sel=None, retime=True, peers=PEERS, repeats=5, tolerances=TOL
         "f": f,
         "theta0": theta0,
         "reference": ref,
+        "reference_error": ref_error,
+        "reference_label": ref_label,
         "repeats": repeats,
         "retimed": retime,
         "methods": methods,
@@ -153,16 +172,20 @@ def sciml_figure(ds, sel=None, retime=True, peers=PEERS, repeats=5, data=None):
     (solid) and per scipy solver across SciML's tolerance pairs (dashed)."""
     data = data if data is not None else sciml_data(ds, sel, retime=retime, peers=peers, repeats=repeats)
     fig, ax = plt.subplots(figsize=(8.2, 6.2))
+    floor = data["reference_error"]  # an error below the reference's own is drawn on this line
+    ax.axvline(floor, color="0.4", ls=":", lw=1.0)
+    # x is inverted: ha="right" keeps the label inside the axes, on the side of the larger errors
+    ax.text(floor, 0.99, "≤ reference ", transform=ax.get_xaxis_transform(), fontsize=7, va="top", ha="right")
     for m, pts in data["methods"].items():
         ok = [p for p in pts if math.isfinite(p[3])]
         if ok:
-            ax.plot([max(p[3], 1e-16) for p in ok], [p[1] for p in ok], "o-", color=color(m), ms=4, label=m)
+            ax.plot([max(p[3], floor) for p in ok], [p[1] for p in ok], "o-", color=color(m), ms=4, label=m)
         if len(ok) < len(pts):
             ax.plot([], [], "x", color=color(m), label=f"{m}: {len(pts) - len(ok)} dt diverged")
     for name, pts in data["peers"].items():
         if pts:
             ax.plot(
-                [max(p[4], 1e-16) for p in pts],
+                [max(p[4], floor) for p in pts],
                 [p[2] for p in pts],
                 "s--",
                 color=color(name),
@@ -184,7 +207,7 @@ def sciml_figure(ds, sel=None, retime=True, peers=PEERS, repeats=5, data=None):
         fig,
         f"Work-precision at t_end, SciMLBenchmarks' rigid-body form: {scene_label(ds)}\n"
         f"gyrolab: one point per dt = {dts[0]:g} … {dts[-1]:g} s; scipy: abstol 1e-6 … 1e-13 with "
-        f"reltol 1e-3 … 1e-10; reference DOP853 at {REFERENCE_TOL:g}",
+        f"reltol 1e-3 … 1e-10; reference: {data['reference_label']}",
         fontsize=9.5,
     )
     fig.tight_layout()
@@ -205,19 +228,21 @@ def table(data):
     """Markdown: every point of the figure (gyrolab per dt, scipy per tolerance pair)."""
     ref = ", ".join(f"{v:.15g}" for v in data["reference"])
     lines = [
-        f"Reference ω({data['t_end']:g} s) = ({ref}) rad/s (DOP853, rtol = atol = {REFERENCE_TOL:g}).",
+        f"Reference ω({data['t_end']:g} s) = ({ref}) rad/s: {data['reference_label']}; an error below "
+        "the reference's own reads '≤ reference'.",
         "",
         "| solver | setting | error at t_end (rad/s) | time (s) | steps / RHS evaluations |",
         "|---|---|---:|---:|---:|",
     ]
     for m, pts in data["methods"].items():
         for dt, seconds, steps, error in pts:
-            err = f"{error:.2g}" if math.isfinite(error) else "diverged"
+            err = fmt_error(error, data["reference_error"])
             lines.append(f"| `{m}` | dt = {dt:g} s | {err} | {seconds:.3g} | {steps} steps |")
     for name, pts in data["peers"].items():
         for atol, rtol, seconds, nfev, error in pts:
             lines.append(
-                f"| scipy {name} | abstol {atol:.0e}, reltol {rtol:.0e} | {error:.2g} | {seconds:.3g} | {nfev} RHS |"
+                f"| scipy {name} | abstol {atol:.0e}, reltol {rtol:.0e} | {fmt_error(error, data['reference_error'])} "
+                f"| {seconds:.3g} | {nfev} RHS |"
             )
     return "\n".join(lines)
 
@@ -260,9 +285,14 @@ def main(argv=None):
     except (OSError, SelectionError, ValueError) as err:
         sys.stderr.write(f"sciml: error: {args.file}: {' '.join(str(err).split())}\n")
         return 2
+    import os
+
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
     text = (
         f"# SciMLBenchmarks rigid body (generated)\n\nWritten by `python -m gyrolab.analysis.figures.sciml` from "
-        f"`{Path(args.file).name}`; times are best of {args.repeats} on this machine.\n\n{table(data)}\n"
+        f"`{Path(args.file).name}`; times are best of {args.repeats} on this machine, timed under a load "
+        f"average of {load:.1f} on {os.cpu_count()} cores (compare times within one table only).\n\n"
+        f"{table(data)}\n"
     )
     write_text(args.output, text)  # never a half-written table, never through a link
     if args.png:

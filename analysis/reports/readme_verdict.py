@@ -25,19 +25,16 @@ def _fmt(x, digits=3):
 
 
 def _drift(rec):
-    cls, rate, unit = rec.get("drift_class"), rec.get("drift_rate"), rec.get("drift_rate_unit") or ""
-    if cls in ("linear", "random_walk", "growing") and rate is not None:
-        return f"{cls} {rate:.2g} {unit}".strip()
-    if cls == "diverged" and rec.get("t_diverged") is not None:
-        return f"diverged at {rec['t_diverged']:.3g} s"
-    if cls == "bounded" and rec.get("amplitude") is not None:
-        return f"bounded (≤ {rec['amplitude']:.2g})"
-    return cls or "—"
+    """The energy drift cell: the verdict's own wording (analysis/verdicts/verdict.py fmt_drift)."""
+    from ..verdicts.verdict import fmt_drift
+
+    return fmt_drift(rec) if rec.get("drift_class") else "—"
 
 
 def table(records, scene="heavy_top"):
     """Markdown rows: one per registered method, from its ``summary`` records on ``scene``."""
     from ...kernels.registry import METHODS
+    from ..verdicts.verdict import ladder_words
 
     summary = {
         (r["method"], r["quantity"]): r for r in records if r.get("kind") == "summary" and r.get("scene") == scene
@@ -45,7 +42,8 @@ def table(records, scene="heavy_top"):
     first = next(r for r in summary.values())
     lines = [
         f"Measured on `{scene}` (f = {first['order_f']:g} Hz, θ0 = {first['order_theta0']:g}°): order from the final "
-        f"state at t = {first['order_t_end']:g} s over a halving dt ladder (95 % interval; reference: "
+        f"state at t = {first['order_t_end']:g} s over a dt ladder of {ladder_words(first.get('ladder_dt') or [])} "
+        "(95 % interval; reference: "
         f"{first['reference']}); energy drift over {first['t_end']:g} s at dt = {first['dt']:g} s "
         f"({first['n_steps']:.0e} steps); (‖ω‖dt)_crit bounded over {first['stability_t_end']:g} s "
         "(`> 10`: bounded at the top of the bracket). All scenes: [docs/verdict.md](docs/verdict.md).",

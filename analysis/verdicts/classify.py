@@ -8,8 +8,10 @@ errors, dimensionless), so rates come out in "relative error per second" etc.
 - ``fit_order(dt, err)`` → ``OrderFit``: the measured order p of err ≈ C dt^p
   with a confidence interval, over the asymptotic range of the dt ladder.
 - ``classify_drift(t, rel_err)`` → ``Drift``: ``bounded`` | ``linear`` |
-  ``random_walk`` | ``growing`` | ``diverged``, with a fitted rate, its unit,
-  and whether the series is ``preserved_to_rounding``.
+  ``slowing`` | ``wander`` | ``growing`` | ``collapse`` | ``diverged`` |
+  ``undetermined``, with a fitted rate, its unit, the time scales of a
+  collapse or a slowing trend, and whether the series is
+  ``preserved_to_rounding``.
 - ``stability_threshold(run_ok, lo, hi)`` → ``Threshold``: bisection in dt of
   a user predicate; ``method_stability_threshold(method, scene, t_end)`` runs
   the predicate "status ok over t_end" through ``gyrolab.kernels.batch.integrate``,
@@ -26,7 +28,17 @@ from scipy import stats
 
 EPS = float(np.finfo(np.float64).eps)  # 2.22e-16, one ulp of 1.0
 
-DRIFT_CLASSES = ("bounded", "linear", "random_walk", "growing", "diverged")
+DRIFT_CLASSES = (
+    "bounded",
+    "linear",
+    "slow_oscillation",
+    "slowing",
+    "wander",
+    "growing",
+    "collapse",
+    "diverged",
+    "undetermined",
+)
 
 
 def _jsonable(value):
@@ -188,22 +200,41 @@ def fit_order(
 class Drift(_Record):
     """Drift class of an invariant's relative error series e(t).
 
-    drift_class: one of DRIFT_CLASSES; rate and rate_unit: the fitted rate,
-    "1/s" (slope of e, linear), "1/sqrt(s)" (σ of e(t) ~ σ √t, random walk),
-    "1/s e-folding" (λ of |e| ~ e^{λt}) or "power" (p of |e| ~ t^p) for
-    growing, "" (NaN rate) for bounded and diverged; rate_stderr: its standard
-    error where there is one.  preserved_to_rounding: max |e| ≤
-    preserved_ulps · eps.  amplitude: max |e| (finite part); mean: mean of e;
-    late_mean: mean of e over the last window; t_diverged (s): first time e is
-    non-finite or past ``blowup`` (NaN otherwise).  Diagnostics of the rule
-    (see ``classify_drift``): n_windows, window (s), z_trend, accel, eta, zeta,
-    oscillation, wander.
+    drift_class: one of DRIFT_CLASSES (see ``classify_drift``).  rate and
+    rate_unit: "1/s" (linear: e ≈ intercept + rate·t over [fit_t0, fit_t1] s: from the first window's
+    centre, where the fit has data, to the record's end),
+    "1/sqrt(s)" (wander: σ of e(t) ~ σ √t), "1/s e-folding" (λ of |e| ~ e^{λt})
+    or "power" (p of |e| ~ t^p) for growing, "" (NaN rate) otherwise;
+    rate_stderr: its standard error where there is one.  period (s): a fitted
+    oscillation of the window means (bounded or linear under it), NaN if none.
+    collapse: collapse_size (e reached, signed) and collapse_time (s, the first
+    time |e| reached 90 % of its late level), then_class / then_rate /
+    then_rate_unit / then_intercept: the class of the rest of the record
+    (t ≥ collapse_time).  slowing: t_turn (s), where the fitted trend would
+    stop; run_longer (s), how long a record would decide bounded or saturating.
+    preserved_to_rounding: max |e| ≤ preserved_ulps · eps.  amplitude: max |e|
+    (finite part); mean: mean of e; late_mean: mean of e over the last window;
+    t_diverged (s): first time e is non-finite or past ``blowup`` (NaN
+    otherwise).  Diagnostics of the rule: n_windows, window (s), z_trend,
+    accel, eta, zeta, oscillation, wander; reason: why, in words.
     """
 
     drift_class: str
     rate: float = math.nan
     rate_unit: str = ""
     rate_stderr: float = math.nan
+    intercept: float = math.nan
+    fit_t0: float = math.nan
+    fit_t1: float = math.nan
+    period: float = math.nan
+    collapse_size: float = math.nan
+    collapse_time: float = math.nan
+    then_class: str = ""
+    then_rate: float = math.nan
+    then_rate_unit: str = ""
+    then_intercept: float = math.nan
+    t_turn: float = math.nan
+    run_longer: float = math.nan
     preserved_to_rounding: bool = False
     amplitude: float = math.nan
     mean: float = math.nan
@@ -218,6 +249,18 @@ class Drift(_Record):
     oscillation: float = math.nan
     wander: float = math.nan
     reason: str = ""
+
+    def fitted(self, t):
+        """The fitted line e ≈ intercept + rate·t at times t (s) of a linear class (or a collapse's
+        linear tail), NaN outside [fit_t0, fit_t1] and for the other classes: what a figure draws."""
+        t = np.asarray(t, dtype=float)
+        if self.drift_class == "linear":
+            a, b = self.intercept, self.rate
+        elif self.drift_class == "collapse" and self.then_class == "linear":
+            a, b = self.then_intercept, self.then_rate
+        else:
+            return np.full(t.shape, math.nan)
+        return np.where((t >= self.fit_t0) & (t <= self.fit_t1), a + b * t, math.nan)
 
 
 def _window_means(t, e, k):
@@ -243,6 +286,94 @@ def _growth_rate(t, y):
     return float(pow_fit.slope), "power", float(pow_fit.stderr)
 
 
+def _remove_fast_oscillations(t, e, n_peaks=3, min_cycles=16.0, prominence=100.0):
+    """e minus its ``n_peaks`` strongest sinusoids with at least ``min_cycles`` cycles in the record,
+    each a line of the spectrum (``prominence`` times the median power of its neighbourhood).
+
+    Window means average a fast oscillation away only when the window holds whole periods; a
+    7.3 s sine in 6.25 s windows aliases into a slow beat that hides a trend or looks like a
+    wander.  Each peak of the periodogram of the linearly detrended series (zero-padded 4x,
+    refined by a parabola through log power) is fitted by least squares together with a line
+    and removed; the slow part (< ``min_cycles`` cycles), which is what is judged, is kept.
+    Needs uniform sampling (else e is returned as it is).
+    """
+    n = e.size
+    dt = np.diff(t)
+    if n < 64 or np.ptp(dt) > 1e-6 * np.mean(dt):
+        return e
+    span = t[-1] - t[0]
+    x = (t - t[0]) / span
+    resid = e - np.polyval(np.polyfit(x, e, 1), x)
+    pad = 4 * n
+    power = np.abs(np.fft.rfft(resid, pad)) ** 2
+    freqs = np.fft.rfftfreq(pad, d=float(np.mean(dt)))
+    fast = freqs * span >= min_cycles
+    cols = [np.ones(n), x]
+    taken = []
+    order = np.argsort(np.where(fast, power, -1.0))[::-1]
+    for i in order:
+        if len(taken) == n_peaks or not fast[i] or i + 1 >= power.size:
+            break
+        if power[i] < power[i - 1] or power[i] < power[i + 1]:
+            continue  # not a local maximum
+        near = power[max(i - 64, 0) : i + 65]
+        if power[i] < prominence * np.median(near):
+            continue  # leakage of the slow part or noise, not a line of the spectrum
+        if any(abs(i - j) < 8 for j in taken):
+            continue  # the same peak again
+        lp = np.log(power[i - 1 : i + 2] + 1e-300)
+        shift = 0.5 * (lp[0] - lp[2]) / (lp[0] - 2 * lp[1] + lp[2]) if lp[0] - 2 * lp[1] + lp[2] < 0 else 0.0
+        f = freqs[i] + shift * (freqs[1] - freqs[0])
+        taken.append(i)
+        cols += [np.cos(2 * np.pi * f * (t - t[0])), np.sin(2 * np.pi * f * (t - t[0]))]
+    if not taken:
+        return e
+    A = np.column_stack(cols)
+    coef, *_ = np.linalg.lstsq(A, e, rcond=None)
+    return e - A[:, 2:] @ coef[2:]
+
+
+def _von_neumann(r):
+    """⟨(Δr)²⟩ / var(r): ≈ 2 for independent values, ≪ 1 for a smooth or wandering series."""
+    var = float(np.var(r))
+    return float(np.mean(np.diff(r) ** 2)) / var if var > 0 else 2.0
+
+
+def _sine_fit(tw, m, periods):
+    """Best fit of m ≈ a + b t + c cos(2πt/P) + s sin(2πt/P) over P (s): the best of the trial
+    ``periods``, refined between its neighbours; (P, coefficients, residuals, their covariance)."""
+    from scipy.optimize import minimize_scalar
+
+    x = tw - tw[0]
+
+    def design(P):
+        return np.column_stack([np.ones_like(x), x, np.cos(2 * np.pi * x / P), np.sin(2 * np.pi * x / P)])
+
+    def ss(P):
+        A = design(P)
+        coef, *_ = np.linalg.lstsq(A, m, rcond=None)
+        r = m - A @ coef
+        return float(r @ r)
+
+    trial = [ss(P) for P in periods]
+    i = int(np.argmin(trial))
+    lo, hi = periods[max(i - 1, 0)], periods[min(i + 1, len(periods) - 1)]
+    P = float(minimize_scalar(ss, bounds=(lo, hi), method="bounded").x) if hi > lo else float(periods[i])
+    A = design(P)
+    coef, *_ = np.linalg.lstsq(A, m, rcond=None)
+    r = m - A @ coef
+    cov = np.linalg.pinv(A.T @ A) * float(r @ r) / max(m.size - 5, 1)
+    return P, coef, r, cov
+
+
+def _on_its_data(t, e, intercept, rate, frac=0.125):
+    """Whether the fitted line intercept + rate·t at the record's end lies within a factor 2 of
+    the envelope of |e| over the last ``frac`` of the record: [min |e| / 2, 2 max |e|]."""
+    tail = np.abs(e[t >= t[-1] - frac * (t[-1] - t[0])])
+    v = abs(intercept + rate * t[-1])
+    return 0.5 * float(tail.min()) <= v <= 2.0 * float(tail.max())
+
+
 def classify_drift(
     t,
     rel_err,
@@ -255,68 +386,89 @@ def classify_drift(
     eta_crit=1.0,
     zeta_crit=0.15,
     min_wander=0.05,
+    collapse_min=0.01,
+    collapse_early=0.1,
+    slowing_min=0.5,
+    df_crit=-3.5,
+    min_samples=8,
+    _tail=False,
 ):
     """Drift class of a relative error series e(t) = X(t)/X(0) − 1 of an invariant X.
 
-    t (s), increasing; rel_err: e at those times (dimensionless).  The series
-    is cut into K windows of equal length τ (K = ``n_windows``, default
-    clip(n/16, 8, 64)); m_k is e averaged over window k, which averages the
-    oscillations of a bounded error away but keeps a trend or a wander.  With
-    the increments d_k = m_{k+1} − m_k:
+    t (s), increasing; rel_err: e at those times (dimensionless).  In the
+    order tried:
 
     1. ``diverged``: e is non-finite anywhere, or |e| > ``blowup`` (default 1:
-       the invariant is off by 100 %).
-    1b. ``bounded`` when the window means move (their range, ``wander``) by
-       less than ``min_wander`` (0.05) times the ``oscillation`` they average
-       away (√2 × the rms of e about its window mean: a sine's amplitude).
-       This keeps an oscillation whose period is close to the window length,
-       whose means then alias into a slow smooth swing (≲ 3 % of its
-       amplitude), from passing for a trend or a wander; a real drift 10×
-       below the oscillation still counts.
-    2. Trend test: z = mean(d) / (std(d)/√(K−1)), a t-statistic of the mean
-       increment.  A deterministic trend makes every increment the same sign,
-       |z| ≫ 1; for a random walk z ~ N(0, 1); for a stationary (bounded)
-       series z → 0 like 1/√K.  |z| > ``z_crit`` (4) means a trend; so does a
-       sign test on the increments as significant as that (two-sided binomial
-       p < 6e-5 for z_crit = 4: e.g. ≥ 50 of 63 of the same sign), which
-       catches a monotone trend whose increments vary too much for the
-       t-statistic (an exponential over many e-foldings).
-    3. With a trend, ``growing`` when it accelerates: the mean increment over
-       the later half of the windows is ≥ ``accel_crit`` (1.5) times that of
-       the earlier half, same sign, and the difference is itself significant
-       at ``z_crit``.  For e ∝ t^p that ratio is 2^p − 1: linear 1, quadratic
-       3, and 1.5 means p ≥ 1.32; an exponential e^{λt} over a run of length T
-       gives ≈ e^{λT/2}.  Rate: λ of |m_k − e(0)| ~ e^{λt} or p of ~ t^p, whichever
-       fits log|m| better (over the later 3/4 of the windows).  Else
-       ``linear``, rate: least-squares slope of m_k against t (1/s), stderr
-       from the regression.
-       Without a significant z, the trend may still hide under oscillations
-       whose window means jitter more than one window's drift: the
-       least-squares slope b of m_k against t with |b|/stderr(b) > ``z_crit``
-       and residuals that look stationary (their von Neumann ratio, see 4,
-       ≥ ``eta_crit``) is ``linear`` too.  (A random walk gives spuriously
-       significant slopes too, but its residuals still wander: small ratio.)
-    4. Otherwise: von Neumann's ratio η = ⟨d²⟩ / var(m), the mean
-       square successive difference over the variance of the window means.
-       Window means of a bounded (stationary) error are nearly independent,
-       η ≈ 2; a random walk's wander makes var(m) ≈ K τ σ²/6 ≫ ⟨d²⟩ = τ σ², η ≈
-       6/K (0.1 for K = 64).  A slow deterministic oscillation (period of a few
-       windows) also has small η, so the wander must also grow with the lag:
-       ζ, the log–log slope of the structure function S(ℓ) = ⟨(m_{k+ℓ} −
-       m_k)²⟩ over ℓ = 1 … K/2 (≈ 0 bounded, 1 random walk, 2 trend; an
-       oscillation's S(ℓ) rises then falls back), must exceed ``zeta_crit``
-       (0.15; measured on 300 seeded walks of 4e4 steps the 1st percentile of
-       ζ is 0.20, and on amplitude-modulated sines with η < 1 its maximum
-       0.11).  Both: ``random_walk``, rate σ = √(1.5 ⟨d²⟩/τ) (1/√s, e(t) ~
-       σ √t: means of a Brownian path over adjacent windows differ by
-       var = (2/3) σ² τ; relative stderr 1/√(2(K−1))).  Else ``bounded`` (no
-       rate; see amplitude).  An oscillation slower than ~1/3 of the run is
-       indistinguishable from a trend or a wander over that run.
+       the invariant is off by 100 %).  ``undetermined``: fewer than
+       ``min_samples`` (8) samples.
+    2. ``collapse``: a fast relaxation or jump.  With e_late the median of e
+       over the last 5 % of the record, |e_late| ≥ ``collapse_min`` (5 %), e
+       first reaches 90 % of e_late within the first ``collapse_early`` (10 %)
+       of the record (``collapse_time``, ``collapse_size`` = e there) and
+       never comes back below half of it.  The rest of the record (t ≥
+       collapse_time) is classified by these same rules (``then_class``,
+       ``then_rate``...): "collapses by 87 % within 1 s, then linear ...".
+       Never a linear rate fitted through the drop.
+    3. Fast oscillations removed (``_remove_fast_oscillations``: the three
+       strongest sinusoids with ≥ 4 cycles in the record), the series is cut
+       into K windows of equal length τ (K = ``n_windows``, default
+       clip(n/16, 8, 64); K = n for a short record of < 2K samples); m_k is
+       the (cleaned) e averaged over window k, d_k = m_{k+1} − m_k.
+       ``bounded`` when the means move (``wander``, their range) by less than
+       ``min_wander`` (0.05) times the ``oscillation`` they average away
+       (√2 × the rms of the raw e about its window mean: a sine's amplitude).
+    4. A slow oscillation seen whole: m fitted by a line plus one sinusoid of
+       period P ∈ [4τ, 0.8 T] (T the record's length; a best P at the top of
+       that range is no resolved period and is not taken).  When that fit leaves white residuals (von Neumann ratio
+       ≥ ``eta_crit``; or all but 1e-4 of var(m)) and explains ≥ 98 % of var(m), the series is
+       ``linear`` if the line's slope is significant (|b|/se > ``z_crit``)
+       and its total |b| T is ≥ 10 % of the sine's amplitude, else
+       ``bounded``; ``period`` = P either way.  (A two-cycle sine is bounded,
+       not a wander.)
+    5. Trend test: z = mean(d) / (std(d)/√(K−1)), a t-statistic of the mean
+       increment (|z| ≫ 1 for a deterministic trend, z ~ N(0, 1) for a
+       wander, → 0 for a stationary series); |z| > ``z_crit`` (4), or a sign
+       test on the increments as significant (two-sided binomial p < 6e-5),
+       means a trend.  With a trend:
+       - ``growing`` when it accelerates: the mean increment over the later
+         half of the windows is ≥ ``accel_crit`` (1.5) times that of the
+         earlier half, same sign, the difference significant at ``z_crit``
+         (e ∝ t^p gives 2^p − 1; e^{λt} over T about e^{λT/2}).  Rate: λ of
+         |m − e(0)| ~ e^{λt} or p of ~ t^p, the better fit of log|m| over the
+         later 3/4 of the windows;
+       - ``slowing`` when it decelerates: a quadratic fit of m has a
+         significant curvature (|c|/se > ``z_crit``) against the slope, and
+         the slope falls by ≥ ``slowing_min`` (50 %) across the record.  A
+         trend that slows may be a bounded oscillation longer than the window
+         (Kovalevskaya's lie_poisson energy over 1000 s of a 58 000 s
+         period) or a saturating relaxation: the record cannot tell.
+         ``t_turn`` is where the fitted quadratic stops, ``run_longer`` =
+         2 t_turn: a record that long shows which;
+       - else ``linear``: least-squares line through m (rate 1/s, intercept,
+         stderr), provided its value at the end lies within a factor 2 of
+         the envelope of |e| there (``_on_its_data``).
+       Without a significant z, a trend hidden under oscillations whose
+       means jitter more than one window's drift is ``linear`` when the
+       regression slope of m is significant (> ``z_crit`` standard errors)
+       and its residuals look stationary (von Neumann ratio ≥ ``eta_crit``).
+    6. ``wander`` (σ √t, unit 1/√s): von Neumann's ratio η = ⟨d²⟩ / var(m) <
+       ``eta_crit`` (a stationary series gives ≈ 2, a Brownian path ≈ 6/K)
+       and the structure function S(ℓ) = ⟨(m_{k+ℓ} − m_k)²⟩ still grows at
+       large lags: its log–log slope ζ over ℓ = 1 … K/2 and over ℓ = K/8 …
+       K/2 both > ``zeta_crit`` (0.15).  Stationary correlated noise (AR(1)
+       with a correlation time of a few windows) saturates at large lags:
+       ``bounded``.  The name claims no randomness: integrators are
+       deterministic, and a wander reproducible under a tiny perturbation
+       of the initial state is as much a wander as a rounding walk; σ =
+       √(1.5 ⟨d²⟩/τ) (adjacent means of a Brownian path differ by var =
+       (2/3) σ² τ; relative stderr 1/√(2(K−1))).
+    7. Else ``bounded`` (no rate; see amplitude).
 
     preserved_to_rounding: max |e| ≤ ``preserved_ulps`` eps (500 eps ≈
     1.1e-13), independent of the class (a rounding-level linear drift is still
-    ``linear``).  A series shorter than 16 samples gets the class "bounded" or
-    "diverged" only from steps 1 and the amplitude, with ``reason`` set.
+    ``linear``).  An oscillation slower than the record that shows no
+    curvature (the record sits on its zero crossing) is indistinguishable from
+    a linear trend over that record.
     """
     t = np.asarray(t, dtype=float).ravel()
     e = np.asarray(rel_err, dtype=float).ravel()
@@ -336,41 +488,122 @@ def classify_drift(
         first = int(np.argmax(bad))
         why = "non-finite" if not finite[first] else f"|e| > {blowup:g}"
         return Drift("diverged", t_diverged=float(t[first]), reason=f"{why} at t = {t[first]:g} s", **base)
+    if e.size < min_samples:
+        return Drift("undetermined", reason=f"{e.size} samples: too few to classify (need {min_samples})", **base)
+    opts = dict(
+        blowup=blowup,
+        preserved_ulps=preserved_ulps,
+        z_crit=z_crit,
+        accel_crit=accel_crit,
+        eta_crit=eta_crit,
+        zeta_crit=zeta_crit,
+        min_wander=min_wander,
+        slowing_min=slowing_min,
+        df_crit=df_crit,
+        min_samples=min_samples,
+    )
+    span = float(t[-1] - t[0])
+    if not _tail:
+        early = t <= t[0] + collapse_early * span
+        i_pk = int(np.argmax(np.abs(np.where(early, e, 0.0))))
+        x = abs(float(e[i_pk]))
+        s = math.copysign(1.0, e[i_pk])
+        if x >= collapse_min and x >= 0.5 * amplitude:
+            i50 = int(np.argmax(s * e >= 0.5 * x))
+            i90 = int(np.argmax(s * e >= 0.9 * x))
+            held = s * e[(t >= t[i_pk]) & (t <= t[i_pk] + collapse_early * span)]
+            if t[i50] - t[0] <= 0.1 * collapse_early * span and np.median(held) >= 0.7 * x and e.size - i90 >= 2:
+                rest = classify_drift(t[i90:], e[i90:], _tail=True, **opts)
+                word = "collapses" if s < 0 else "jumps"
+                return Drift(
+                    "collapse",
+                    collapse_size=float(e[i90]),
+                    collapse_time=float(t[i90]),
+                    then_class=rest.drift_class,
+                    then_rate=rest.rate,
+                    then_rate_unit=rest.rate_unit,
+                    then_intercept=rest.intercept,
+                    fit_t0=rest.fit_t0,
+                    fit_t1=rest.fit_t1,
+                    period=rest.period,
+                    t_turn=rest.t_turn,
+                    run_longer=rest.run_longer,
+                    late_mean=float(np.mean(e[t >= t[-1] - 0.05 * span])),
+                    reason=(
+                        f"{word} by {abs(e[i90]):.0%} within {t[i90] - t[0]:.3g} s (half of it within "
+                        f"{t[i50] - t[0]:.3g} s), then {rest.drift_class}: {rest.reason}"
+                    ),
+                    **base,
+                )
     k = n_windows or int(np.clip(e.size // 16, 8, 64))
-    if e.size < 2 * k or k < 4:
-        return Drift("bounded", reason=f"{e.size} samples: too short to classify a trend", **base)
-    tw, m = _window_means(t, e, k)
+    clean = _remove_fast_oscillations(t, e)
+    if e.size < 2 * k:
+        k = e.size  # a short record: every sample is its own window
+    tw, m = _window_means(t, clean, k)
     tau = float(np.mean(np.diff(tw)))
     n_used = (e.size // k) * k
-    within = e[e.size - n_used :].reshape(k, -1) - m[:, None]
+    within = e[e.size - n_used :].reshape(k, -1) - _window_means(t, e, k)[1][:, None]
     oscillation = math.sqrt(2.0) * float(np.std(within))  # a sine's amplitude from its rms
     wander = float(np.ptp(m))
     d = np.diff(m)
     scale_floor = EPS * max(amplitude, EPS)  # increments below this are rounding of the means
-    se = max(float(np.std(d, ddof=1)) / math.sqrt(d.size), scale_floor)
-    z = float(np.mean(d)) / se
     rec = Drift(
         "bounded",
         late_mean=float(m[-1]),
         n_windows=k,
         window=tau,
-        z_trend=z,
         oscillation=oscillation,
         wander=wander,
         **base,
     )
-    if wander < min_wander * oscillation:
+    if wander < min_wander * oscillation or wander <= scale_floor:
         rec.reason = f"window means move by {wander:.3g} < {min_wander:g} x the oscillation {oscillation:.3g}"
         return rec
+
+    def linear(fit, why):
+        rec.drift_class = "linear"
+        rec.rate, rec.rate_unit, rec.rate_stderr = float(fit.slope), "1/s", float(fit.stderr)
+        rec.intercept, rec.fit_t0, rec.fit_t1 = float(fit.intercept), float(tw[0]), float(t[-1])
+        rec.reason = why
+        return rec
+
+    # 4. a slow oscillation seen whole, with or without a trend under it
+    span_w = float(tw[-1] - tw[0])
+    if k >= 12 and span_w > 0:
+        periods = np.geomspace(4 * tau, 0.8 * span, 60)
+        P, coef, r, cov = _sine_fit(tw, m, periods)
+        var_m = float(np.var(m))
+        amp = math.hypot(coef[2], coef[3])
+        se_b = math.sqrt(max(cov[1, 1], 0.0))
+        explained = 1.0 - float(np.var(r)) / var_m if var_m > 0 else 0.0
+        resolved = P < 0.75 * span  # at the top of the trial range it only soaks up a curvature
+        if resolved and (explained >= 1 - 1e-4 or _von_neumann(r) >= eta_crit) and explained >= 0.98 and amp > 0:
+            rec.period = float(P)
+            b = float(coef[1])
+            if se_b > 0 and abs(b) / se_b > z_crit and abs(b) * span >= 0.1 * amp:
+                rec.drift_class = "linear"
+                rec.rate, rec.rate_unit, rec.rate_stderr = b, "1/s", se_b
+                rec.intercept = float(coef[0] - b * tw[0])
+                rec.fit_t0, rec.fit_t1 = float(tw[0]), float(t[-1])
+                rec.reason = f"trend under an oscillation of period {P:.3g} s"
+                return rec
+            rec.reason = f"oscillation of period {P:.3g} s (amplitude {amp:.3g} of the window means)"
+            return rec
+
+    # 5. trend tests
+    se = max(float(np.std(d, ddof=1)) / math.sqrt(d.size), scale_floor)
+    z = float(np.mean(d)) / se
+    rec.z_trend = z
     n_up = int(np.count_nonzero(d > 0))
     n_signed = n_up + int(np.count_nonzero(d < 0))
     p_sign = stats.binomtest(n_up, n_signed).pvalue if n_signed else 1.0
+    fit = stats.linregress(tw, m)
     if abs(z) > z_crit or p_sign < 2.0 * stats.norm.sf(z_crit):
         h = d.size // 2
-        early, late = d[:h], d[-h:]
-        me, ml = float(np.mean(early)), float(np.mean(late))
+        early, late_d = d[:h], d[-h:]
+        me, ml = float(np.mean(early)), float(np.mean(late_d))
         se_e = float(np.std(early, ddof=1)) / math.sqrt(h) if h > 1 else 0.0
-        se_l = float(np.std(late, ddof=1)) / math.sqrt(h) if h > 1 else 0.0
+        se_l = float(np.std(late_d, ddof=1)) / math.sqrt(h) if h > 1 else 0.0
         accel = ml / me if me != 0.0 else math.copysign(math.inf, ml)
         rec.accel = float(accel)
         significant = abs(ml - me) > z_crit * max(math.hypot(se_e, se_l), scale_floor)
@@ -378,33 +611,79 @@ def classify_drift(
             rec.drift_class = "growing"
             q = k // 4
             rec.rate, rec.rate_unit, rec.rate_stderr = _growth_rate(tw[q:], np.abs(m[q:] - e[0]))
+            rec.reason = f"trend accelerating by {accel:.3g}x from the first half to the second"
             return rec
-        fit = stats.linregress(tw, m)
-        rec.drift_class = "linear"
-        rec.rate, rec.rate_unit, rec.rate_stderr = float(fit.slope), "1/s", float(fit.stderr)
-        return rec
+        # A trend that bends: a cubic through the means.  An oscillation obeys e''' = -w^2 e', so a
+        # significant cubic term against the slope gives its period even from a record much shorter than
+        # it (Kovalevskaya's lie_poisson energy: 60 000 s from 1000 s); a saturation (e''' with e') does
+        # not; a significant curvature against the slope without that is a trend that slows.
+        if k >= 8:
+            x = tw - tw.mean()
+            A = np.column_stack([np.ones_like(x), x, x * x, x**3])
+            coef, *_ = np.linalg.lstsq(A, m, rcond=None)
+            r = m - A @ coef
+            cov = np.linalg.pinv(A.T @ A) * float(r @ r) / max(k - 4, 1)
+            b, c, d3 = float(coef[1]), float(coef[2]), float(coef[3])
+            se_c, se_d = math.sqrt(max(cov[2, 2], 0.0)), math.sqrt(max(cov[3, 3], 0.0))
+            s0, s1 = b + 2 * c * x[0] + 3 * d3 * x[0] ** 2, b + 2 * c * x[-1] + 3 * d3 * x[-1] ** 2
+            if se_d > 0 and abs(d3) / se_d > z_crit and b != 0 and -6 * d3 / b > 0:
+                period = 2 * math.pi / math.sqrt(-6 * d3 / b)
+                if period > span:
+                    rec.drift_class = "slow_oscillation"
+                    rec.period = period
+                    rec.run_longer = float(t[0] + period)
+                    rec.rate, rec.rate_unit, rec.rate_stderr = float(fit.slope), "1/s", float(fit.stderr)
+                    rec.intercept, rec.fit_t0, rec.fit_t1 = float(fit.intercept), float(tw[0]), float(t[-1])
+                    rec.reason = (
+                        f"trend over a record shorter than its oscillation (period ~ {period:.2g} s from its "
+                        f"curvature); run longer than {rec.run_longer:.2g} s to decide"
+                    )
+                    return rec
+            if se_c > 0 and abs(c) / se_c > z_crit and s0 != 0 and 1.0 - s1 / s0 >= slowing_min:
+                rec.drift_class = "slowing"
+                rec.t_turn = float(tw.mean() - b / (2 * c))
+                rec.run_longer = float(2.0 * (rec.t_turn - t[0]) + t[0])
+                rec.reason = (
+                    f"trend slowing by {1 - s1 / s0:.0%} over the record: a saturation or an oscillation longer "
+                    f"than the record; run longer than {rec.run_longer:.3g} s to decide"
+                )
+                return rec
+        if _on_its_data(t, e, fit.intercept, fit.slope):
+            return linear(fit, f"trend: z = {z:.3g}")
+        rec.reason = "a trend whose fitted line is off its data"
     # A trend hidden under oscillations whose window means still jitter more than one window's
     # drift: the regression on the means sees it, and then its residuals are stationary.
-    fit = stats.linregress(tw, m)
     resid = m - (fit.intercept + fit.slope * tw)
-    var_r = float(np.var(resid, ddof=2))
-    eta_r = float(np.mean(np.diff(resid) ** 2)) / var_r if var_r > scale_floor**2 else 2.0
-    if fit.stderr > 0 and abs(fit.slope) / fit.stderr > z_crit and eta_r >= eta_crit:
-        rec.drift_class = "linear"
-        rec.rate, rec.rate_unit, rec.rate_stderr = float(fit.slope), "1/s", float(fit.stderr)
+    eta_r = _von_neumann(resid) if float(np.var(resid)) > scale_floor**2 else 2.0
+    if (
+        fit.stderr > 0
+        and abs(fit.slope) / fit.stderr > z_crit
+        and eta_r >= eta_crit
+        and _on_its_data(t, e, fit.intercept, fit.slope)
+    ):
         rec.eta = eta_r
-        return rec
+        return linear(fit, f"trend under the jitter of the window means (slope {abs(fit.slope) / fit.stderr:.3g} se)")
+    # 6. wander or bounded
     lags = np.arange(1, k // 2 + 1)
     S = np.array([np.mean((m[l:] - m[:-l]) ** 2) for l in lags])
-    rec.zeta = float(stats.linregress(np.log(lags), np.log(S)).slope) if np.all(S > 0) else 0.0
+    rec.zeta = float(stats.linregress(np.log(lags), np.log(S)).slope) if np.all(S > 0) and lags.size >= 2 else 0.0
+    # Dickey-Fuller: regress d_k on m_k; a stationary series pulls back (slope < 0, t well below 0),
+    # a wander does not (t ~ -1.5 +- 1; the 1 % critical value with a constant is about -3.5).
+    df = stats.linregress(m[:-1], d) if d.size >= 3 and np.ptp(m[:-1]) > 0 else None
+    df_t = float(df.slope / df.stderr) if df is not None and df.stderr > 0 else 0.0
     var_m = float(np.var(m, ddof=1))
     rec.eta = float(np.mean(d * d)) / var_m if var_m > scale_floor**2 else 2.0
-    if rec.eta < eta_crit and rec.zeta > zeta_crit:
-        rec.drift_class = "random_walk"
+    if rec.eta < eta_crit and rec.zeta > zeta_crit and df_t > df_crit:
+        rec.drift_class = "wander"
         # Means of a Brownian path over adjacent windows of length τ differ by var = (2/3) σ² τ.
         rec.rate, rec.rate_unit = math.sqrt(1.5 * float(np.mean(d * d)) / tau), "1/sqrt(s)"
         # σ from K − 1 independent increments: relative standard error 1/√(2(K − 1)).
         rec.rate_stderr = rec.rate / math.sqrt(2.0 * d.size)
+        rec.reason = f"wanders: eta = {rec.eta:.2g}, structure-function slope {rec.zeta:.2g}"
+        return rec
+    rec.reason = (
+        rec.reason or f"no trend, no wander: eta = {rec.eta:.2g}, zeta = {rec.zeta:.2g}, Dickey-Fuller t = {df_t:.2g}"
+    )
     return rec
 
 

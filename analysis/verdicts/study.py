@@ -13,8 +13,9 @@ verdict.json --figures DIR``.
 Figure ``verdict_<scene>.png``: (a) the order fits, final-state error
 against dt with the fitted line over the range used; (b) (|ω| dt)_crit per
 method; (c) one panel per declared invariant: |e(t)| of the long run on
-log–log axes with the fitted class drawn dashed (linear |rate| t, random walk
-σ √t, bounded its max |e|; × where a run diverged).
+log–log axes with the fitted class drawn dashed (the fitted line |a + b t| over
+its span, a wander σ √t, bounded its max |e|; ▽ a collapse's size and time;
+× where a run diverged).
 """
 
 import math
@@ -111,22 +112,39 @@ def _drift_panel(ax, q, runs, datasets):
         c = color(r["method"])
         ax.loglog(t[idx], np.maximum(e[idx], FLOOR), "-", color=c, lw=0.7, alpha=0.8)
         tt = t[idx]
-        rate = r["drift_rate"]
-        if r["drift_class"] == "linear":
-            ax.loglog(tt, np.maximum(abs(rate) * tt, FLOOR), "--", color=c, lw=1.1)
-        elif r["drift_class"] == "random_walk":
-            ax.loglog(tt, np.maximum(rate * np.sqrt(tt), FLOOR), "--", color=c, lw=1.1)
+        line = fitted_line(r, tt)
+        if line is not None:
+            ax.loglog(tt, np.maximum(np.abs(line), FLOOR), "--", color=c, lw=1.1)
+        elif r["drift_class"] == "wander":
+            ax.loglog(tt, np.maximum(r["drift_rate"] * np.sqrt(tt), FLOOR), "--", color=c, lw=1.1)
         elif r["drift_class"] == "bounded" and r["amplitude"]:
             ax.axhline(r["amplitude"], color=c, ls=":", lw=0.9)
         elif r["drift_class"] == "diverged" and r["t_diverged"] is not None and math.isfinite(r["t_diverged"]):
             ax.plot(max(r["t_diverged"], t[1]), 1.0, "x", color=c, ms=6)
+        elif r["drift_class"] == "collapse" and r.get("collapse_time") is not None:
+            ax.plot(max(r["collapse_time"], t[1]), abs(r["collapse_size"]), "v", color=c, ms=5)
     r = runs[0] if runs else None
     cond = f"f = {r['f']:g} Hz, θ0 = {r['theta0']:g}°, dt = {r['dt']:g} s" if r else ""
-    ax.set_title(f"(c) |e| of {q}: {cond}\ndashed: fitted linear / √t; dotted: bounded max", fontsize=8.5)
+    ax.set_title(f"(c) |e| of {q}: {cond}\ndashed: fitted line / √t; dotted: bounded max; ▽ collapse", fontsize=8.5)
     ax.set_xlabel("time t (s)")
     ax.set_ylabel(f"|{q}(t) − {q}(0)| / |{q}(0)|")
     ax.set_ylim(1e-17, 10)
     ax.grid(alpha=0.3, which="both")
+
+
+def fitted_line(r, t):
+    """The line e = intercept + rate·t a drift record fitted (linear, a slow oscillation's trend, a
+    collapse's linear tail) at times t (s), NaN outside the span it was fitted on; None if no line."""
+    if r["drift_class"] in ("linear", "slow_oscillation"):
+        a, b = r.get("intercept"), r.get("drift_rate")
+    elif r["drift_class"] == "collapse" and r.get("then_class") == "linear":
+        a, b = r.get("then_intercept"), r.get("then_rate")
+    else:
+        return None
+    if a is None or b is None or r.get("fit_t0") is None:
+        return None
+    t = np.asarray(t, dtype=float)
+    return np.where((t >= r["fit_t0"]) & (t <= r["fit_t1"]), a + b * t, np.nan)
 
 
 def _has_run(ds, r):

@@ -14,7 +14,8 @@ Per (scene, method) it reports, from whatever the files hold:
   yardstick method in the same file (``YARDSTICKS``: lie_poisson4 or
   split6_exact, whichever finest run differs least from its own next finest
   run; its reference point is left out of its own fit); else DOP853
-  (kernels/reference.py, rtol = atol = 1e-13) computed once per (scene, f, θ0).
+  (kernels/reference.py, rtol = atol = 1e-13, with its own error |y(tol) − y(10 tol)|) computed once
+  per (scene, f, θ0).
   The record says which (``reference``);
 - the **drift class** (``classify.classify_drift``) of every invariant the
   scene declares (layout.conserved; layout.invariant gives each series) for
@@ -51,6 +52,23 @@ from .classify import EPS, classify_drift, fit_order
 EXIT_BAD_INPUT = 2
 YARDSTICKS = ("lie_poisson4", "split6_exact")
 MIN_DRIFT_SAMPLES = 16
+# What a drift record carries beyond class and rate (classify.Drift): the fitted line, a period,
+# a collapse's size, time and what follows, a slowing trend's turning point, and the reason in words.
+DRIFT_DETAILS = (
+    "intercept",
+    "fit_t0",
+    "fit_t1",
+    "period",
+    "collapse_size",
+    "collapse_time",
+    "then_class",
+    "then_rate",
+    "then_rate_unit",
+    "then_intercept",
+    "t_turn",
+    "run_longer",
+    "drift_reason",
+)
 MIN_LADDER = 3
 DOP853_TOL = 1e-13
 STATE_CLOSED_FORMS = ("free_symmetric", "euler_poinsot")  # closed forms that give the full state at any time
@@ -209,12 +227,15 @@ class References:
             raise VerdictError(f"--reference yardstick: no ok run of {' or '.join(YARDSTICKS)} in the file")
         key = (scene.body, scene.omega0, scene.q0, t)
         if key not in self.cache:
-            from ...kernels.reference import dop853
+            from ...kernels.reference import dop853_with_error
 
-            s = dop853(scene, t, t, rtol=DOP853_TOL, atol=DOP853_TOL)[-1]
-            self.cache[key] = (s[0:3], s[3:6])
-        axis, omega = self.cache[key]
-        return axis, omega, f"DOP853 (rtol = atol = {DOP853_TOL:g})", None
+            y, err = dop853_with_error(scene, t, t, tol=DOP853_TOL)
+            s, e = y[-1], err[-1]
+            # its own error in the state_error measure: |y(tol) − y(10 tol)|
+            own = float(max(np.max(e[0:3]), np.max(e[3:6]) / float(np.linalg.norm(scene.omega0))))
+            self.cache[key] = (s[0:3], s[3:6], own)
+        axis, omega, own = self.cache[key]
+        return axis, omega, f"DOP853 (rtol = atol = {DOP853_TOL:g}; its error ≤ {own:.1e})", None
 
 
 def order_records(ds, refs):
@@ -310,10 +331,11 @@ def drift_records(ds):
                     for q in names:
                         e = signed_error(invariant(run, q).values)
                         d = classify_drift(t, e, preserved_ulps=preserved_ulps(n_steps))
+                        d.drift_reason = d.reason
                         # A drift whose total stays below 0.1 ulp per step is a rounding bias, not truncation.
                         rounding_drift = (
                             not d.preserved_to_rounding
-                            and d.drift_class in ("linear", "random_walk")
+                            and d.drift_class in ("linear", "wander")
                             and d.amplitude <= 0.1 * EPS * n_steps
                         )
                         out.append(
@@ -337,6 +359,7 @@ def drift_records(ds):
                                 t_diverged=d.t_diverged,
                                 preserved=d.preserved_to_rounding,
                                 rounding_drift=bool(rounding_drift),
+                                **{k: getattr(d, k) for k in DRIFT_DETAILS},
                                 declared_preserved=None if declared is None else q in declared,
                                 order=None,
                                 order_ci=None,
@@ -413,74 +436,94 @@ def summaries(datasets, orders, runs, thresholds):
                 scenes[("methods", scene_name(ds))].append(str(m))
     out = []
     for scene in [k for k in scenes if isinstance(k, str)]:
-        for m in scenes[("methods", scene)]:
-            order = next(
-                (o for o in orders if o["scene"] == scene and o["method"] == m and not o["order_reason"]),
-                next((o for o in orders if o["scene"] == scene and o["method"] == m), None),
+        # One verdict per (method, f, θ0) group the files hold: a ladder's order and the longest run's drift.
+        groups = list(
+            dict.fromkeys(
+                (r["f"], r["theta0"]) for r in orders + runs + thresholds if r["scene"] == scene and r["f"] is not None
             )
+        )
+        for m in scenes[("methods", scene)]:
             thr = next((r for r in thresholds if r["scene"] == scene and r["method"] == m), None)
-            for q in scenes[scene]:
-                mine = [r for r in runs if r["scene"] == scene and r["method"] == m and r["quantity"] == q]
-                run = max(mine, key=lambda r: (r["n_steps"], r["t_end"], -r["dt"])) if mine else None
-                rec = _blank(kind="summary", scene=scene, method=m, quantity=q, declared_order=declared_order(m))
-                if order:
-                    rec.update(
-                        {
-                            k: order[k]
-                            for k in (
-                                "order",
-                                "order_ci",
-                                "order_dt_range",
-                                "order_points",
-                                "order_reason",
-                                "reference",
-                                "ladder_excluded",
-                                "ladder_err",
-                            )
-                        }
-                    )
-                    rec.update(order_f=order["f"], order_theta0=order["theta0"], order_t_end=order["t_end"])
-                if run:
-                    rec.update(
-                        {
-                            k: run[k]
-                            for k in (
-                                "drift_class",
-                                "drift_rate",
-                                "drift_rate_unit",
-                                "drift_rate_stderr",
-                                "amplitude",
-                                "late_mean",
-                                "t_diverged",
-                                "preserved",
-                                "rounding_drift",
-                                "declared_preserved",
-                                "f",
-                                "theta0",
-                                "dt",
-                                "t_end",
-                                "n_steps",
-                                "status",
-                            )
-                        }
-                    )
-                if thr:
-                    rec.update(
-                        omega_dt_crit=thr["omega_dt_crit"],
-                        omega_dt_bracket=thr["omega_dt_bracket"],
-                        stability_t_end=thr["stability_t_end"],
-                        threshold_reason=thr["threshold_reason"],
-                        stability_f=thr["f"],
-                        stability_theta0=thr["theta0"],
-                    )
-                out.append(rec)
+            for f, th in groups:
+                mine_o = [o for o in orders if (o["scene"], o["method"], o["f"], o["theta0"]) == (scene, m, f, th)]
+                order = next((o for o in mine_o if not o["order_reason"]), mine_o[0] if mine_o else None)
+                mine_r = [r for r in runs if (r["scene"], r["method"], r["f"], r["theta0"]) == (scene, m, f, th)]
+                if order is None and not mine_r and not (thr and (thr["f"], thr["theta0"]) == (f, th)):
+                    continue
+                out += _group_summaries(scene, m, f, th, order, mine_r, thr, scenes[scene])
     return out
 
 
-def verdict(paths, stability=None, reference="auto"):
+def _group_summaries(scene, m, f, th, order, group_runs, thr, quantities):
+    """Summary records of one (scene, method, f, θ0): one per declared invariant."""
+    out = []
+    for q in quantities:
+        mine = [r for r in group_runs if r["quantity"] == q]
+        run = max(mine, key=lambda r: (r["n_steps"], r["t_end"], -r["dt"])) if mine else None
+        rec = _blank(
+            kind="summary", scene=scene, method=m, quantity=q, declared_order=declared_order(m), f=f, theta0=th
+        )
+        if order:
+            rec.update(
+                {
+                    k: order[k]
+                    for k in (
+                        "order",
+                        "order_ci",
+                        "order_dt_range",
+                        "order_points",
+                        "order_reason",
+                        "reference",
+                        "ladder_excluded",
+                        "ladder_err",
+                        "ladder_dt",
+                    )
+                }
+            )
+            rec.update(order_f=order["f"], order_theta0=order["theta0"], order_t_end=order["t_end"])
+        if run:
+            rec.update(
+                {
+                    k: run[k]
+                    for k in (
+                        "drift_class",
+                        "drift_rate",
+                        "drift_rate_unit",
+                        "drift_rate_stderr",
+                        "amplitude",
+                        "late_mean",
+                        "t_diverged",
+                        "preserved",
+                        "rounding_drift",
+                        *DRIFT_DETAILS,
+                        "declared_preserved",
+                        "f",
+                        "theta0",
+                        "dt",
+                        "t_end",
+                        "n_steps",
+                        "status",
+                    )
+                }
+            )
+        if thr and (thr["f"], thr["theta0"]) == (f, th):  # bisected at one (f, θ0) per scene
+            rec.update(
+                omega_dt_crit=thr["omega_dt_crit"],
+                omega_dt_bracket=thr["omega_dt_bracket"],
+                stability_t_end=thr["stability_t_end"],
+                threshold_reason=thr["threshold_reason"],
+                stability_f=thr["f"],
+                stability_theta0=thr["theta0"],
+            )
+        out.append(rec)
+    return out
+
+
+def verdict(paths, stability=None, reference="auto", at=None):
     """All records (summary, order, run, threshold) from the results files ``paths``; ``stability``: T (s)
-    of the threshold bisection, None to skip it."""
-    datasets = load(paths)
+    of the threshold bisection, None to skip it; ``at``: {'f': Hz, 'theta0': deg} to judge only that
+    group (default: every (method, f, θ0) group of the files)."""
+    datasets = select_at(load(paths), at)
     refs = References(reference)
     orders, runs = [], []
     for _, ds in datasets:
@@ -514,7 +557,8 @@ def _g(x, digits=3):
     return "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else f"{x:.{digits}g}"
 
 
-def fmt_order(rec):
+def fmt_order(rec, short=False):
+    """The measured order [CI] in words; without a fit, why (``short``: the reason's first clause)."""
     if rec.get("order") is None or not math.isfinite(rec["order"]):
         excl = rec.get("ladder_excluded") or []
         reason = rec.get("order_reason") or ""
@@ -529,7 +573,9 @@ def fmt_order(rec):
             return f"exact to rounding (err ≤ {errs.max():.0e} at every dt)"
         if errs.size >= MIN_LADDER and errs.max() < 10 * errs.min():
             return f"— (flat: err ≈ {np.median(errs):.0e} at every dt)"
-        return "— (err does not fall with dt)" if reason or excl else "—"
+        if reason:
+            return f"— ({reason.split(' after ')[0] if short else reason})"  # the record's own reason
+        return "— (err does not fall with dt)" if excl else "—"
     lo, hi = rec["order_ci"]
     ci = f" [{lo:.2f}, {hi:.2f}]" if lo is not None and math.isfinite(lo) else ""
     return f"{rec['order']:.2f}{ci}"
@@ -538,7 +584,15 @@ def fmt_order(rec):
 UNIT_TEXT = {"1/s": "/s", "1/sqrt(s)": "/√s", "1/s e-folding": "/s (e-fold)", "power": "(t^p)"}
 
 
-def fmt_drift(rec):
+def _fmt_rate(c, rate, unit):
+    if unit == "power":
+        return f"growing ∝ t^{_g(rate)}"
+    return f"{c} {_g(rate)} {UNIT_TEXT.get(unit, unit)}"
+
+
+def fmt_drift(rec, short=False):
+    """The drift class in words, from the record's own numbers (classify.Drift's fields); ``short``:
+    the terminal table's compact form."""
     c = rec.get("drift_class")
     if c is None:
         return "—"
@@ -547,14 +601,36 @@ def fmt_drift(rec):
         settles = (
             f", settles at {late:.2g}" if late is not None and amp and amp > 1e-6 and abs(late) > 0.5 * amp else ""
         )
-        return f"bounded (≤ {_g(amp, 2)}{settles})"
+        period = rec.get("period")
+        per = f", period {period:.3g} s" if period is not None and math.isfinite(period) else ""
+        return f"bounded (≤ {_g(amp, 2)}{settles}{per})"
     if c == "diverged":
         return f"diverged (t = {_g(rec.get('t_diverged'))} s)"
-    rate = rec.get("drift_rate")
-    unit = rec.get("drift_rate_unit") or ""
-    if unit == "power":
-        return f"growing ∝ t^{_g(rate)}"
-    return f"{c} {_g(rate)} {UNIT_TEXT.get(unit, unit)}"
+    if c == "undetermined":
+        return "undetermined (too few samples)"
+    if c == "collapse":
+        size, when = rec.get("collapse_size"), rec.get("collapse_time")
+        word = "collapses" if (size or 0) < 0 else "jumps"
+        then = rec.get("then_class") or "—"
+        if then == "slow_oscillation":
+            then = f"a trend {_g(rec.get('then_rate'))} /s (oscillation ~ {_g(rec.get('period'), 2)} s > record)"
+        elif then == "slowing":
+            then = "a trend that slows"
+        elif then in ("linear", "wander", "growing") and rec.get("then_rate") is not None:
+            then = _fmt_rate(then, rec["then_rate"], rec.get("then_rate_unit") or "")
+        return f"{word} by {abs(size):.0%} within {_g(when, 2)} s, then {then}"
+    if c == "slow_oscillation" and short:
+        return f"trend {_g(rec.get('drift_rate'))} /s; oscillation ~ {_g(rec.get('period'), 2)} s > record"
+    if c == "slowing" and short:
+        return f"trend slowing (stops ~ {_g(rec.get('t_turn'), 2)} s)"
+    if c == "slow_oscillation":
+        return (
+            f"trend {_g(rec.get('drift_rate'))} /s over a record shorter than its oscillation "
+            f"(period ~ {_g(rec.get('period'), 2)} s); run > {_g(rec.get('run_longer'), 2)} s to decide"
+        )
+    if c == "slowing":
+        return f"trend slowing (would stop at t ~ {_g(rec.get('t_turn'), 2)} s); run > {_g(rec.get('run_longer'), 2)} s"
+    return _fmt_rate(c, rec.get("drift_rate"), rec.get("drift_rate_unit") or "")
 
 
 def fmt_threshold(rec):
@@ -596,7 +672,9 @@ def markdown(records, title="Verdicts measured by gyrolab"):
         "Regenerate docs/: `gyrolab experiment=verdict hydra.callbacks.verdict.docs_dir=$PWD/docs`.",
         "Order: fitted p of err ≈ C dtᵖ over the asymptotic range of the dt ladder [95 % CI], err = the final "
         "state's error max(‖axis − ref‖∞, ‖ω − ref‖∞/|ω0|).  Drift: class of e(t) = (X(t) − X0)/|X0| of each "
-        "declared invariant (|L(t) − L0|/|L0| for L) with its fitted rate; bounded shows max |e|.  "
+        "declared invariant (|L(t) − L0|/|L0| for L) with its fitted rate; bounded shows max |e|; a collapse "
+        "its size, the time it took and what follows; a trend that bends, how long a run would decide; "
+        "'wander' (σ√t) claims no randomness.  "
         "Preserved: max |e| ≤ max(500, 5√N) eps over N steps; 'rounding drift': a linear or √t drift whose "
         "total stays below 0.1 eps per step; '!' = declared in PRESERVES but not kept.  "
         "(‖ω‖dt)_crit: largest step, by bisection, whose run stays bounded (|E − E0| ≤ T0 + |Mgl|) over the "
@@ -610,21 +688,43 @@ def markdown(records, title="Verdicts measured by gyrolab"):
         lines += [f"## {scene}", "", f"{info.get('doc', '')}", ""]
         conds = _conditions(records, scene)
         lines += [f"- {c}" for c in conds] + [""]
+        groups = list(dict.fromkeys((r["f"], r["theta0"]) for r in rows))
+        several = len(groups) > 1  # then every row says which (f, θ0) it is
         head = (
-            ["method", "declared order", "measured order"]
+            ["method"]
+            + (["f (Hz)", "θ0 (°)"] if several else [])
+            + ["declared order", "measured order"]
             + [f"{q} drift" for q in quantities]
             + ["preserved to rounding", "(‖ω‖dt)_crit"]
         )
         lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-        for m in dict.fromkeys(r["method"] for r in rows):
-            mine = [r for r in rows if r["method"] == m]
+        for key in dict.fromkeys((r["method"], r["f"], r["theta0"]) for r in rows):
+            mine = [r for r in rows if (r["method"], r["f"], r["theta0"]) == key]
             first = mine[0]
-            cells = [f"`{m}`", str(first.get("declared_order") or "—"), fmt_order(first)]
-            cells += [fmt_drift(next(r for r in mine if r["quantity"] == q)) for q in quantities]
+            cells = [f"`{key[0]}`"] + ([_g(key[1]), _g(key[2])] if several else [])
+            cells += [str(first.get("declared_order") or "—"), fmt_order(first)]
+            cells += [fmt_drift(next((r for r in mine if r["quantity"] == q), {})) for q in quantities]
             cells += [fmt_preserved(mine), fmt_threshold(first)]
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
     return "\n".join(lines)
+
+
+def ladder_words(dts):
+    """'13 steps, halving' / '3 steps, decades' / '4 steps, ratio 3' / '5 steps, uneven': the dt ladder as it is."""
+    d = np.sort(np.asarray([x for x in dts if x is not None], float))[::-1]
+    if d.size < 2:
+        return f"{d.size} step"
+    r = d[:-1] / d[1:]
+    if np.ptp(r) > 0.01 * r.mean():
+        return f"{d.size} steps, uneven (ratios {r.min():.3g} … {r.max():.3g})"
+    ratio = float(r.mean())
+    word = (
+        {2: "halving", 10: "decades"}.get(round(ratio), f"ratio {ratio:.3g}")
+        if abs(ratio - round(ratio)) < 0.01
+        else f"ratio {ratio:.3g}"
+    )
+    return f"{d.size} steps, {word}"
 
 
 def _conditions(records, scene):
@@ -633,10 +733,10 @@ def _conditions(records, scene):
     orders = [r for r in records if r["kind"] == "order" and r["scene"] == scene]
     for key in dict.fromkeys((o["f"], o["theta0"], o["t_end"], o["reference"]) for o in orders):
         o = next(x for x in orders if (x["f"], x["theta0"], x["t_end"], x["reference"]) == key)
-        dts = o["ladder_dt"] + ([] if "finest" not in o["reference"] else [])
+        dts = o["ladder_dt"]
         out.append(
             f"order: f = {o['f']:g} Hz, θ0 = {o['theta0']:g}°, final state at t = {o['t_end']:g} s, "
-            f"dt = {max(dts):.3g} … {min(dts):.3g} s ({len(dts)} steps, halving); reference: {o['reference']}"
+            f"dt = {max(dts):.3g} … {min(dts):.3g} s ({ladder_words(dts)}); reference: {o['reference']}"
         )
     runs = [r for r in records if r["kind"] == "summary" and r["scene"] == scene and r.get("drift_class")]
     for key in dict.fromkeys(
@@ -654,17 +754,95 @@ def _conditions(records, scene):
     return out
 
 
-def table(records):
-    """Plain-text table of the summary records, one line per (scene, method, invariant)."""
+TABLE_WIDTH = 120
+
+
+def _cell(text, width):
+    """text padded to ``width`` columns, or cut with '…' (the full text is in --json / --markdown)."""
+    text = str(text)
+    return text.ljust(width) if len(text) <= width else text[: width - 1] + "…"
+
+
+def table(records, width=TABLE_WIDTH):
+    """Plain-text verdict, ``width`` columns at most: per (scene, f, θ0) group the lines stating it, then
+    per method its measured order (on its first row) and one row per invariant: drift, (‖ω‖dt)_crit."""
+    summ = [r for r in records if r["kind"] == "summary"]
+    cols = (21, 10, 34)  # method, invariant, order; the drift takes the rest but the crit column
+    crit_w = 7
+    drift_w = width - sum(cols) - crit_w - 4
     lines = []
-    for r in (r for r in records if r["kind"] == "summary"):
-        ref = f"  ref: {r['reference']}" if r.get("reference") and r["quantity"] == "energy" else ""
-        cond = f"f={r['f']:g} θ0={r['theta0']:g} dt={r['dt']:g} t_end={r['t_end']:g}" if r.get("f") is not None else ""
-        lines.append(
-            f"{r['scene']:16s} {r['method']:21s} {r['quantity']:7s} order {fmt_order(r):22s} "
-            f"{fmt_drift(r):34s} preserved={r.get('preserved')} crit={fmt_threshold(r)} {cond}{ref}"
+    for key in dict.fromkeys((r["scene"], r["f"], r["theta0"]) for r in summ):
+        rows = [r for r in summ if (r["scene"], r["f"], r["theta0"]) == key]
+        scene, f, th = key
+        lines += ["", f"{scene}: f = {_g(f)} Hz, θ0 = {_g(th)}°"]
+        first = next((r for r in rows if r.get("ladder_dt")), None)
+        if first:
+            dts = first["ladder_dt"]
+            lines.append(
+                _cell(
+                    f"  order: final state at t = {_g(first.get('order_t_end'))} s, dt = {max(dts):.3g} … "
+                    f"{min(dts):.3g} s ({ladder_words(dts)})",
+                    width,
+                ).rstrip()
+            )
+            lines.append(_cell(f"  reference: {first['reference']}", width).rstrip())
+        run = next((r for r in rows if r.get("dt") is not None), None)
+        if run:
+            lines.append(f"  drift: dt = {_g(run['dt'])} s over {_g(run['t_end'])} s ({run['n_steps']:.3g} steps)")
+        head = [_cell("method", cols[0]), _cell("invariant", cols[1]), _cell("measured order", cols[2])]
+        lines.append(" ".join(head + [_cell("drift", drift_w), "crit"]))
+        shown = set()
+        for r in rows:
+            new_method = r["method"] not in shown
+            shown.add(r["method"])
+            cells = [
+                _cell(r["method"] if new_method else "", cols[0]),
+                _cell(r["quantity"], cols[1]),
+                _cell(fmt_order(r, short=True) if new_method else "", cols[2]),
+                _cell(fmt_drift(r, short=True), drift_w),
+                _cell(fmt_threshold(r) if new_method else "", crit_w),
+            ]
+            lines.append(" ".join(cells).rstrip())
+    return "\n".join(lines).lstrip("\n")
+
+
+def parse_at(items):
+    """{'f': Hz, 'theta0': deg} from ``--at f=50 theta0=45`` (also 'f=50,theta0=45'); VerdictError if bad."""
+    out = {}
+    for item in (x for arg in items or [] for x in arg.split(",") if x):
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or key not in ("f", "theta0"):
+            raise VerdictError(f"--at {item}: expected f=<Hz> or theta0=<deg>")
+        try:
+            out[key] = float(value)
+        except ValueError:
+            raise VerdictError(f"--at {item}: {value!r} is not a number") from None
+    return out
+
+
+def select_at(datasets, at):
+    """The datasets restricted to the (f, θ0) of ``at`` (values within 1e-9 relative); VerdictError when
+    no file holds it."""
+    if not at:
+        return datasets
+    out = []
+    for name, ds in datasets:
+        sel = {}
+        for key, value in at.items():
+            hits = [v for v in ds[key].values if math.isclose(float(v), value, rel_tol=1e-9, abs_tol=1e-12)]
+            if not hits:
+                break
+            sel[key] = hits
+        else:
+            out.append((name, ds.sel(sel)))
+    if not out:
+        have = sorted({(float(f), float(t)) for _, ds in datasets for f in ds.f.values for t in ds.theta0.values})
+        raise VerdictError(
+            f"--at {' '.join(f'{k}={v:g}' for k, v in at.items())}: no file holds it; (f, theta0) held: "
+            + ", ".join(f"({f:g}, {t:g})" for f, t in have[:12])
         )
-    return "\n".join(lines)
+    return out
 
 
 # ---------------------------------------------------------------- CLI
@@ -690,6 +868,12 @@ def build_parser():
         help="reference of the order fits (default auto: closed form, yardstick run, DOP853)",
     )
     p.add_argument("--figures", metavar="DIR", help="draw verdict_<scene>.png into DIR")
+    p.add_argument(
+        "--at",
+        nargs="+",
+        metavar="K=V",
+        help="judge only this group, e.g. --at f=50 theta0=45 (default: one verdict per (method, f, θ0) group)",
+    )
     return p
 
 
@@ -728,8 +912,9 @@ def main(argv=None):
             except UnsafePathError as err:
                 fail(err)
     try:
-        records = verdict(args.file, stability=args.stability, reference=args.reference)
-        datasets = load(args.file) if args.figures else None
+        at = parse_at(args.at)
+        records = verdict(args.file, stability=args.stability, reference=args.reference, at=at)
+        datasets = select_at(load(args.file), at) if args.figures else None
     except VerdictError as err:
         fail(err)
     print(table(records))
