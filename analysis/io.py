@@ -75,17 +75,27 @@ def missing_variable_error(ds, name, figure):
 SELECTION_ALIASES = {"method": "integrator"}
 
 
-def _load(path):
+def _load(path, lazy=False):
     """The Dataset of ``path`` in memory with today's names (layout.current), and its layout version
-    (None: not a gyrolab file); SelectionError (one line) for a missing or unreadable file."""
+    (None: not a gyrolab file); SelectionError (one line) for a missing or unreadable file.
+
+    ``lazy``: only what has no time axis is read (per-run variables, coordinates, run inputs); the
+    per-sample variables stay on disk, read slab by slab as a figure selects them, and the file stays
+    open until the Dataset is closed (``ds.close()``): memory then follows what is drawn, not the file."""
     from ..layout import current, file_layout_version
 
     path = Path(path)
     if not path.is_file():
         raise SelectionError(f"FILE={path}: no such results file")
     try:
-        with xr.open_dataset(path, engine="h5netcdf") as ds:
-            ds = ds.load()
+        if lazy:
+            ds = xr.open_dataset(path, engine="h5netcdf")
+            small = [name for name in ds.variables if "time" not in ds[name].dims]
+            ds = ds.assign({name: ds[name].load() for name in small if name in ds.data_vars})
+            ds = ds.assign_coords({name: ds[name].load() for name in small if name in ds.coords})
+        else:
+            with xr.open_dataset(path, engine="h5netcdf") as ds:
+                ds = ds.load()
     except Exception as err:  # h5py/h5netcdf/xarray raise many kinds on damaged or foreign files
         text = " ".join(str(err).split())[:120]
         raise SelectionError(f"FILE={path}: not a readable results file ({type(err).__name__}: {text})") from None
@@ -116,12 +126,12 @@ def _check(path, ds, version):
     return ds
 
 
-def open_members(path, member=None):
+def open_members(path, member=None, lazy=False):
     """[(label, Dataset)] of the results file ``path``: [(None, ds)] for a one-scene file; for a
     combined file (a leading ``scene`` or ``job`` dim) each member, or the one ``member`` names
     ({"scene": "heavy_top"} or {"job": "1"}), as a one-scene Dataset with its own attrs.
     SelectionError (one line) for a file no reader can open or a member it does not have."""
-    ds, version = _load(path)
+    ds, version = _load(path, lazy)
     dim = member_dim(ds)
     member = {k: v for k, v in (member or {}).items() if v is not None}
     if dim is None:
@@ -142,7 +152,7 @@ def open_members(path, member=None):
     return [(label, _check(f"{path} {dim}={label}", member_of(ds, label), version)) for label in wanted]
 
 
-def open_results(path, member=None):
+def open_results(path, member=None, lazy=False):
     """The results Dataset of ``path`` loaded into memory (file closed afterwards), as today's layout
     names it (layout.current: an older layout's ``method`` dim is ``integrator``).
 
@@ -151,8 +161,9 @@ def open_results(path, member=None):
     before the attr, are read), a grid dimension or a layout variable missing or on the wrong dims
     (gyrolab/layout.py).  A combined file (gyrolab-combine) opens as the one member ``member``
     names ({"scene": NAME} or {"job": K}; see ``open_members``); without one, SelectionError naming
-    its members and the selection that picks one."""
-    members = open_members(path, member)
+    its members and the selection that picks one.  ``lazy``: see ``_load`` (the figure step's way:
+    close the Dataset when done)."""
+    members = open_members(path, member, lazy)
     if len(members) > 1:
         ds, _ = _load(path)
         dim = member_dim(ds)
@@ -272,13 +283,18 @@ def build_run_scene(ds, f, theta0):
 
 
 def scene_label(ds):
-    """Short text naming the scene and its non-default options, e.g. 'heavy_top (release)'."""
+    """Short text naming the scene and its body, e.g. 'heavy_top (release)', 'heavy_body (I = (15.23, 0.4688,
+    15.23) kg m², centre of mass (0, −1, 0) m)' (moments about the pivot, or the centre of mass of a free body)."""
     name = scene_name(ds)
     opts = scene_options(ds)
     extra = []
     if name == "heavy_top":
         init = opts.get("init", "release")
         extra.append(init if init != "precession" else f"precession, φ̇0 = {opts.get('phidot0', 0):g} rad/s")
+    elif all(k in opts for k in ("I1", "I2", "I3")):  # the body itself: its moments (and centre of mass)
+        extra.append("I = (" + ", ".join(f"{float(opts[k]):.4g}" for k in ("I1", "I2", "I3")) + ") kg m²")
+        if "com" in opts:
+            extra.append("centre of mass (" + ", ".join(f"{float(c):.4g}" for c in opts["com"]) + ") m")
     return f"{name} ({', '.join(extra)})" if extra else name
 
 
@@ -342,29 +358,60 @@ def save_figure(fig, out, formats=("png",)):
     return paths[0]
 
 
+# Hues away from the fixed colours above (and from each other): brown, pink, cyan, olive, navy, teal,
+# magenta, lime, maroon, salmon, tan, dark slate.
 PALETTE = (
     "#8c564b",
     "#e377c2",
     "#17becf",
     "#bcbd22",
     "#393b79",
-    "#637939",
-    "#8c6d31",
-    "#843c39",
-    "#7b4173",
-    "#3182bd",
-    "#e6550d",
-    "#31a354",
+    "#00796b",
+    "#ff00ff",
+    "#7fbc41",
+    "#7f0000",
+    "#fa8072",
+    "#c8a86b",
+    "#2f4f4f",
 )
+# Markers paired with PALETTE: 7 is prime to PALETTE's 12, so the k-th other method's (colour, marker)
+# = (PALETTE[k % 12], MARKERS[k % 7]) repeats only after 84 methods, and two methods that share a
+# colour (k and k + 12) never share a marker.
+MARKERS = ("o", "s", "^", "D", "v", "P", "X")
+
+
+def _rank(method):
+    """The place of ``method`` among the methods without a fixed colour: its registry order, or for a
+    name the registry does not know (a peer, a file from another version), a stable hash after them."""
+    import zlib
+
+    from ..kernels.registry import METHODS
+
+    others = [m for m in METHODS if m not in METHOD_COLORS]
+    if method in others:
+        return others.index(method)
+    return len(others) + zlib.crc32(method.encode()) % (len(PALETTE) * len(MARKERS))
 
 
 def color(method):
     """The colour of ``method`` in every figure: fixed for the first methods and peers, else from
-    PALETTE by its place among the registered methods."""
+    PALETTE by its place among the registered methods (a new method needs no line here)."""
     method = str(method)
     if method in METHOD_COLORS:
         return METHOD_COLORS[method]
-    from ..kernels.registry import METHODS
+    return PALETTE[_rank(method) % len(PALETTE)]
 
-    others = [m for m in METHODS if m not in METHOD_COLORS]
-    return PALETTE[others.index(method) % len(PALETTE)] if method in others else None
+
+def marker(method):
+    """The marker of ``method`` in every figure: 'o' for the fixed-colour methods, else MARKERS by its
+    place among the registered methods; with ``color`` a pair no other of the first 84 methods has."""
+    method = str(method)
+    if method in METHOD_COLORS:
+        return "o"
+    return MARKERS[_rank(method) % len(MARKERS)]
+
+
+def line_style(method):
+    """matplotlib keyword arguments (colour, marker every tenth of the line, open face) that draw
+    ``method``'s curves in a time-series figure."""
+    return dict(color=color(method), marker=marker(method), markevery=0.1, ms=3.5, mfc="none", mew=0.8)

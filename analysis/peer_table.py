@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 from .captions import fmt_error, worst_error
+from .figure import run_title
 from .io import SelectionError, drawable_invariants, open_results, scene_name, scene_options
 from .work_precision import reference_name, work_precision_data
 
@@ -32,7 +33,7 @@ def file_section(path):
     for (f, th), entry in data.items():
         lines += [
             "",
-            f"f = {f:g} Hz, θ0 = {th:g}°. Max axis error (rad) against {reference_name(ds)}:",
+            f"{run_title(ds, f, th)}. Max axis error (rad) against {reference_name(ds)}:",
             "",
             header,
             rule,
