@@ -84,7 +84,12 @@ def standard_figures(results_path, out_dir, names=None, log=print, ds=None, labe
     (or of its opened Dataset ``ds``: one member of a combined file) into ``out_dir`` (created);
     return the written paths.  One progress line per figure through ``log`` (and each figure's
     selection note, with ``label``, default the file's path, in its command)."""
-    ds = open_results(results_path) if ds is None else ds
+    if ds is None:  # read lazily: each figure reads the slabs it draws, never the whole file
+        ds = open_results(results_path, lazy=True)
+        try:
+            return standard_figures(results_path, out_dir, names, log, ds, label)
+        finally:
+            ds.close()
     which = "" if label is None else f" ({label})"
     label = str(results_path) if label is None else label
     out_dir = Path(out_dir)

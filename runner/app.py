@@ -59,12 +59,15 @@ COMPILE_SECONDS = 3.0  # rough JIT time of one method's kernel on a cold numba c
 # Loading one method's kernels from a warm numba cache, the checks and the file's open and close
 # (the "rest" of benchmarks/bench_pipeline.py: 0.5-0.9 s with 2 to 4 methods).
 LOAD_SECONDS = 0.2
-# The figure step (analysis/figures.py standard_figures, in this process after the sweep) loads the
-# whole results file and draws from it: the process's peak RSS is then ~ FIGURE_BASE_BYTES +
-# FIGURE_PER_BYTE x the file's size, fitted to sweeps with the default figures writing 41 MB, 273 MB
-# and 1.09 GB heavy-top files (453, 708, 1673 MB; docs/benchmarks.md).
-FIGURE_BASE_BYTES = 390e6
-FIGURE_PER_BYTE = 1.2
+# The figure step (analysis/figures.py standard_figures, in this process after the sweep) reads the
+# results file lazily (analysis/io.py open_results(lazy=True): the per-run variables in memory, the
+# samples slab by slab as each figure selects them), so its memory hardly follows the file: the
+# process's peak RSS is ~ FIGURE_BASE_BYTES + FIGURE_PER_BYTE x the file's size.  Measured
+# (docs/benchmarks.md): the 8000-run sweep writing a 1.09 GB file, figures included, 501 MB (it was
+# 1673 MB when the figures loaded the whole file), the 40000-run one writing 5.45 GB 518 MB;
+# gyrolab-plot standard alone 293 MB on the first file and 296 MB on the second.
+FIGURE_BASE_BYTES = 500e6
+FIGURE_PER_BYTE = 0.001
 
 
 def fail(message):
@@ -345,7 +348,7 @@ def dry_run(grid, out, chunks, threads, peak, state, cluster=None, figures=True)
     if figures:
         need, memory = figure_memory(grid), available_memory()
         print(
-            f"  figure step: peak memory ~{_size(need)} (the figures load the whole results file: "
+            f"  figure step: peak memory ~{_size(need)} (the figures read the results file slab by slab: "
             f"~{_size(FIGURE_BASE_BYTES)} + {FIGURE_PER_BYTE:g} x its {_size(grid.bytes_stored())})"
             + (
                 f"; more than the {_size(memory)} available: set output.figures=false and draw a selection "
