@@ -14,6 +14,7 @@ the journal keeps every chunk stored before.  Same kernels, same inputs: the
 worker's results are the same bits.
 """
 
+import contextlib
 import multiprocessing
 import os
 import signal
@@ -50,12 +51,43 @@ def warm_up(grid):
     warm_up_methods(grid.methods, grid.inputs(np.zeros(1, dtype=np.int64)), grid.threshold, blocks)
 
 
+COMPILE_NOTICE_SECONDS = 3.0  # a warm-up still running after this long is compiling: say so on screen
+
+
 def warm_up_methods(methods, inputs, threshold, blocks=False):
-    """``warm_up`` without a grid: ``inputs`` are one run's kernel inputs (``Grid.inputs``)."""
+    """``warm_up`` without a grid: ``inputs`` are one run's kernel inputs (``Grid.inputs``).  A kernel
+    that takes more than COMPILE_NOTICE_SECONDS (numba compiling it: its cache is cold) is named on
+    stdout while it compiles ("compiling block kernels of lie_poisson4 (3/5) ...") and when done."""
     bodies, omega0, q0, dt, _ = inputs
-    for method in methods:
-        for path in ("runs", "blocks") if blocks else ("runs",):
+    jobs = [(m, path) for m in methods for path in (("runs", "blocks") if blocks else ("runs",))]
+    for k, (method, path) in enumerate(jobs, 1):
+        what = f"{'block' if path == 'blocks' else 'run'} kernels of {method} ({k}/{len(jobs)})"
+        with _compile_notice(what):
             integrate(method, bodies, omega0, q0, dt, np.ones(1, dtype=np.int64), 2, threshold, path=path)
+
+
+@contextlib.contextmanager
+def _compile_notice(what, after=None):
+    """Print 'gyrolab: compiling WHAT ...' if the block takes longer than ``after`` s (default
+    COMPILE_NOTICE_SECONDS), then how long it took; nothing for a block that is quick (a warm cache)."""
+    import threading
+
+    start = time.perf_counter()
+    said = threading.Event()
+
+    def say():
+        said.set()
+        print(f"gyrolab: compiling {what} ...", flush=True)
+
+    timer = threading.Timer(COMPILE_NOTICE_SECONDS if after is None else after, say)
+    timer.daemon = True
+    timer.start()
+    try:
+        yield
+    finally:
+        timer.cancel()
+        if said.is_set():
+            print(f"gyrolab: compiled {what} in {time.perf_counter() - start:.0f} s", flush=True)
 
 
 def run_chunk(grid, runs, threads):
