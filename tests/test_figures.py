@@ -97,7 +97,9 @@ def overlaps(fig):
 
 
 def all_text(fig):
-    return " ".join(t.get_text() for t, _, _ in texts(fig)) + " " + " ".join(getattr(fig, "gyrolab_notes", []))
+    """Every text of ``fig`` and its notes, whitespace collapsed (a title wrapped to its figure reads the same)."""
+    text = " ".join(t.get_text() for t, _, _ in texts(fig)) + " " + " ".join(getattr(fig, "gyrolab_notes", []))
+    return " ".join(text.split())
 
 
 def drawn_or_listed(fig, key, value, ds=None):
