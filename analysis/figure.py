@@ -1,6 +1,7 @@
 """The record of one figure kind (the registry is analysis/figures.py), and the layout rules every
-figure shares: faceting (panels wrap into rows, bounded size), selections that say what they drew,
-and notes where curves coincide.
+figure shares: faceting (panels wrap into rows, bounded size), every method drawn (method groups of
+at most MAX_METHODS curves a panel), selections of f, θ0, dt that say what they drew, notes where
+curves coincide, panel titles in the problem's own terms, and the load a timing ran under.
 """
 
 import math

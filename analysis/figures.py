@@ -8,9 +8,12 @@ figures it wants in its config (``output.figures: [stability, energy]``;
 the results file, so ``gyrolab-plot standard FILE`` draws the same set.
 
 Any grid shape: each figure facets its panels (analysis/figure.py: rows of at
-most 3, bounded size) and, when a grid has more values than it can draw, draws
-a selection and says which, in the figure and on the command line, with the
-``gyrolab-plot KIND FILE key=...`` that draws the others.  A figure that fails
+most 3, bounded size) and draws every method it is given (past 8 curves a panel,
+the methods are split over more panels); when a grid has more f, θ0 or dt values
+than it can draw, it draws a selection and says which, in the figure and on the
+command line, with the ``gyrolab-plot KIND FILE key=...`` that draws the others.
+The figure step reads the file lazily (io.open_results(lazy=True)): its memory
+follows what is drawn, not the file's size.  A figure that fails
 is reported on stderr and skipped, so a sweep's results are never lost to a
 plotting problem; each figure drawn is reported on one progress line.
 """
