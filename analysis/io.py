@@ -185,13 +185,18 @@ def build_run_scene(ds, f, theta0):
 
 
 def scene_label(ds):
-    """Short text naming the scene and its non-default options, e.g. 'heavy_top (release)'."""
+    """Short text naming the scene and its body, e.g. 'heavy_top (release)', 'heavy_body (I = (15.23, 0.4688,
+    15.23) kg m², centre of mass (0, −1, 0) m)' (moments about the pivot, or the centre of mass of a free body)."""
     name = scene_name(ds)
     opts = scene_options(ds)
     extra = []
     if name == "heavy_top":
         init = opts.get("init", "release")
         extra.append(init if init != "precession" else f"precession, φ̇0 = {opts.get('phidot0', 0):g} rad/s")
+    elif all(k in opts for k in ("I1", "I2", "I3")):  # the body itself: its moments (and centre of mass)
+        extra.append("I = (" + ", ".join(f"{float(opts[k]):.4g}" for k in ("I1", "I2", "I3")) + ") kg m²")
+        if "com" in opts:
+            extra.append("centre of mass (" + ", ".join(f"{float(c):.4g}" for c in opts["com"]) + ") m")
     return f"{name} ({', '.join(extra)})" if extra else name
 
 
@@ -259,29 +264,60 @@ def save_figure(fig, out, formats=("png",)):
     return paths[0]
 
 
+# Hues away from the fixed colours above (and from each other): brown, pink, cyan, olive, navy, teal,
+# magenta, lime, maroon, salmon, tan, dark slate.
 PALETTE = (
     "#8c564b",
     "#e377c2",
     "#17becf",
     "#bcbd22",
     "#393b79",
-    "#637939",
-    "#8c6d31",
-    "#843c39",
-    "#7b4173",
-    "#3182bd",
-    "#e6550d",
-    "#31a354",
+    "#00796b",
+    "#ff00ff",
+    "#7fbc41",
+    "#7f0000",
+    "#fa8072",
+    "#c8a86b",
+    "#2f4f4f",
 )
+# Markers paired with PALETTE: 7 is prime to PALETTE's 12, so the k-th other method's (colour, marker)
+# = (PALETTE[k % 12], MARKERS[k % 7]) repeats only after 84 methods, and two methods that share a
+# colour (k and k + 12) never share a marker.
+MARKERS = ("o", "s", "^", "D", "v", "P", "X")
+
+
+def _rank(method):
+    """The place of ``method`` among the methods without a fixed colour: its registry order, or for a
+    name the registry does not know (a peer, a file from another version), a stable hash after them."""
+    import zlib
+
+    from ..kernels.registry import METHODS
+
+    others = [m for m in METHODS if m not in METHOD_COLORS]
+    if method in others:
+        return others.index(method)
+    return len(others) + zlib.crc32(method.encode()) % (len(PALETTE) * len(MARKERS))
 
 
 def color(method):
     """The colour of ``method`` in every figure: fixed for the first methods and peers, else from
-    PALETTE by its place among the registered methods."""
+    PALETTE by its place among the registered methods (a new method needs no line here)."""
     method = str(method)
     if method in METHOD_COLORS:
         return METHOD_COLORS[method]
-    from ..kernels.registry import METHODS
+    return PALETTE[_rank(method) % len(PALETTE)]
 
-    others = [m for m in METHODS if m not in METHOD_COLORS]
-    return PALETTE[others.index(method) % len(PALETTE)] if method in others else None
+
+def marker(method):
+    """The marker of ``method`` in every figure: 'o' for the fixed-colour methods, else MARKERS by its
+    place among the registered methods; with ``color`` a pair no other of the first 84 methods has."""
+    method = str(method)
+    if method in METHOD_COLORS:
+        return "o"
+    return MARKERS[_rank(method) % len(MARKERS)]
+
+
+def line_style(method):
+    """matplotlib keyword arguments (colour, marker every tenth of the line, open face) that draw
+    ``method``'s curves in a time-series figure."""
+    return dict(color=color(method), marker=marker(method), markevery=0.1, ms=3.5, mfc="none", mew=0.8)

@@ -48,7 +48,7 @@ from omegaconf.errors import OmegaConfBaseException
 from ..results.layout import RAW_PER_SAMPLE, scene_attrs
 from ..safe_files import UnsafePathError, check_replaceable
 from .config import ConfigError, config_hash, register_configs
-from .execute import BackendError
+from .execute import BackendError, compile_estimate
 from .grid import build_grid, estimate_seconds, estimate_writing_seconds, plan_chunks
 from .store import Journal, OutputLock, assemble, partial_dir, remove_stale_temporaries
 
@@ -56,16 +56,18 @@ EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT; SIGTERM gives 143, SIGHUP 129
 HANDLED_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-COMPILE_SECONDS = 3.0  # rough JIT time of one method's kernel on a cold numba cache
 # Loading one method's kernels from a warm numba cache, the checks and the file's open and close
 # (the "rest" of benchmarks/bench_pipeline.py: 0.5-0.9 s with 2 to 4 methods).
 LOAD_SECONDS = 0.2
-# The figure step (analysis/figures/registry.py standard_figures, in this process after the sweep) loads the
-# whole results file and draws from it: the process's peak RSS is then ~ FIGURE_BASE_BYTES +
-# FIGURE_PER_BYTE x the file's size, fitted to sweeps with the default figures writing 41 MB, 273 MB
-# and 1.09 GB heavy-top files (453, 708, 1673 MB; docs/benchmarks.md).
-FIGURE_BASE_BYTES = 390e6
-FIGURE_PER_BYTE = 1.2
+# The figure step (analysis/figures/registry.py standard_figures, in this process after the sweep) reads the
+# results file lazily (analysis/io.py open_results(lazy=True): the per-run variables in memory, the
+# samples slab by slab as each figure selects them), so its memory hardly follows the file: the
+# process's peak RSS is ~ FIGURE_BASE_BYTES + FIGURE_PER_BYTE x the file's size.  Measured
+# (docs/benchmarks.md): the 8000-run sweep writing a 1.09 GB file, figures included, 501 MB (it was
+# 1673 MB when the figures loaded the whole file), the 40000-run one writing 5.45 GB 518 MB;
+# gyrolab-plot standard alone 293 MB on the first file and 296 MB on the second.
+FIGURE_BASE_BYTES = 500e6
+FIGURE_PER_BYTE = 0.001
 
 
 def fail(message):
@@ -364,16 +366,22 @@ def dry_run(grid, out, chunks, threads, peak, state, cluster=None, figures=True)
     print(f"gyrolab dry run: {describe(grid)}")
     print(f"  steps per run: {steps.min():.3g} to {steps.max():.3g}; {len(chunks)} chunks on {where}")
     writing, loading = estimate_writing_seconds(grid), LOAD_SECONDS * len(grid.methods)
+    compiling, cold = compile_estimate(grid)  # from numba's cache as it is now, per method and path
     print(
-        f"  estimated time: {seconds + writing + loading:.3g} s to the results file ({seconds:.3g} s integration, "
-        f"{writing:.3g} s journal and assembly, {loading:.2g} s loading kernels; + up to "
-        f"~{COMPILE_SECONDS * len(grid.methods):.0f} s of JIT on a cold numba cache; figures extra)"
+        f"  estimated time: {seconds + writing + loading + compiling:.3g} s to the results file "
+        f"({seconds:.3g} s integration, {writing:.3g} s journal and assembly, {loading:.2g} s loading kernels, "
+        f"{compiling:.0f} s compiling; figures extra)"
     )
+    if cold:
+        names = ", ".join(f"{m} ({p})" for m, p in cold)
+        print(f"  compiling: {len(cold)} kernels not in the numba cache: {names}")
+    else:
+        print("  compiling: none (every kernel is in the numba cache)")
     print(f"  peak memory: ~{_size(peak)} of samples per chunk (+ ~0.3 GB for Python, numba, xarray)")
     if figures:
         need, memory = figure_memory(grid), available_memory()
         print(
-            f"  figure step: peak memory ~{_size(need)} (the figures load the whole results file: "
+            f"  figure step: peak memory ~{_size(need)} (the figures read the results file slab by slab: "
             f"~{_size(FIGURE_BASE_BYTES)} + {FIGURE_PER_BYTE:g} x its {_size(grid.bytes_stored())})"
             + (
                 f"; more than the {_size(memory)} available: set output.figures=false and draw a selection "

@@ -14,6 +14,7 @@ the journal keeps every chunk stored before.  Same kernels, same inputs: the
 worker's results are the same bits.
 """
 
+import contextlib
 import multiprocessing
 import os
 import signal
@@ -50,12 +51,82 @@ def warm_up(grid):
     warm_up_methods(grid.methods, grid.inputs(np.zeros(1, dtype=np.int64)), grid.threshold, blocks)
 
 
+COMPILE_NOTICE_SECONDS = 3.0  # a warm-up still running after this long is compiling: say so on screen
+# CPU seconds numba takes to compile one method's kernel of each path on a cold cache, measured with a
+# fresh NUMBA_CACHE_DIR on lie_poisson4 and the heavy top (the first kernel of a process also compiles
+# the helpers every method shares): run kernels 9.1 s, block kernels 24.4 s more (docs/benchmarks.md).
+# Compiling is one thread: on an idle machine its wall time is its CPU time.
+COMPILE_SECONDS = {"runs": 10.0, "driven": 10.0, "blocks": 25.0}
+KERNEL_ENTRIES = {"runs": "run_batch", "driven": "run_batch_driven", "blocks": "run_blocks"}
+
+
+def warm_up_paths(grid):
+    """[(method, path)] of the kernels ``warm_up`` compiles or loads for ``grid``: 'runs' ('driven' for a
+    driven body), and 'blocks' for a method that has them when some chunk can reach MIN_BLOCK_RUNS."""
+    from ..kernels.registry import get_method, uses_blocks
+
+    blocks = grid.n_runs // len(grid.methods) >= MIN_BLOCK_RUNS and not grid.driven
+    out = []
+    for method in grid.methods:
+        out.append((method, "driven" if grid.driven else "runs"))
+        if blocks and uses_blocks(get_method(method)):
+            out.append((method, "blocks"))
+    return out
+
+
+def kernel_cached(method, path):
+    """True when numba's cache for this source tree holds ``method``'s kernel of ``path`` (its index
+    file exists and matches the source file: what numba checks before loading instead of compiling)."""
+    from ..kernels.registry import get_method
+
+    dispatcher = getattr(get_method(method), KERNEL_ENTRIES[path], None)
+    try:
+        return bool(dispatcher._cache._cache_file._load_index())
+    except Exception:  # no dispatcher, no cache locator, an unreadable index: numba would compile
+        return False
+
+
+def compile_estimate(grid):
+    """(seconds, [(method, path)] cold): the CPU seconds of compiling the kernels of ``grid`` that
+    numba's cache does not hold (COMPILE_SECONDS each), and which they are."""
+    cold = [(m, p) for m, p in warm_up_paths(grid) if not kernel_cached(m, p)]
+    return sum(COMPILE_SECONDS[p] for _, p in cold), cold
+
+
 def warm_up_methods(methods, inputs, threshold, blocks=False):
-    """``warm_up`` without a grid: ``inputs`` are one run's kernel inputs (``Grid.inputs``)."""
+    """``warm_up`` without a grid: ``inputs`` are one run's kernel inputs (``Grid.inputs``).  A kernel
+    that takes more than COMPILE_NOTICE_SECONDS (numba compiling it: its cache is cold) is named on
+    stdout while it compiles ("compiling block kernels of lie_poisson4 (3/5) ...") and when done."""
     bodies, omega0, q0, dt, _ = inputs
-    for method in methods:
-        for path in ("runs", "blocks") if blocks else ("runs",):
+    jobs = [(m, path) for m in methods for path in (("runs", "blocks") if blocks else ("runs",))]
+    for k, (method, path) in enumerate(jobs, 1):
+        what = f"{'block' if path == 'blocks' else 'run'} kernels of {method} ({k}/{len(jobs)})"
+        with _compile_notice(what):
             integrate(method, bodies, omega0, q0, dt, np.ones(1, dtype=np.int64), 2, threshold, path=path)
+
+
+@contextlib.contextmanager
+def _compile_notice(what, after=None):
+    """Print 'gyrolab: compiling WHAT ...' if the block takes longer than ``after`` s (default
+    COMPILE_NOTICE_SECONDS), then how long it took; nothing for a block that is quick (a warm cache)."""
+    import threading
+
+    start = time.perf_counter()
+    said = threading.Event()
+
+    def say():
+        said.set()
+        print(f"gyrolab: compiling {what} ...", flush=True)
+
+    timer = threading.Timer(COMPILE_NOTICE_SECONDS if after is None else after, say)
+    timer.daemon = True
+    timer.start()
+    try:
+        yield
+    finally:
+        timer.cancel()
+        if said.is_set():
+            print(f"gyrolab: compiled {what} in {time.perf_counter() - start:.0f} s", flush=True)
 
 
 def run_chunk(grid, runs, threads):

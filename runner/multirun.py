@@ -8,6 +8,9 @@ grid; bad input exits with status 2 and one line naming the job, the key and
 the value, before any directory is made.
 """
 
+import re
+from pathlib import Path
+
 from hydra.core.global_hydra import GlobalHydra
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.errors import HydraException
@@ -42,3 +45,21 @@ class PrecheckCallback(Callback):
                 build_grid(cfg)
             except ConfigError as err:
                 fail(f"{err} (in job {' '.join(overrides)})")
+
+    def on_multirun_end(self, config, **kwargs):
+        """A dry run leaves nothing behind: Hydra wrote the sweep's multirun.yaml before any job (each
+        job only estimated and wrote nothing); it goes, and so does the sweep directory once empty (and
+        Hydra's default ``multirun/<YYYY-MM-DD>`` above it, each once empty)."""
+        if not (config.get("runner") or {}).get("dry_run"):
+            return
+        sweep = Path(str(config.hydra.sweep.dir))
+        (sweep / "multirun.yaml").unlink(missing_ok=True)
+        for directory in (sweep, sweep.parent, sweep.parent.parent):
+            if directory is sweep.parent and not re.fullmatch(r"\d{4}-\d{2}-\d{2}", directory.name):
+                break
+            if directory is sweep.parent.parent and directory.name != "multirun":
+                break
+            try:
+                directory.rmdir()  # only an empty directory: anything else there is not ours to remove
+            except OSError:
+                break

@@ -302,3 +302,23 @@ def test_a_config_attr_that_is_not_a_gyrolab_config_is_compared_as_text(tmp_path
     assert compare_files(a, b).ok and not compare_files(a, b).configs
     report = compare_files(a, c)
     assert report.ok and any("config" in note for note in report.configs), report.text()
+
+
+def test_a_combined_members_provenance_comes_from_its_source_variables(base, tmp_path):
+    from gyrolab.analysis.files.combine import main as combine_main
+
+    a = write(base, tmp_path / "top.h5")
+    other = assemble("free_symmetric")
+    other.attrs.update(gyrolab_version="0.3.0", git_commit="1" * 40)
+    b = write(other, tmp_path / "free.h5")
+    combined = tmp_path / "combined.h5"
+    assert combine_main([str(a), str(b), "-o", str(combined)]) in (0, None)
+    report = compare_files(combined, a, members=({"scene": "heavy_top"}, None))
+    assert report.ok
+    assert report.headers[0].startswith("gyrolab 0.1.0, git 0000000000")  # the heavy top's source, not "?"
+    assert "created 2026-01-01T00:00:00+00:00" in report.headers[0]
+    assert not [v for v in report.versions if v.startswith("gyrolab_version")], report.versions
+    assert "numba_version recorded only in B" in report.versions  # combine keeps no library versions
+    assert not [c for c in report.configs if "recorded only" in c], report.configs
+    free = compare_files(combined, b, members=({"scene": "free_symmetric"}, None))
+    assert free.headers[0].startswith("gyrolab 0.3.0, git 1111111111")  # each member its own source

@@ -97,19 +97,39 @@ def test_dry_run_of_the_default_study_estimates_and_writes_nothing(tmp_path):
     assert "5 method x 3 f x 1 theta0 x 3 dt = 45 runs" in out
     for word in ("steps", "estimated time", "peak memory", "output"):
         assert word in out
-    # the figures the study draws load the whole file: their memory is stated (runner/app.py figure_memory)
-    assert "figure step: peak memory ~" in out and "+ 1.2 x its" in out
+    # the figures the study draws read the file slab by slab: their memory is stated (runner/app.py figure_memory)
+    assert "figure step: peak memory ~" in out and "+ 0.001 x its" in out
     assert list(tmp_path.iterdir()) == []
 
 
+def test_dry_run_counts_compiling_from_the_numba_cache(tmp_path):
+    """An empty numba cache: every kernel the sweep warms up is named and its compile time counted
+    (runner/execute.py COMPILE_SECONDS: 10 s per method's run kernels); the dry run compiles nothing."""
+    empty = tmp_path / "cache"
+    result = gyrolab("runner.dry_run=true", cwd=tmp_path, env=environment(NUMBA_CACHE_DIR=empty))
+    assert_ok(result)
+    methods = ("seed_next", "seed_prev", "rk4", "lie_poisson", "lie_poisson4")  # the default study: no blocks
+    assert f"compiling: 5 kernels not in the numba cache: {', '.join(f'{m} (runs)' for m in methods)}" in result.stdout
+    assert ", 50 s compiling;" in result.stdout
+    assert not list(empty.rglob("*.nbi"))  # estimated, not compiled
+
+
+def test_dry_run_of_a_multirun_leaves_nothing_behind(tmp_path):
+    result = gyrolab("-m", "scene=heavy_top,free_asymmetric", "sweep.f=[5]", "runner.dry_run=true", cwd=tmp_path)
+    assert_ok(result)
+    assert result.stdout.count("gyrolab dry run:") == 2 and "skipped" not in result.stderr
+    assert list(tmp_path.iterdir()) == []  # Hydra's multirun/<date>/<time>/multirun.yaml removed with its dirs
+
+
 def test_dry_run_figure_memory_follows_the_file_and_the_setting(tmp_path):
-    """The model fitted in docs/benchmarks.md: 453, 708 and 1673 MB measured for 41 MB, 273 MB and
-    1.09 GB files, each within 10 %; no figures, no figure step."""
+    """The model of docs/benchmarks.md against the sweeps' peak RSS with their figures: 501 MB for the
+    8000-run sweep's 1.09 GB file, 518 MB for the 40000-run sweep's 5.45 GB one, each within 10 %;
+    no figures, no figure step."""
     from types import SimpleNamespace
 
     from gyrolab.runner.app import figure_memory
 
-    for file_bytes, measured in ((41e6, 453e6), (272.5e6, 708e6), (1.09e9, 1673e6)):
+    for file_bytes, measured in ((1.09e9, 501e6), (5.45e9, 518e6)):
         assert figure_memory(SimpleNamespace(bytes_stored=lambda b=file_bytes: b)) == pytest.approx(measured, rel=0.1)
     result = gyrolab("runner.dry_run=true", "output.figures=false", cwd=tmp_path)
     assert_ok(result)

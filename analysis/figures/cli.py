@@ -158,13 +158,18 @@ def run(args, notes=None):
         if grid:
             raise SelectionError(f"{' '.join(args.selection)}: standard takes only scene=NAME or job=K")
         out = Path(args.output or Path(args.file).parent / "figures")
-        members = open_members(args.file, member)  # a clear error before anything is written
+        # a clear error before anything is written; read lazily: memory follows what is drawn, not the file
+        members = open_members(args.file, member, lazy=True)
         paths, used = [], set()
         log = lambda line: print(line.replace("gyrolab:", "gyrolab-plot:", 1))  # noqa: E731
-        for k, (label, ds) in enumerate(members):
-            where = out if label is None or len(members) == 1 else inside(out, out / _member_tag(ds, k, used))
-            source = args.file if label is None else f"{args.file} {ds.attrs['combined_member']}"
-            paths += standard_figures(args.file, where, log=log, ds=ds, label=source)
+        try:
+            for k, (label, ds) in enumerate(members):
+                where = out if label is None or len(members) == 1 else inside(out, out / _member_tag(ds, k, used))
+                source = args.file if label is None else f"{args.file} {ds.attrs['combined_member']}"
+                paths += standard_figures(args.file, where, log=log, ds=ds, label=source)
+        finally:
+            for _, ds in members:
+                ds.close()
         if not paths:  # every figure failed (each said why on stderr): not a success
             raise SelectionError(f"FILE={args.file}: no figure could be drawn from it")
         return paths
@@ -177,12 +182,23 @@ def run(args, notes=None):
         return seed_figures(args.file, out, formats=args.format)
     figure = FIGURES[kind]  # argparse has already refused anything else
     member, sel = _split_member(args.selection)
-    members = open_members(args.file, member)
+    members = open_members(args.file, member, lazy=True)
     default = Path(args.file).with_name(f"{kind.replace('-', '_')}.png")
     out = Path(args.output) if args.output else default
     options = {
         flag.lstrip("-").replace("-", "_"): getattr(args, flag.lstrip("-").replace("-", "_")) for flag in figure.options
     }
+    try:
+        return _write_members(figure, members, args, out, sel, options, notes)
+    finally:
+        for _, ds in members:
+            ds.close()
+
+
+def _write_members(figure, members, args, out, sel, options, notes):
+    """``figure`` of each (label, Dataset) of ``members`` written; the paths (see ``run``)."""
+    from ..io import SelectionError
+
     paths, used = [], set()
     for k, (label, ds) in enumerate(members):
         drawn = []

@@ -19,17 +19,31 @@ from ..io import (
     DT_STYLES,
     FLOOR,
     QUANTITY_LABELS,
-    color,
     drawable_invariants,
     fmt_dt,
     invariant_error,
+    line_style,
     missing_variable_error,
     relative_error,
     scene_label,
     scene_name,
     select,
 )
-from .record import add_note, choose, coincidence_text, coincident, legend_below, panel_size, subplots, suptitle
+from .record import (
+    add_note,
+    choose,
+    coincidence_text,
+    coincident,
+    diverged_text,
+    fit_text,
+    legend_below,
+    method_groups,
+    method_handles,
+    panel_size,
+    run_title,
+    subplots,
+    suptitle,
+)
 
 
 def drift_table(ds, quantity="energy", sel=None):
@@ -65,10 +79,10 @@ def _check_quantity(ds, quantity):
         )
 
 
-def _series(sub, quantity, f, th, envelope):
+def _series(sub, quantity, f, th, envelope, methods):
     """{(method, dt): error series} of one panel; the running maximum when ``envelope``."""
     out = {}
-    for m in sub.integrator.values:
+    for m in methods:
         for dt in sub.dt.values:
             err = invariant_error(sub.sel({"integrator": m, "f": f, "theta0": th, "dt": dt}), quantity)
             out[(str(m), float(dt))] = np.fmax.accumulate(err) if envelope else err
@@ -87,34 +101,38 @@ def _coincidences(series):
     return [sorted(g, key=order.index) for g in common]
 
 
-def _panel(ax, sub, quantity, f, th, envelope=True):
+def _panel(ax, sub, quantity, f, th, envelope=True, methods=None):
+    """One panel: the drift of ``quantity`` of ``methods`` (default: all) at (f, θ0), colour and marker =
+    method, line style = dt; a run that stopped ends in an ×."""
     time = sub.time.values
     t_plot = np.where(time > 0, time, np.nan)  # log-x friendly; t=0 error is 0 by definition
-    series = _series(sub, quantity, f, th, envelope)
+    methods = [str(m) for m in sub.integrator.values] if methods is None else methods
+    series = _series(sub, quantity, f, th, envelope, methods)
     any_zero = False
     for (m, dt), err in series.items():
         k = list(sub.dt.values).index(dt)
         run = sub.sel({"integrator": m, "f": f, "theta0": th, "dt": dt})
         any_zero |= bool(np.all(err[np.isfinite(err)] == 0))
         label = f"{m}" + (f", {fmt_dt(dt)}" if sub.dt.size > 1 else "")
+        style = line_style(m)
         if int(run.status) != 0:
             label += " (diverged)"
             last = np.flatnonzero(np.isfinite(err))
             if last.size:
-                ax.plot(t_plot[last[-1]], max(err[last[-1]], FLOOR), "x", color=color(m), ms=7)
-        ax.plot(t_plot, np.maximum(err, FLOOR), DT_STYLES[k % 4], color=color(m), lw=1.0, label=label)
+                ax.plot(t_plot[last[-1]], max(err[last[-1]], FLOOR), "x", color=style["color"], ms=7)
+        ax.plot(t_plot, np.maximum(err, FLOOR), DT_STYLES[k % 4], lw=1.0, label=label, **style)
     ax.set_yscale("log")
     ax.set_xlabel("time t (s)")
     sym = QUANTITY_LABELS.get(quantity, quantity)
     ax.set_ylabel(f"|Δ{sym}| / |{sym}(0)|")
-    ax.set_title(f"f = {f:g} Hz, θ0 = {th:g}°", fontsize=9)
+    ax.set_title(run_title(sub, f, th), fontsize=9)
     ax.grid(alpha=0.3, which="major")
     groups = _coincidences(series)
-    if groups:
+    if groups:  # wrapped to the panel's width: a box wider than its panel ran into the next one
         ax.text(
             0.02,
             0.97,
-            coincidence_text(groups, "same curve"),
+            fit_text(coincidence_text(groups, "same curve"), ax, 7),
             transform=ax.transAxes,
             ha="left",
             va="top",
@@ -153,10 +171,18 @@ def drift_figure(ds, quantity="energy", sel=None, envelope=True):
         raise ValueError(f"quantity={quantity}: choose from {', '.join(QUANTITY_LABELS)}")
     _check_quantity(ds, quantity)
     sub, note = choose(select(ds, sel), "energy" + (f" --quantity {quantity}" if quantity != "energy" else ""))
+    groups = method_groups(sub.integrator.values)
     panels = [(f, th) for f in sub.f.values for th in sub.theta0.values]
-    fig, axes = subplots(len(panels), width=4.6, height=3.6, sharey=True)
-    for ax, (f, th) in zip(axes, panels):
-        _panel(ax, sub, quantity, f, th, envelope)
+    if len(groups) == 1:  # panels wrap into rows of 3
+        fig, axes = subplots(len(panels), width=4.6, height=3.6, sharey=True)
+        cells = [(ax, f, th, groups[0]) for ax, (f, th) in zip(axes, panels)]
+    else:  # one row per (f, θ0), one column per group of methods: every method drawn
+        rows, cols = len(panels), len(groups)
+        fig, grid = plt.subplots(rows, cols, figsize=panel_size(rows, cols, 4.2, 3.0), squeeze=False, sharey=True)
+        cells = [(grid[r, c], f, th, g) for r, (f, th) in enumerate(panels) for c, g in enumerate(groups)]
+        axes = list(grid.ravel())
+    for ax, f, th, methods in cells:
+        _panel(ax, sub, quantity, f, th, envelope, methods)
     _limits(axes)
     sym = QUANTITY_LABELS[quantity]
     suptitle(
@@ -171,7 +197,7 @@ def drift_figure(ds, quantity="energy", sel=None, envelope=True):
     )
     fig.tight_layout()
     add_note(fig, note)
-    handles, labels = axes[0].get_legend_handles_labels()
+    handles, labels = method_handles([m for g in groups for m in g], list(sub.dt.values), diverged_text(sub))
     legend_below(fig, handles, labels, ncol=min(len(labels), 5))
     return fig
 
@@ -188,9 +214,12 @@ def invariants_figure(ds, sel=None, envelope=True):
         raise ValueError(f"the scene {scene_name(ds)} declares no conserved quantity: no invariant to draw")
     if not quantities:
         raise ValueError("the file's scene declares no invariant that its variables hold")
-    sub, note = choose(select(ds, sel), "invariants", max_panels=4)
+    # one row per invariant and group of methods, one column per (f, θ0): at most 5 columns
+    n_groups = len(method_groups(ds.integrator.values))
+    sub, note = choose(select(ds, sel), "invariants", max_panels=5, rows_each=len(quantities))
+    groups = method_groups(sub.integrator.values)
     panels = [(f, th) for f in sub.f.values for th in sub.theta0.values]
-    exact, rows = [], []
+    exact, quantities_drawn = [], []
     for q in quantities:
         errs = [
             invariant_error(sub.sel({"integrator": m, "f": f, "theta0": th, "dt": dt}), q)
@@ -198,21 +227,25 @@ def invariants_figure(ds, sel=None, envelope=True):
             for f, th in panels
             for dt in sub.dt.values
         ]
-        (exact if all(np.all(e[np.isfinite(e)] == 0) for e in errs) else rows).append(q)
-    rows = rows or quantities[:1]
+        (exact if all(np.all(e[np.isfinite(e)] == 0) for e in errs) else quantities_drawn).append(q)
+    quantities_drawn = quantities_drawn or quantities[:1]
+    rows = [(q, g) for q in quantities_drawn for g in range(n_groups)]
     width, height = panel_size(len(rows), len(panels), 4.4, 2.9)
     fig, axes = plt.subplots(len(rows), len(panels), figsize=(width, height), squeeze=False, sharex=True)
-    for r, q in enumerate(rows):
+    for r, (q, g) in enumerate(rows):
         for c, (f, th) in enumerate(panels):
-            _panel(axes[r, c], sub, q, f, th, envelope)
+            _panel(axes[r, c], sub, q, f, th, envelope, groups[g])
             if r < len(rows) - 1:
                 axes[r, c].set_xlabel("")
             if r > 0:
                 axes[r, c].set_title("")
             if c > 0:
                 axes[r, c].set_ylabel("")
-        _limits(list(axes[r]))
-    names = ", ".join(QUANTITY_LABELS.get(q, q) for q in rows)
+            elif n_groups > 1:
+                axes[r, c].set_ylabel(axes[r, c].get_ylabel() + f"\nmethods {g + 1} of {n_groups}", fontsize=8)
+    for q in quantities_drawn:  # one y range per invariant, over all its rows
+        _limits([ax for r, (q2, _) in enumerate(rows) if q2 == q for ax in axes[r]])
+    names = ", ".join(QUANTITY_LABELS.get(q, q) for q in quantities_drawn)
     suptitle(
         fig,
         f"Invariants {names}: relative drift (running maximum), {scene_label(sub)}, {float(sub.time[-1]):g} s",
@@ -225,7 +258,7 @@ def invariants_figure(ds, sel=None, envelope=True):
             ", ".join(QUANTITY_LABELS.get(q, q) for q in exact) + ": kept exactly (error 0) by every run drawn; no row",
         )
     add_note(fig, note)
-    handles, labels = axes[0, 0].get_legend_handles_labels()
+    handles, labels = method_handles([m for g in groups for m in g], list(sub.dt.values), diverged_text(sub))
     legend_below(fig, handles, labels, ncol=min(len(labels), 5))
     return fig
 

@@ -15,16 +15,20 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.gridspec import GridSpec
 
-from ..io import DT_STYLES, color, fmt_dt, pick, scene_label, select
+from ..io import DT_STYLES, color, fmt_dt, line_style, pick, scene_label, select
 from . import yardstick
 from .record import (
     add_note,
     choose,
     coincidence_text,
     coincident,
+    diverged_text,
     fixed_note,
     legend_below,
+    method_groups,
+    method_handles,
     panel_size,
+    run_title,
     subplots,
     suptitle,
 )
@@ -49,11 +53,11 @@ def _windows(time, period, n_periods):
     return [(t0, t0 + width, "start of the run"), (t1 - width, t1, "end of the run")]
 
 
-def _theta_panel(ax, sub, f, th, lo, hi, exact_t, exact_theta, nut, flips):
+def _theta_panel(ax, sub, f, th, lo, hi, exact_t, exact_theta, nut, flips, methods):
     time = sub.time.values
     mask = (time >= lo - 1e-12) & (time <= hi + 1e-12)
     series = {}
-    for m in sub.integrator.values:
+    for m in methods:
         for k, dt in enumerate(sub.dt.values):
             run = sub.sel({"integrator": m, "f": f, "theta0": th, "dt": dt})
             label = f"{m}" + (f", {fmt_dt(dt)}" if sub.dt.size > 1 else "")
@@ -61,7 +65,7 @@ def _theta_panel(ax, sub, f, th, lo, hi, exact_t, exact_theta, nut, flips):
                 label += " (diverged)"
             y = np.degrees(run.theta.values[mask])
             series[label] = y
-            ax.plot(time[mask], y, DT_STYLES[k % 4], color=color(m), lw=1.1, label=label)
+            ax.plot(time[mask], y, DT_STYLES[k % 4], lw=1.1, label=label, **line_style(m))
     if exact_theta is not None:
         keep = (exact_t >= lo - 1e-12) & (exact_t <= hi + 1e-12)
         ax.plot(exact_t[keep], exact_theta[keep], **EXACT_STYLE, label=yardstick.label(sub))
@@ -112,16 +116,20 @@ def theta_figure(ds, sel=None, n_periods=3.0):
     if sel.get("dt") is None:
         sel["dt"] = [float(ds.dt.values.min())]
         fixed = fixed_note(ds, "nutation", {"dt": [ds.dt.values.min()]})
-    sub, note = choose(select(ds, sel), "nutation", max_dt=2, max_panels=6)
-    rows = [(f, th) for f in sub.f.values for th in sub.theta0.values]
+    picked = select(ds, sel)
+    n_groups = len(method_groups(picked.integrator.values))
+    sub, note = choose(picked, "nutation", max_dt=2, max_panels=max(1, 6 // n_groups))
+    groups = method_groups(sub.integrator.values)
+    # one row per (f, θ0) and group of methods: every method drawn, at most MAX_METHODS curves a panel
+    rows = [(f, th, g) for f in sub.f.values for th in sub.theta0.values for g in range(len(groups))]
     time = sub.time.values
-    periods = [yardstick.period(sub, f, th) for f, th in rows]
+    periods = [yardstick.period(sub, f, th) for f, th, _ in rows]
     windows = [_windows(time, p, n_periods) for p in periods]
     ncols = max(len(w) for w in windows)
     fig = plt.figure(figsize=panel_size(len(rows), ncols, 6.0 if ncols == 1 else 5.2, 2.7, extra_w=1.0))
     grid = GridSpec(len(rows), ncols, figure=fig)
     first = None
-    for r, ((f, th), wins, period) in enumerate(zip(rows, windows, periods)):
+    for r, ((f, th, g), wins, period) in enumerate(zip(rows, windows, periods)):
         nut = yardstick.nutation(sub, f, th)
         exact = yardstick.exact_axis(sub, f, th, time)
         exact_theta = None if exact is None else np.degrees(np.arccos(np.clip(exact[:, 2], -1, 1)))
@@ -129,11 +137,12 @@ def theta_figure(ds, sel=None, n_periods=3.0):
         for c, (lo, hi, what) in enumerate(wins):
             ax = fig.add_subplot(grid[r, c] if len(wins) == ncols else grid[r, :])
             first = first or ax
-            _theta_panel(ax, sub, f, th, lo, hi, time, exact_theta, nut, flips)
+            _theta_panel(ax, sub, f, th, lo, hi, time, exact_theta, nut, flips, groups[g])
             ax.set_xlabel("time t (s)")
-            ax.set_ylabel("tilt θ (deg)" if c == 0 else "")
+            group = f"\nmethods {g + 1} of {len(groups)}" if len(groups) > 1 else ""
+            ax.set_ylabel("tilt θ (deg)" + group if c == 0 else "", fontsize=9 if group else None)
             ax.set_title(
-                f"f = {f:g} Hz, θ0 = {th:g}°" + (f": {what.split(' of')[0]}" if len(wins) > 1 else "")
+                run_title(sub, f, th) + (f": {what.split(' of')[0]}" if len(wins) > 1 else "")
                 if c == 0
                 else what.split(" of")[0],
                 fontsize=9,
@@ -141,11 +150,15 @@ def theta_figure(ds, sel=None, n_periods=3.0):
             )
             if c == 0:
                 ax.set_title(_yardstick_text(sub, f, th, nut, period), fontsize=7.5, loc="right")
-    handles, labels = first.get_legend_handles_labels()
-    if yardstick.nutation(sub, *rows[0]) is not None:
+    handles, labels = method_handles([m for g in groups for m in g], list(sub.dt.values), diverged_text(sub))
+    exact_labels = [lab for lab in first.get_legend_handles_labels()[1] if lab == yardstick.label(sub)]
+    if exact_labels:
+        handles.append(plt.Line2D([], [], **EXACT_STYLE))
+        labels.append(exact_labels[0])
+    if yardstick.nutation(sub, *rows[0][:2]) is not None:
         handles.append(plt.Line2D([], [], **EXACT_STYLE))
         labels.append("closed-form θ_min, θ_max")
-    if any(yardstick.flip_times(sub, f, th, time) for f, th in rows):
+    if any(yardstick.flip_times(sub, f, th, time) for f, th, _ in rows):
         handles.append(plt.Line2D([], [], color="0.45", ls=":", lw=0.9))
         labels.append("exact flip times (ω3 changes sign)")
     dts = ", ".join(fmt_dt(d) for d in sub.dt.values)
@@ -269,7 +282,7 @@ def tip_locus_figure(ds, method=None, f=None, theta0=None, dt=None, t_max=None):
         ax.set_aspect("equal")
         ax.set_xlabel("tip x (unit axis, lab)")
         ax.set_ylabel("tip y (unit axis, lab)")
-        txt = f"f = {fv:g} Hz, θ0 = {th:g}°, 0 ≤ t ≤ {time[mask][-1]:.2g} s"
+        txt = f"{run_title(sub, fv, th)}, 0 ≤ t ≤ {time[mask][-1]:.2g} s"
         if int(run.status) != 0:
             txt += " (diverged)"
         ax.set_title(txt, fontsize=8.5)

@@ -1,6 +1,7 @@
 """The record of one figure kind (the registry is analysis/figures/registry.py), and the layout rules every
-figure shares: faceting (panels wrap into rows, bounded size), selections that say what they drew,
-and notes where curves coincide.
+figure shares: faceting (panels wrap into rows, bounded size), every method drawn (method groups of
+at most MAX_METHODS curves a panel), selections of f, θ0, dt that say what they drew, notes where
+curves coincide, panel titles in the problem's own terms, and the load a timing ran under.
 """
 
 import math
@@ -13,7 +14,8 @@ from ..io import absent_variable, missing_variable_error, save_figure
 
 MAX_COLS = 3  # panels per row before wrapping
 MAX_PANELS = 9  # panels drawn before values are selected (and the figure says which)
-MAX_METHODS = 8  # lines of different methods in one panel before methods are selected
+MAX_METHODS = 8  # curves of different methods in one panel; more methods are faceted into more panels
+MAX_CELLS = 40  # panels in one figure (panels per method group × method groups): past it, f and θ0 are selected
 MAX_DT = 3  # line styles (dt values) in one panel
 MAX_WIDTH, MAX_HEIGHT = 15.5, 15.0  # inches (× 110 dpi in PNG)
 
@@ -156,31 +158,75 @@ def coincidence_text(groups, what="curves coincide"):
     return f"{what}: " + "; ".join(" = ".join(g) for g in groups) if groups else ""
 
 
-def choose(ds, kind, max_methods=MAX_METHODS, max_dt=MAX_DT, max_panels=MAX_PANELS, dt_prefer=None):
-    """(sub-Dataset, note) keeping at most max_* methods, dt values and f × θ0 panels of ``ds``;
-    the note (None when all is drawn) says what was drawn and how to draw the rest (select_note)."""
+def method_groups(methods, per_panel=MAX_METHODS):
+    """``methods`` (in their order) split into the fewest groups of at most ``per_panel``, sizes within
+    one of each other: every method is drawn, in as many panels side by side as it takes."""
+    methods = [str(m) for m in methods]
+    n = max(1, math.ceil(len(methods) / per_panel))
+    size = math.ceil(len(methods) / n) if methods else 1
+    return [methods[k : k + size] for k in range(0, len(methods), size)] or [[]]
+
+
+def choose(ds, kind, max_methods=MAX_METHODS, max_dt=MAX_DT, max_panels=MAX_PANELS, dt_prefer=None, rows_each=1):
+    """(sub-Dataset, note) of ``ds`` keeping every method, at most ``max_dt`` dt values and at most
+    ``max_panels`` f × θ0 panels (fewer when the methods need several groups of ``max_methods``, each
+    ``rows_each`` panels per f × θ0, so that the figure holds at most MAX_CELLS panels); the note (None
+    when all is drawn) says what was drawn and how to draw the rest (select_note)."""
     kept, dropped = {}, {}
-    kept["integrator"], dropped["integrator"] = limit(ds, "integrator", max_methods, prefer=_preferred_methods(ds))
+    n_groups = len(method_groups(ds.integrator.values, max_methods))
+    max_panels = max(1, min(max_panels, MAX_CELLS // (n_groups * rows_each)))
     if dt_prefer == "min":
         dts = sorted(ds.dt.values)
         kept["dt"], dropped["dt"] = dts[:max_dt], dts[max_dt:]
     else:
         kept["dt"], dropped["dt"] = limit(ds, "dt", max_dt)
-    n_th = ds.theta0.size if ds.f.size * ds.theta0.size <= max_panels else min(ds.theta0.size, 3)
+    n_th = ds.theta0.size if ds.f.size * ds.theta0.size <= max_panels else min(ds.theta0.size, 3, max_panels)
     kept["theta0"], dropped["theta0"] = limit(ds, "theta0", n_th)
     kept["f"], dropped["f"] = limit(ds, "f", max(1, max_panels // len(kept["theta0"])))
     sub = ds.sel({k: v for k, v in kept.items() if dropped[k]}) if any(map(len, dropped.values())) else ds
     return sub, select_note(kind, kept, dropped)
 
 
-def _preferred_methods(ds):
-    """Methods drawn first when a file has too many: gyrolab's own schemes before engine reproductions."""
-    try:
-        from ...kernels.registry import METHODS
-    except ImportError:  # pragma: no cover
-        return None
-    own = [str(m) for m in ds.integrator.values if not getattr(METHODS.get(str(m)), "REPRODUCES", "")]
-    return own or None
+def method_handles(methods, dts=(), diverged=None):
+    """Legend (handles, labels): one entry per method in its colour and marker (``diverged``:
+    {method: text} appended to its label), then, for more than one dt, one grey line per dt style."""
+    import matplotlib.lines as mlines
+
+    from ..io import DT_STYLES, fmt_dt, line_style
+
+    diverged = diverged or {}
+    handles, labels = [], []
+    for m in methods:
+        style = {k: v for k, v in line_style(m).items() if k != "markevery"}
+        handles.append(mlines.Line2D([], [], lw=1.2, **style))
+        labels.append(m + (f" ({diverged[m]})" if m in diverged else ""))
+    if len(dts) > 1:
+        for k, dt in enumerate(dts):
+            handles.append(mlines.Line2D([], [], color="0.35", lw=1.2, ls=DT_STYLES[k % len(DT_STYLES)]))
+            labels.append(fmt_dt(dt))
+    return handles, labels
+
+
+def diverged_text(sub):
+    """{method: 'diverged at dt = 1e-2 s'} for each method of ``sub`` with a run that stopped (status ≠ 0)
+    at some f, θ0 of ``sub``: the legend's words for it."""
+    from ..io import fmt_dt
+
+    out = {}
+    for m in sub.integrator.values:
+        bad = sub.status.sel({"integrator": m}) != 0
+        dts = [dt for dt in sub.dt.values if bool(bad.sel({"dt": dt}).any())]
+        if dts:
+            out[str(m)] = "diverged at " + ", ".join(fmt_dt(d) for d in sorted(dts))
+    return out
+
+
+def fit_text(text, ax, fontsize):
+    """``text`` wrapped at its words to the width of ``ax`` (about 120 / fontsize characters per inch)."""
+    import textwrap
+
+    width_in = ax.get_position().width * ax.figure.get_figwidth()
+    return "\n".join(textwrap.wrap(text, max(12, int(width_in * 120 / fontsize)), break_on_hyphens=False))
 
 
 def legend_below(fig, handles, labels, ncol=None, fontsize=8):
@@ -220,6 +266,52 @@ def fixed_note(ds, kind, drawn):
         kept[key] = [v for v in ds[key].values if str(v) in wanted]
         dropped[key] = [v for v in ds[key].values if str(v) not in wanted]
     return select_note(kind, kept, dropped)
+
+
+SPIN_SCENES = ("heavy_top", "free_symmetric")  # the write-up's tops: f (Hz) is their spin, θ0 their tilt
+
+
+def _num(x):
+    return f"{x:.4g}".replace("-", "−")
+
+
+def run_title(ds, f, th):
+    """Panel title of grid point (f Hz, θ0 deg) in the problem's own terms: 'f = 10 Hz, θ0 = 45°' for
+    the write-up's tops (SPIN_SCENES), whose spin f is, and for any sweep over f; for one problem of
+    another scene, whose f and θ0 only parametrise the initial state (a peer problem's 150 rad/s top
+    is f = 0.734561 Hz, θ0 = 180°), the run's stored initial body rates ω0 (rad/s, body frame), then
+    θ0 when the file sweeps it."""
+    from ..io import scene_name
+
+    if scene_name(ds) in SPIN_SCENES or "omega0" not in ds.data_vars or ds.f.size > 1:  # a sweep: the f it swept
+        return f"f = {float(f):g} Hz, θ0 = {float(th):g}°"
+    w = np.asarray(ds["omega0"].sel({"f": f, "theta0": th}).values, dtype=float)
+    text = f"ω0 = ({', '.join(_num(v) for v in w)}) rad/s"
+    return text + (f", θ0 = {float(th):g}°" if ds.theta0.size > 1 else "")
+
+
+def machine_load():
+    """The machine's 1-minute load average (os.getloadavg; None where the OS has none): sampled when
+    a figure times something, so that its times say what they were measured under."""
+    import os
+
+    try:
+        return os.getloadavg()[0]
+    except (AttributeError, OSError):  # pragma: no cover (not on Linux)
+        return None
+
+
+def load_text(samples):
+    """'load average 0.4–3.1 on 2 CPUs while timing' of the machine_load samples taken during a
+    timing; 'load not recorded' without any."""
+    import os
+
+    loads = [x for x in samples if x is not None]
+    if not loads:
+        return "machine load not recorded"
+    lo, hi = min(loads), max(loads)
+    span = f"{lo:.1f}" if round(lo, 1) == round(hi, 1) else f"{lo:.1f}–{hi:.1f}"
+    return f"load average {span} on {os.cpu_count()} CPUs while timing"
 
 
 def suptitle(fig, text, fontsize=10.5, **kwargs):

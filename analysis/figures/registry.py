@@ -8,9 +8,12 @@ figures it wants in its config (``output.figures: [stability, energy]``;
 the results file, so ``gyrolab-plot standard FILE`` draws the same set.
 
 Any grid shape: each figure facets its panels (analysis/figures/record.py: rows of at
-most 3, bounded size) and, when a grid has more values than it can draw, draws
-a selection and says which, in the figure and on the command line, with the
-``gyrolab-plot KIND FILE key=...`` that draws the others.  A figure that fails
+most 3, bounded size) and draws every method it is given (past 8 curves a panel,
+the methods are split over more panels); when a grid has more f, θ0 or dt values
+than it can draw, it draws a selection and says which, in the figure and on the
+command line, with the ``gyrolab-plot KIND FILE key=...`` that draws the others.
+The figure step reads the file lazily (results.open_results(lazy=True)): its memory
+follows what is drawn, not the file's size.  A figure that fails
 is reported on stderr and skipped, so a sweep's results are never lost to a
 plotting problem; each figure drawn is reported on one progress line.
 """
@@ -87,7 +90,12 @@ def standard_figures(results_path, out_dir, names=None, log=print, ds=None, labe
     (or of its opened Dataset ``ds``: one member of a combined file) into ``out_dir`` (created);
     return the written paths.  One progress line per figure through ``log`` (and each figure's
     selection note, with ``label``, default the file's path, in its command)."""
-    ds = open_results(results_path) if ds is None else ds
+    if ds is None:  # read lazily: each figure reads the slabs it draws, never the whole file
+        ds = open_results(results_path, lazy=True)
+        try:
+            return standard_figures(results_path, out_dir, names, log, ds, label)
+        finally:
+            ds.close()
     which = "" if label is None else f" ({label})"
     label = str(results_path) if label is None else label
     out_dir = Path(out_dir)

@@ -42,13 +42,14 @@ import numpy as np
 from ...results import open_results
 from ...results.layout import GRID_DIMS
 from ...safe_files import write_text
-from ..io import SelectionError, build_run_scene, color, scene_label, select
-from .record import add_note, legend_below, select_note, suptitle
+from ..io import SelectionError, build_run_scene, color, marker, scene_label, select
+from .record import add_note, legend_below, load_text, machine_load, run_title, select_note, suptitle
 
 METHOD_DIM = GRID_DIMS[0]
 # SciMLBenchmarks RigidBody_wpd: abstols = 1 ./ 10 .^ (6:13), reltols = 1 ./ 10 .^ (3:10), paired.
 TOLERANCES = tuple((10.0 ** -(6 + k), 10.0 ** -(3 + k)) for k in range(8))
 PEERS = ("DOP853", "RK45", "Radau", "LSODA")
+REPEATS = 7  # timing repeats per point, best kept: what docs/sciml_rigid_body.md says it took
 REFERENCE_TOL = 1e-13
 
 
@@ -86,7 +87,7 @@ def best_time(call, repeats):
     return best, result
 
 
-def peer_points(scene, t_end, ref, solver, repeats=5, tolerances=TOLERANCES):
+def peer_points(scene, t_end, ref, solver, repeats=REPEATS, tolerances=TOLERANCES):
     """[(abstol, reltol, seconds, rhs evaluations, error)] of scipy ``solver`` on the scene (``_system``);
     a tolerance the solver fails at is left out."""
     from scipy.integrate import solve_ivp
@@ -125,7 +126,7 @@ def fmt_error(error, ref_error):
     return f"≤ reference ({ref_error:.1e})" if error <= ref_error else f"{error:.2g}"
 
 
-def sciml_data(ds, sel=None, retime=True, peers=PEERS, repeats=5, tolerances=TOLERANCES):
+def sciml_data(ds, sel=None, retime=True, peers=PEERS, repeats=REPEATS, tolerances=TOLERANCES):
     """{"t_end", "f", "theta0", "reference", "methods": {m: [(dt, seconds, steps, error)]},
     "peers": {solver: [...]}, "note"} for one (f, θ0) of the selection (the first; ``note`` says how to
     draw the others).  Errors in rad/s; a diverged run has error inf."""
@@ -139,6 +140,7 @@ def sciml_data(ds, sel=None, retime=True, peers=PEERS, repeats=5, tolerances=TOL
     scene = build_run_scene(sub, f, theta0)
     t_end, every = float(sub.time[-1]), float(sub.time[1] - sub.time[0])
     ref, ref_error, ref_label = reference_omega(scene, t_end)
+    loads = [machine_load()]  # the load the timing ran under, at its start and its end
     methods = {}
     for m in sub[METHOD_DIM].values:
         pts = []
@@ -151,7 +153,9 @@ def sciml_data(ds, sel=None, retime=True, peers=PEERS, repeats=5, tolerances=TOL
             pts.append((dt, seconds, int(run.n_steps), error))
         methods[str(m)] = pts
     peer = {name: peer_points(scene, t_end, ref, name, repeats, tolerances) for name in peers}
+    loads.append(machine_load())
     return {
+        "load": loads,
         "t_end": t_end,
         "f": f,
         "theta0": theta0,
@@ -167,7 +171,7 @@ def sciml_data(ds, sel=None, retime=True, peers=PEERS, repeats=5, tolerances=TOL
     }
 
 
-def sciml_figure(ds, sel=None, retime=True, peers=PEERS, repeats=5, data=None):
+def sciml_figure(ds, sel=None, retime=True, peers=PEERS, repeats=REPEATS, data=None):
     """Time (s) against the error at t_end (rad/s), log-log: one line per gyrolab method across dt
     (solid) and per scipy solver across SciML's tolerance pairs (dashed)."""
     data = data if data is not None else sciml_data(ds, sel, retime=retime, peers=peers, repeats=repeats)
@@ -179,7 +183,8 @@ def sciml_figure(ds, sel=None, retime=True, peers=PEERS, repeats=5, data=None):
     for m, pts in data["methods"].items():
         ok = [p for p in pts if math.isfinite(p[3])]
         if ok:
-            ax.plot([max(p[3], floor) for p in ok], [p[1] for p in ok], "o-", color=color(m), ms=4, label=m)
+            xs, ys = [max(p[3], floor) for p in ok], [p[1] for p in ok]
+            ax.plot(xs, ys, "-", marker=marker(m), color=color(m), ms=4, label=m)
         if len(ok) < len(pts):
             ax.plot([], [], "x", color=color(m), label=f"{m}: {len(pts) - len(ok)} dt diverged")
     for name, pts in data["peers"].items():
@@ -197,12 +202,12 @@ def sciml_figure(ds, sel=None, retime=True, peers=PEERS, repeats=5, data=None):
     ax.set_yscale("log")
     ax.invert_xaxis()  # more accurate to the right, as one reads a work-precision diagram
     ax.set_xlabel(f"error |ω(t) − ω_ref(t)| at t = {data['t_end']:g} s (rad/s)")
-    ax.set_title(f"f = {data['f']:g} Hz, θ0 = {data['theta0']:g}°", fontsize=9)
+    ax.set_title(run_title(ds, data["f"], data["theta0"]), fontsize=9)
     ax.set_ylabel("time (s)")
     ax.grid(alpha=0.3, which="both")
     dts = sorted({p[0] for pts in data["methods"].values() for p in pts})
     ours = "one thread after JIT warm-up" if data["retimed"] else "gyrolab's: the stored wall_time"
-    timing = f"best of {data['repeats']}, {ours}"
+    timing = f"best of {data['repeats']}, {ours}, {load_text(data.get('load', ()))}"
     suptitle(
         fig,
         f"Work-precision at t_end, SciMLBenchmarks' rigid-body form: {scene_label(ds)}\n"
@@ -253,13 +258,13 @@ def _make_figure():
     return Figure(
         "sciml",
         "SciMLBenchmarks' rigid-body work-precision: error at t_end vs time, scipy solvers as peers",
-        lambda ds, sel=None, no_retime=False, no_peers=False, repeats=5: sciml_figure(
+        lambda ds, sel=None, no_retime=False, no_peers=False, repeats=REPEATS: sciml_figure(
             ds, sel, retime=not no_retime, peers=() if no_peers else PEERS, repeats=repeats
         ),
         {
             "--no-retime": {"action": "store_true", "help": "use the stored wall_time (no re-timing)"},
             "--no-peers": {"action": "store_true", "help": "do not run the scipy peers"},
-            "--repeats": {"type": int, "default": 5, "help": "timing repeats per point (best is kept)"},
+            "--repeats": {"type": int, "default": REPEATS, "help": "timing repeats per point (best is kept)"},
         },
         file_name="sciml_work_precision.png",
     )
@@ -277,7 +282,7 @@ def main(argv=None):
     p.add_argument("file", help="results file of experiment=sciml_rigid_body")
     p.add_argument("-o", "--output", required=True, help="markdown table to write")
     p.add_argument("--png", help="also draw the figure into this PNG")
-    p.add_argument("--repeats", type=int, default=5, help="timing repeats per point (best is kept)")
+    p.add_argument("--repeats", type=int, default=REPEATS, help="timing repeats per point (best is kept)")
     args = p.parse_args(argv)
     try:
         ds = open_results(args.file)
@@ -285,14 +290,10 @@ def main(argv=None):
     except (OSError, SelectionError, ValueError) as err:
         sys.stderr.write(f"sciml: error: {args.file}: {' '.join(str(err).split())}\n")
         return 2
-    import os
-
-    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
     text = (
         f"# SciMLBenchmarks rigid body (generated)\n\nWritten by `python -m gyrolab.analysis.figures.sciml` from "
-        f"`{Path(args.file).name}`; times are best of {args.repeats} on this machine, timed under a load "
-        f"average of {load:.1f} on {os.cpu_count()} cores (compare times within one table only).\n\n"
-        f"{table(data)}\n"
+        f"`{Path(args.file).name}`; times are best of {args.repeats} on this machine "
+        f"({load_text(data['load'])}; compare times within one table only).\n\n{table(data)}\n"
     )
     write_text(args.output, text)  # never a half-written table, never through a link
     if args.png:

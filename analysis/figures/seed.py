@@ -278,6 +278,9 @@ class SeedFiguresCallback(Callback):
 
     def on_multirun_end(self, config, **kwargs):
         sweep_dir = Path(config.hydra.sweep.dir)
+        if (config.get("runner") or {}).get("dry_run"):  # nothing was run: nothing to draw, and nothing failed
+            print("gyrolab: seed figures: none (dry run)")
+            return
         try:
             paths = seed_figures([sweep_dir], sweep_dir)
         except Exception as err:  # the results are safe on disk; say what failed

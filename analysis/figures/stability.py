@@ -22,7 +22,7 @@ from matplotlib.ticker import NullFormatter
 
 from ..io import pick, relative_error, scene_label, select
 from . import yardstick
-from .record import add_note, choose, facet, panel_size, suptitle, wrap_note
+from .record import add_note, facet, panel_size, suptitle, wrap_note
 
 VMIN, VMAX = -16.0, 1.0
 
@@ -102,7 +102,8 @@ def _panel(ax, sub, method, theta0, measure="energy"):
     ax.set_xlabel("time step dt (s)")
     ax.set_ylabel("spin f (Hz)")
     n_bad = int((status != 0).sum())
-    ax.set_title(f"{method}" + (f" ({n_bad} diverged)" if n_bad else ""), fontsize=9)
+    # what the map adds to the name goes on a line of its own: beside the name it ran into the next title
+    ax.set_title(method + (f"\n{n_bad} diverged" if n_bad else ""), fontsize=9)
     return mesh, np.where(status != 0, np.nan, logerr)
 
 
@@ -121,26 +122,22 @@ def stability_figure(ds, sel=None, theta0=None, measure=None):
     sub = select(ds, sel)
     th = sub.theta0.values[0] if theta0 is None else pick(sub, "theta0", theta0)
     extra = [d for d in ("scene", "job") if d in sub.dims]
-    sub, note = choose(
-        sub,
-        "stability",
-        max_methods=10 if not extra else 5,
-        max_dt=sub.dt.size,
-        max_panels=sub.f.size * sub.theta0.size,
-    )
+    note = None  # every method, f and dt is drawn (one map per method; θ0: the note below)
     measure = measure or (default_measure(sub) if not extra else "energy")
     if measure not in ("energy", "axis"):
         raise ValueError(f"measure={measure}: choose from energy, axis")
     if measure == "axis" and default_measure(sub) != "axis":
         raise ValueError(f"measure=axis: the scene {scene_label(sub)} has no exact motion to measure against")
     methods = [str(m) for m in sub.integrator.values]
-    if extra:
-        parts = [(v, sub.sel({extra[0]: v})) for v in sub[extra[0]].values]
-        cells = [(r, c, label, part, m) for r, (label, part) in enumerate(parts) for c, m in enumerate(methods)]
-        rows, cols = len(parts), len(methods)
-    else:
-        rows, cols = facet(len(methods), 5)
-        cells = [(k // cols, k % cols, None, sub, m) for k, m in enumerate(methods)]
+    parts = [(v, sub.sel({extra[0]: v})) for v in sub[extra[0]].values] if extra else [(None, sub)]
+    # every method drawn: rows of 5 maps, each scene (job) of a combined file starting its own rows
+    per_part, cols = facet(len(methods), 5)
+    rows = per_part * len(parts)
+    cells = [
+        (p * per_part + k // cols, k % cols, label, part, m)
+        for p, (label, part) in enumerate(parts)
+        for k, m in enumerate(methods)
+    ]
     fig, axes = plt.subplots(
         rows, cols, figsize=panel_size(rows, cols, 3.4, 3.2, extra_w=1.4, extra_h=1.6), squeeze=False
     )
@@ -153,19 +150,47 @@ def stability_figure(ds, sel=None, theta0=None, measure=None):
             axes[r, c].tick_params(labelleft=False)  # every panel has the same f axis
         if label is not None and c == 0:
             axes[r, c].set_ylabel(f"{label}\nspin f (Hz)")
-    for ax in axes.ravel()[len(cells) :]:
-        ax.set_visible(False)
-    for r, c, label, _, m in cells:  # identical maps (to 0.01 decades): say so in the title
-        same = [
-            m2
-            for (l2, m2), v in maps.items()
-            if l2 == label
-            and m2 != m
-            and v.shape == maps[(label, m)].shape
-            and np.allclose(v, maps[(label, m)], atol=0.01, equal_nan=True)
-        ]
-        if same:
-            axes[r, c].set_title(axes[r, c].get_title() + f"\n(same map as {', '.join(same)})", fontsize=8)
+    used = {(r, c) for r, c, *_ in cells}
+    for r, c in used:  # one dt label per column, under its lowest map (it ran into the titles below)
+        if (r + 1, c) in used:
+            axes[r, c].set_xlabel("")
+    fig.subplots_adjust(hspace=0.5)
+    for (r, c), ax in np.ndenumerate(axes):
+        if (r, c) not in used:
+            ax.set_visible(False)
+    # identical maps (to 0.01 decades): a short tag in the title, the groups in the note under the figure
+    # (the names in the titles printed over the row above once a group had more than two members)
+    same_groups, tag_of = [], {}
+    for label, part in parts:
+        seen = set()
+        for m in methods:
+            if m in seen:
+                continue
+            group = [
+                m2
+                for m2 in methods
+                if m2 not in seen
+                and maps[(label, m2)].shape == maps[(label, m)].shape
+                and np.allclose(maps[(label, m2)], maps[(label, m)], atol=0.01, equal_nan=True)
+            ]
+            if len(group) > 1:
+                tag = chr(ord("A") + len(same_groups) % 26)
+                same_groups.append((label, tag, group))
+                seen.update(group)
+                tag_of.update({(label, g): tag for g in group})
+    for r, c, label, _, m in cells:
+        if (label, m) in tag_of:
+            title = axes[r, c].get_title()
+            tag = f"map {tag_of[(label, m)]}"
+            axes[r, c].set_title(f"{title}, {tag}" if "\n" in title else f"{title}\n{tag}", fontsize=9)
+    if same_groups:
+        add_note(
+            fig,
+            "identical maps (within 0.01 decades): "
+            + "; ".join(
+                f"{tag}{f' ({label})' if label is not None else ''}: {' = '.join(g)}" for label, tag, g in same_groups
+            ),
+        )
     cbar = fig.colorbar(mesh, ax=axes, shrink=0.9, pad=0.03)
     what_err = "max_t |E(t) − E0| / |E0|" if measure == "energy" else "max_t |axis − axis_exact| (rad)"
     cbar.set_label(f"log10 {what_err}")

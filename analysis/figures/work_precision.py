@@ -25,9 +25,20 @@ import time
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ..io import build_run_scene, color, scene_label, select
+from ..io import build_run_scene, color, marker, scene_label, select
 from . import yardstick
-from .record import add_note, choose, coincidence_text, coincident, legend_below, panel_size, suptitle
+from .record import (
+    add_note,
+    choose,
+    coincidence_text,
+    coincident,
+    legend_below,
+    load_text,
+    machine_load,
+    panel_size,
+    run_title,
+    suptitle,
+)
 
 PEER_TOLERANCES = {"DOP853": (1e-4, 1e-6, 1e-8, 1e-10), "RK45": (1e-4, 1e-6, 1e-8)}
 STAGES = {"DOP853": 12, "RK45": 6}
@@ -117,6 +128,7 @@ def work_precision_data(ds, sel=None, retime=True, peers=True, repeats=3):
     for f in sub.f.values:
         for th in sub.theta0.values:
             scene = build_run_scene(sub, f, th)
+            loads = [machine_load()]  # the load the re-timing ran under, at its start and its end
             ref = yardstick.exact_axis(sub, f, th, sub.time.values)
             if ref is None:
                 ref = reference_axis(scene, t_end, every)
@@ -138,7 +150,8 @@ def work_precision_data(ds, sel=None, retime=True, peers=True, repeats=3):
                     peer[name] = [
                         (tol, w / t_end, s / t_end, e) for tol, w, s, e in peer_points(scene, t_end, every, ref, name)
                     ]
-            data[(float(f), float(th))] = {"methods": methods, "peers": peer}
+            loads.append(machine_load())
+            data[(float(f), float(th))] = {"methods": methods, "peers": peer, "load": loads}
     return data
 
 
@@ -169,7 +182,8 @@ def work_precision_figure(ds, sel=None, retime=True, peers=True, data=None):
             for m, pts in entry["methods"].items():
                 ok = [p for p in pts if math.isfinite(p[3])]
                 if ok:
-                    ax.plot([p[col] for p in ok], [max(p[3], 1e-16) for p in ok], "o-", color=color(m), ms=4, label=m)
+                    xs, ys = [p[col] for p in ok], [max(p[3], 1e-16) for p in ok]
+                    ax.plot(xs, ys, "-", marker=marker(m), color=color(m), ms=4, label=m)
                     errs[m] = np.log10([max(p[3], 1e-16) for p in pts])
                 n_bad = len(pts) - len(ok)
                 if n_bad:
@@ -191,14 +205,17 @@ def work_precision_figure(ds, sel=None, retime=True, peers=True, data=None):
             ax.set_xlabel(xlabel, fontsize=9)
             ax.set_ylabel("max_t |axis − axis_ref| (rad)")
             ax.grid(alpha=0.3, which="both")
-            ax.set_title(f"f = {key[0]:g} Hz, θ0 = {key[1]:g}°", fontsize=9)
+            ax.set_title(run_title(sub, *key), fontsize=9)
             groups = coincident(errs, 0.02) if c == 1 else []
             if groups:  # in the title: inside the axes it would cover points
-                ax.set_title(
-                    f"f = {key[0]:g} Hz, θ0 = {key[1]:g}° ({coincidence_text(groups, 'same points')})", fontsize=9
-                )
+                ax.set_title(f"{run_title(sub, *key)} ({coincidence_text(groups, 'same points')})", fontsize=9)
     t_end = float(ds.time[-1])
-    timing = "re-timed: 1 thread, after JIT warm-up, best of 3" if retime else "stored wall_time"
+    loads = [x for entry in data.values() for x in entry.get("load", ())]
+    timing = (
+        f"re-timed: 1 thread, after JIT warm-up, best of 3, {load_text(loads)}"
+        if retime
+        else "stored wall_time (the load it ran under is not recorded)"
+    )
     dts = sorted(float(v) for v in sub.dt.values)
     suptitle(
         fig,

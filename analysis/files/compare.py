@@ -191,9 +191,54 @@ def open_results(path, label, member=None):
     try:
         ds, version = open_file(path)
         members = members_of(path, ds, version, member)  # every member checked as its own results file
-        return ds if member_dim(ds) is not None and not member else members[0][1]
+        if member_dim(ds) is not None and not member:
+            return ds
+        return with_source_provenance(members[0][1], ds) if member else members[0][1]
     except ResultsError as err:
         raise CompareError(f"{label}: {err}") from None
+
+
+# The provenance gyrolab-combine keeps per input file, as ``source_<attr>`` variables along ``source``.
+SOURCE_ATTRS = ("gyrolab_version", "git_commit", "created", "config")
+
+
+def with_source_provenance(one, combined):
+    """Member ``one`` of the combined Dataset ``combined`` with the provenance attrs (SOURCE_ATTRS) of the
+    input files it came from, read from the ``source_*`` variables: the sources whose stored config is
+    the member's config (else whose config names the member's scene).  Several sources with different
+    values give them all, joined by ", "; attrs the member already carries are kept."""
+    import yaml
+
+    from ...limits import LimitError, safe_yaml
+
+    if "source_config" not in combined.data_vars:
+        return one
+
+    def text(name, k):
+        value = combined[name].values[k]
+        return value.decode() if isinstance(value, bytes) else str(value)
+
+    n = combined.sizes["source"]
+    configs = [text("source_config", k) for k in range(n)]
+    mine = [k for k in range(n) if configs[k] == str(one.attrs.get("config", ""))]
+    if not mine:
+        scene = str(one.attrs.get("scene", ""))
+        names = []
+        for config in configs:
+            try:
+                names.append(str(((safe_yaml(config) or {}).get("scene") or {}).get("name", "")))
+            except (yaml.YAMLError, AttributeError, LimitError):
+                names.append("")
+        mine = [k for k in range(n) if names[k] == scene]
+    attrs = {}
+    for key in SOURCE_ATTRS:
+        if key in one.attrs or f"source_{key}" not in combined.data_vars or not mine:
+            continue
+        values = list(dict.fromkeys(text(f"source_{key}", k) for k in mine))
+        values = [v for v in values if v]
+        if values:
+            attrs[key] = ", ".join(values)
+    return one.assign_attrs(attrs)
 
 
 def run_dims(ds):
@@ -311,7 +356,9 @@ def version_notes(da, db):
     notes = []
     for key in VERSION_ATTRS:
         va, vb = da.attrs.get(key), db.attrs.get(key)
-        if va != vb:
+        if (va is None) != (vb is None):  # a combined file keeps only SOURCE_ATTRS per input file
+            notes.append(f"{key} recorded only in {'A' if vb is None else 'B'}")
+        elif va != vb:
             notes.append(f"{key} differs: A {va}, B {vb}")
     return notes
 

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from ...results import ResultsError, open_results
 from ...safe_files import UnsafePathError, check_output, write_text
+from ..figures.record import run_title
 from ..figures.work_precision import reference_name, work_precision_data
 from ..io import drawable_invariants, scene_name, scene_options
 from .captions import fmt_error, worst_error
@@ -34,7 +35,7 @@ def file_section(path):
     for (f, th), entry in data.items():
         lines += [
             "",
-            f"f = {f:g} Hz, θ0 = {th:g}°. Max axis error (rad) against {reference_name(ds)}:",
+            f"{run_title(ds, f, th)}. Max axis error (rad) against {reference_name(ds)}:",
             "",
             header,
             rule,

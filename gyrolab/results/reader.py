@@ -31,17 +31,29 @@ def _scene_name(ds):
     return value.decode() if isinstance(value, bytes) else str(value)
 
 
-def open_file(path):
-    """(Dataset in memory with today's names, its file's layout version or None) of ``path``, a
-    results file combined or not, read whole and closed again; ResultsError (one line) when it is
-    missing or unreadable (anything h5py/h5netcdf/xarray raise on damaged or foreign input)."""
+def open_file(path, lazy=False):
+    """(Dataset with today's names, its file's layout version or None) of ``path``, a results file
+    combined or not, read whole and closed again; ResultsError (one line) when it is missing or
+    unreadable (anything h5py/h5netcdf/xarray raise on damaged or foreign input).
+
+    ``lazy``: only what has no time axis is read (per-run variables, coordinates, run inputs); the
+    per-sample variables stay on disk, read slab by slab as a figure selects them, and the file stays
+    open until the Dataset is closed (``ds.close()``): memory then follows what is drawn, not the
+    file (the figure step's way)."""
     path = Path(path)
     if not path.is_file():
         raise ResultsError(f"FILE={path}: no such results file")
     try:
-        check_file_sizes(path)  # before loading: a small file declaring gigabytes (gyrolab/limits.py)
-        with xr.open_dataset(path, engine="h5netcdf") as ds:
-            ds = ds.load()
+        if lazy:  # memory follows what is read, not the file; a crafted file is still refused
+            check_file_sizes(path, budget=float("inf"))
+            ds = xr.open_dataset(path, engine="h5netcdf")
+            small = [name for name in ds.variables if "time" not in ds[name].dims]
+            ds = ds.assign({name: ds[name].load() for name in small if name in ds.data_vars})
+            ds = ds.assign_coords({name: ds[name].load() for name in small if name in ds.coords})
+        else:
+            check_file_sizes(path)  # before loading: a small file declaring gigabytes (gyrolab/limits.py)
+            with xr.open_dataset(path, engine="h5netcdf") as ds:
+                ds = ds.load()
     except LimitError as err:
         raise ResultsError(f"FILE={err}") from None
     except Exception as err:  # h5py/h5netcdf/xarray raise many kinds on damaged or foreign files
@@ -72,12 +84,13 @@ def check(where, ds, version):
     return ds
 
 
-def open_members(path, member_of=None):
+def open_members(path, member_of=None, lazy=False):
     """[(label, Dataset)] of the results file ``path``: [(None, ds)] for a one-scene file; for a
     combined file (a leading ``scene`` or ``job`` dim) each member, or the one ``member_of`` names
     ({"scene": "heavy_top"} or {"job": "1"}), as a one-scene Dataset with its own attrs, each checked.
-    ResultsError (one line) for a file no reader can open or a member it does not have."""
-    ds, version = open_file(path)
+    ResultsError (one line) for a file no reader can open or a member it does not have.  ``lazy``:
+    see ``open_file``."""
+    ds, version = open_file(path, lazy)
     return members_of(path, ds, version, member_of)
 
 
@@ -103,15 +116,18 @@ def members_of(path, ds, version, member_of=None):
     return [(label, check(f"{path} {dim}={label}", member(ds, label), version)) for label in wanted]
 
 
-def open_results(path, member_of=None):
+def open_results(path, member_of=None, lazy=False):
     """The results Dataset of ``path`` in memory (file closed afterwards), as today's layout names
     it (an older layout's ``method`` dim is ``integrator``, its body today's), checked against the
     layout.  A combined file (gyrolab-combine) opens as the one member ``member_of`` names
     ({"scene": NAME} or {"job": K}); without one, ResultsError naming its members and the selection
-    that picks one.  ResultsError (one line naming the file) for any file it cannot use."""
-    members = open_members(path, member_of)
+    that picks one.  ResultsError (one line naming the file) for any file it cannot use.  ``lazy``:
+    see ``open_file`` (close the Dataset when done)."""
+    members = open_members(path, member_of, lazy)
     if len(members) > 1:
-        dim = member_dim(open_file(path)[0])
+        dim = members[0][1].attrs["combined_member"].partition("=")[0]
+        for _, ds in members:
+            ds.close()
         raise ResultsError(
             f"FILE={path}: a combined file of {len(members)} {dim}s ({', '.join(label for label, _ in members)}); "
             f"choose one with {dim}={members[0][0]}"

@@ -1,0 +1,84 @@
+"""The engines study (`experiment=engines`, at a tiny size) through the runner's own figure step: every
+figure it writes draws every method it was given (in its legend or panel titles), and no two of its text
+boxes overlap; the colour-and-marker scheme tells 40 methods apart."""
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import pytest  # noqa: E402
+import yaml  # noqa: E402
+from test_figures import overlaps, texts  # noqa: E402
+
+from gyrolab.analysis.figures import FIGURES  # noqa: E402
+from gyrolab.analysis.io import open_results  # noqa: E402
+
+from helpers import assert_ok, gyrolab  # noqa: E402
+
+ENGINES = "conf/experiment/engines.yaml"
+
+
+@pytest.fixture(scope="module")
+def engines_files(tmp_path_factory):
+    """{scene: results path} of the engines study at 0.1 s (every method, f and dt of the study)."""
+    root = tmp_path_factory.mktemp("engines")
+    result = gyrolab(
+        "experiment=engines", "sweep.t_end=0.1", "output.every=0.01", f"hydra.sweep.dir={root}", cwd=root, timeout=900
+    )
+    assert_ok(result)
+    files = {}
+    for path in sorted(root.glob("*/engines.h5")):
+        ds = open_results(path)
+        files[str(ds.attrs["scene"])] = path
+    assert set(files) == {"heavy_top", "free_asymmetric"}, (files, result.stdout[-2000:])
+    return files
+
+
+@pytest.fixture(autouse=True)
+def close_figures():
+    yield
+    plt.close("all")
+
+
+def _study_methods():
+    from pathlib import Path
+
+    here = Path(__file__).resolve().parents[1]
+    return yaml.safe_load((here / ENGINES).read_text())["sweep"]["method"]
+
+
+@pytest.mark.parametrize("kind", ["stability", "energy", "invariants"])
+@pytest.mark.parametrize("scene", ["heavy_top", "free_asymmetric"])
+def test_engines_figures_draw_every_method_without_overlap(kind, scene, engines_files):
+    ds = open_results(engines_files[scene])
+    methods = [str(m) for m in ds.integrator.values]
+    assert methods == _study_methods()
+    fig = FIGURES[kind].draw(ds, None)
+    fig.canvas.draw()
+    shown = {t.get_text() for t, _, _ in texts(fig)}
+    # a legend entry is "name" or "name (diverged at ...)"; a map's title is "name" or "name\n..."
+    named = {w.split(" (")[0].split("\n")[0] for w in shown}
+    missing = [m for m in methods if m not in named]
+    assert not missing, (kind, scene, missing)
+    assert not overlaps(fig), overlaps(fig)
+    if kind != "stability":  # every f of the study in a panel title, none left to a note
+        for f in ds.f.values:
+            assert any(t.startswith(f"f = {float(f):g} Hz") for t in shown), (kind, f)
+
+
+def test_the_figure_step_wrote_the_studys_figures(engines_files):
+    for path in engines_files.values():
+        names = {p.name for p in (path.parent / "figures").glob("*.png")}
+        assert {"stability_map.png", "energy_drift.png", "invariants.png"} <= names, names
+
+
+def test_forty_methods_have_forty_colour_marker_pairs(monkeypatch):
+    from gyrolab.analysis import io
+    from gyrolab.kernels import registry
+
+    names = list(registry.METHODS) + [f"method_{k}" for k in range(40 - len(registry.METHODS))]
+    monkeypatch.setattr(registry, "METHODS", {name: None for name in names})
+    pairs = {(io.color(m), io.marker(m)) for m in names}
+    assert len(pairs) == 40
+    fixed = set(io.METHOD_COLORS.values())
+    assert not [m for m in names if m not in io.METHOD_COLORS and io.color(m) in fixed]  # fixed colours stay unique
