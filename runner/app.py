@@ -60,7 +60,7 @@ HANDLED_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 # (the "rest" of benchmarks/bench_pipeline.py: 0.5-0.9 s with 2 to 4 methods).
 LOAD_SECONDS = 0.2
 # The figure step (analysis/figures/registry.py standard_figures, in this process after the sweep) reads the
-# results file lazily (analysis/io.py open_results(lazy=True): the per-run variables in memory, the
+# results file lazily (gyrolab/results/reader.py open_results(lazy=True): the per-run variables in memory, the
 # samples slab by slab as each figure selects them), so its memory hardly follows the file: the
 # process's peak RSS is ~ FIGURE_BASE_BYTES + FIGURE_PER_BYTE x the file's size.  Measured
 # (docs/benchmarks.md): the 8000-run sweep writing a 1.09 GB file, figures included, 501 MB (it was
