@@ -46,11 +46,11 @@ from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from ..results.layout import RAW_PER_SAMPLE, scene_attrs
-from ..safe_files import UnsafePathError, check_replaceable
+from ..safe_files import OutputBusyError, OutputLock, UnsafePathError, check_replaceable, remove_stale_temporaries
 from .config import ConfigError, config_hash, register_configs
 from .execute import BackendError, compile_estimate
 from .grid import build_grid, estimate_seconds, estimate_writing_seconds, plan_chunks
-from .store import Journal, OutputLock, assemble, partial_dir, remove_stale_temporaries
+from .store import Journal, assemble, partial_dir
 
 EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
@@ -656,7 +656,7 @@ def hydra_main(cfg):
     run_dir = HydraConfig.get().runtime.output_dir
     try:
         return run_sweep(cfg, run_dir)
-    except (ConfigError, UnsafePathError) as err:
+    except (ConfigError, OutputBusyError, UnsafePathError) as err:
         remove_empty_dirs(run_dir, os.getcwd())
         fail(err)
     finally:
@@ -724,7 +724,7 @@ def main():
     try:
         check_run_dirs(sys.argv[1:])
         hydra_main()
-    except (ConfigError, UnsafePathError) as err:
+    except (ConfigError, OutputBusyError, UnsafePathError) as err:
         fail(err)
     except (HydraException, OmegaConfBaseException) as err:
         fail(describe_hydra_error(err, sys.argv[1:]))

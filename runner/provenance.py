@@ -16,8 +16,9 @@ import sys
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
+from ..results.identity import LIBRARIES
+
 PACKAGE_DIR = Path(__file__).resolve().parents[1]  # installed: .../gyrolab; work tree: the checkout
-LIBRARIES = ("numpy", "numba", "scipy", "h5py", "h5netcdf", "xarray")
 
 
 def _work_tree_state(directory):
@@ -78,18 +79,3 @@ def provenance(config_yaml, threads):
         "threads": int(threads),
         "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }
-
-
-# Attrs that differ between two runs of the same config (tests compare files without them).
-VOLATILE_ATTRS = (
-    "config",
-    "created",
-    "threads",
-    "git_commit",
-    "git_dirty",
-    "git_source",
-    "gyrolab_version",
-    "kernel_source_hash",
-    "python_version",
-    *(f"{name}_version" for name in LIBRARIES),
-)

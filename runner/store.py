@@ -17,14 +17,12 @@ The results layout (dims, variables, units, attrs) is gyrolab/results/layout.py'
 """
 
 import errno
-import fcntl
 import hashlib
 import hmac
 import json
 import os
 import re
 import shutil
-import socket
 import stat
 import sys
 import time
@@ -47,120 +45,13 @@ from ..results.layout import (
     sample_dims,
     sample_variables,
 )
-from ..safe_files import atomic_replace, atomic_write, open_regular, remove_entry, temporary_prefix
+from ..safe_files import atomic_replace, atomic_write, open_regular, remove_entry
 from .assembly import JournalChunk, MemoryChunk, box_runs, boxes, chunk_layout, gather, max_runs
 from .config import ConfigError
 
 
 def partial_dir(out):
     return Path(f"{out}.partial")
-
-
-def lock_path(out):
-    return Path(f"{out}.lock")
-
-
-def temporary_name(path):
-    """The start of the names of the private directories ``atomic_replace`` writes ``path`` in
-    (hidden, with this process's pid; gyrolab/safe_files.py adds a random part)."""
-    path = Path(path)
-    return path.with_name(temporary_prefix(path))
-
-
-def remove_stale_temporaries(path):
-    """Remove the ``.<name>.tmp<pid>`` files and ``.<name>.tmp<pid>.<random>`` private directories
-    next to ``path`` that a killed assembly or combine left (links removed, never followed); returns
-    the removed paths.  Call with the output's lock held: every writer of ``path`` holds it, so
-    none is in use."""
-    path = Path(path)
-    removed = []
-    if not path.parent.is_dir():
-        return removed
-    for tmp in path.parent.glob(f".{path.name}.tmp*"):
-        pid, dot, _ = tmp.name[len(f".{path.name}.tmp") :].partition(".")
-        if pid.isdigit() and (not dot or (tmp.is_dir() and not tmp.is_symlink())):
-            remove_entry(tmp)
-            removed.append(tmp)
-    return removed
-
-
-def lock_identity():
-    """What the lock file holds: ``<pid> <host> <start time, UTC>`` of the writer."""
-    started = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-    return f"{os.getpid()} {socket.gethostname()} {started}\n"
-
-
-class OutputLock:
-    """Exclusive, non-blocking lock on ``<out>.lock``; ConfigError naming the holder if taken.
-
-    The lock file (``lock_identity``: pid, host, start time) is opened with O_NOFOLLOW and must be a
-    regular file of ours (else UnsafePathError: a link or a FIFO planted there is never followed);
-    a lock left by a killed writer holds no flock and is simply taken over.  The file is removed
-    on release; the inode check after locking makes that safe against a writer that opened the
-    file just before the removal.
-    """
-
-    def __init__(self, out):
-        self.out = Path(out)
-        self.path = lock_path(out)
-        self.fd = None
-
-    def check_free(self):
-        """ConfigError if another process holds the lock; creates nothing."""
-        try:
-            fd = open_regular(self.path, os.O_RDONLY)
-        except FileNotFoundError:
-            return
-        try:
-            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-        except BlockingIOError:
-            self._refuse(fd)
-        os.close(fd)
-
-    def _refuse(self, fd):
-        words = os.read(fd, 200).decode(errors="replace").split()
-        os.close(fd)
-        holder = words[0] if words and words[0].isdigit() else "?"
-        where = f" (host {words[1]}, since {words[2]})" if len(words) >= 3 else ""
-        raise ConfigError(
-            f"output.path={self.out}: another gyrolab (pid {holder}) is writing it right now{where}; "
-            "wait for it to finish or choose another output.path"
-        )
-
-    def acquire(self):
-        while True:
-            fd = open_regular(self.path, os.O_RDWR | os.O_CREAT)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                self._refuse(fd)
-            try:
-                same = os.lstat(self.path).st_ino == os.fstat(fd).st_ino
-            except FileNotFoundError:
-                same = False
-            if same:
-                break
-            os.close(fd)  # the previous holder removed the file under us: lock the new one
-        os.ftruncate(fd, 0)
-        os.write(fd, lock_identity().encode())
-        self.fd = fd
-        return self
-
-    def release(self):
-        if self.fd is not None:
-            try:
-                if os.lstat(self.path).st_ino == os.fstat(self.fd).st_ino:
-                    self.path.unlink()
-            except FileNotFoundError:
-                pass
-            os.close(self.fd)
-            self.fd = None
-
-    def __enter__(self):
-        return self.acquire()
-
-    def __exit__(self, *exc):
-        self.release()
 
 
 class JournalError(ConfigError):

@@ -18,8 +18,8 @@ import xarray as xr
 
 from gyrolab.kernels.batch import integrate, sample_schedule
 from gyrolab.kernels.scenes import build_scene, get_scene
+from gyrolab.results.identity import VOLATILE_ATTRS
 from gyrolab.results.layout import GRID_DIMS, scene_attrs, to_dataset
-from gyrolab.runner.provenance import VOLATILE_ATTRS
 
 BIN = Path(sys.executable).parent
 TINY = [

@@ -2,18 +2,15 @@
 figure it writes draws every method it was given (in its legend or panel titles), and no two of its text
 boxes overlap; the colour-and-marker scheme tells 40 methods apart."""
 
-import matplotlib
+import matplotlib.pyplot as plt
+import pytest
+import yaml
+from test_figures import overlaps, texts
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import pytest  # noqa: E402
-import yaml  # noqa: E402
-from test_figures import overlaps, texts  # noqa: E402
+from gyrolab.analysis.figures.registry import FIGURES
+from gyrolab.results import open_results
 
-from gyrolab.analysis.figures import FIGURES  # noqa: E402
-from gyrolab.analysis.io import open_results  # noqa: E402
-
-from helpers import assert_ok, gyrolab  # noqa: E402
+from helpers import assert_ok, gyrolab
 
 ENGINES = "conf/experiment/engines.yaml"
 

@@ -87,7 +87,7 @@ def test_a_signal_swallowed_by_a_finalizer_is_raised_before_the_results_are_rena
     import weakref
 
     from gyrolab.runner import app
-    from gyrolab.runner.store import atomic_replace
+    from gyrolab.safe_files import atomic_replace
 
     monkeypatch.setattr(app, "_PENDING", [])
 

@@ -9,10 +9,11 @@ from hydra import compose, initialize_config_module
 
 from gyrolab.kernels.body import FIELDS as BODY_FIELDS
 from gyrolab.results.layout import COORD_ATTRS, VARIABLE_ATTRS
-from gyrolab.runner.config import ConfigError, register_configs
+from gyrolab.runner.config import register_configs
 from gyrolab.runner.execute import run_chunk
 from gyrolab.runner.grid import build_grid
-from gyrolab.runner.store import Journal, OutputLock, write_results
+from gyrolab.runner.store import Journal, write_results
+from gyrolab.safe_files import OutputBusyError, OutputLock
 
 register_configs()
 
@@ -34,9 +35,9 @@ def grid():
 def test_second_lock_is_refused_naming_the_holder(tmp_path):
     out = tmp_path / "results.h5"
     with OutputLock(out):
-        with pytest.raises(ConfigError, match=r"another gyrolab \(pid \d+\) is writing"):
+        with pytest.raises(OutputBusyError, match=r"another gyrolab \(pid \d+\) is writing"):
             OutputLock(out).acquire()
-        with pytest.raises(ConfigError, match="another gyrolab"):
+        with pytest.raises(OutputBusyError, match="another gyrolab"):
             OutputLock(out).check_free()
     assert not (tmp_path / "results.h5.lock").exists()
     with OutputLock(out):  # free again once released
@@ -111,7 +112,7 @@ def test_a_journal_without_checksums_is_verified_by_content_and_then_sealed(tmp_
 
 
 def test_stale_result_temporaries_are_removed(tmp_path):
-    from gyrolab.runner.store import remove_stale_temporaries
+    from gyrolab.safe_files import remove_stale_temporaries
 
     out = tmp_path / "results.h5"
     for name in (".results.h5.tmp123", ".results.h5.tmp9", ".other.h5.tmp5", ".results.h5.tmpx"):

@@ -11,8 +11,8 @@ import pytest
 
 from gyrolab.analysis.figures import cli
 from gyrolab.analysis.files.combine import main as combine_main
-from gyrolab.runner.store import Journal, OutputLock, atomic_replace, atomic_write
-from gyrolab.safe_files import UnsafePathError, inside, safe_name
+from gyrolab.runner.store import Journal
+from gyrolab.safe_files import OutputLock, UnsafePathError, atomic_replace, atomic_write, inside, safe_name
 
 from helpers import gyrolab, make_file
 
@@ -686,7 +686,7 @@ def test_two_labels_that_sanitise_alike_do_not_share_a_file():
 
 
 def test_a_killed_writers_private_directory_is_removed_and_a_link_there_not_followed(tmp_path, victim):
-    from gyrolab.runner.store import remove_stale_temporaries
+    from gyrolab.safe_files import remove_stale_temporaries
 
     out = tmp_path / "results.h5"
     stale = tmp_path / ".results.h5.tmp123.abcd"

@@ -29,7 +29,7 @@ attr ``encoding: json``), so that a member read back (analysis/io.py ``open_memb
 its own attrs.  Each input file's provenance (config, git commit, creation time,
 path) is kept in variables along a ``source`` dimension.  The inputs are
 loaded into memory; the output is written through a temporary file, fsync
-and rename (store.atomic_replace).
+and rename (gyrolab/safe_files.py atomic_replace).
 """
 
 import argparse
@@ -42,6 +42,7 @@ import numpy as np
 import xarray as xr
 
 from ...results import ResultsError, find_results, open_file
+from ...results.identity import VOLATILE_ATTRS
 from ...results.layout import (
     COORD_ATTRS,
     GRID_DIMS,
@@ -57,10 +58,14 @@ from ...results.layout import (
     sample_dims,
 )
 from ...results.migrate import file_layout_version
-from ...runner.config import ConfigError
-from ...runner.provenance import VOLATILE_ATTRS
-from ...runner.store import OutputLock, atomic_replace, remove_stale_temporaries
-from ...safe_files import UnsafePathError, check_replaceable
+from ...safe_files import (
+    OutputBusyError,
+    OutputLock,
+    UnsafePathError,
+    atomic_replace,
+    check_replaceable,
+    remove_stale_temporaries,
+)
 
 KNOWN_LAYOUTS = tuple(range(LAYOUT_VERSION + 1))
 IDENTITY_PREFIXES = ("scene",)
@@ -401,7 +406,7 @@ def _run(args):
         files = find_results(args.paths, exclude=out, unfinished="skip" if args.skip_unfinished else "refuse")
         ds = combine(files, args.allow_identical_overlap)
         write(ds, out)
-    except (CombineError, ConfigError, ResultsError, UnsafePathError) as err:
+    except (CombineError, OutputBusyError, ResultsError, UnsafePathError) as err:
         sys.stderr.write(f"gyrolab-combine: error: {' '.join(str(err).split())}\n")
         return 2
     except OSError as err:  # a full disk while writing: the old output, if any, is untouched

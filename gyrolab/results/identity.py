@@ -34,3 +34,20 @@ def drop_neutral_defaults(data):
                 if key in node and node[key] == default:
                     node.pop(key)
     return data
+
+
+# The libraries whose versions a results file records (runner/provenance.py).
+LIBRARIES = ("numpy", "numba", "scipy", "h5py", "h5netcdf", "xarray")
+# Attrs that differ between two runs of the same config (tests compare files without them).
+VOLATILE_ATTRS = (
+    "config",
+    "created",
+    "threads",
+    "git_commit",
+    "git_dirty",
+    "git_source",
+    "gyrolab_version",
+    "kernel_source_hash",
+    "python_version",
+    *(f"{name}_version" for name in LIBRARIES),
+)
