@@ -5,12 +5,12 @@ boxes overlap; the colour-and-marker scheme tells 40 methods apart."""
 import matplotlib.pyplot as plt
 import pytest
 import yaml
-from test_figures import overlaps, texts
 
 from gyrolab.analysis.figures.registry import FIGURES
 from gyrolab.results import open_results
 
 from helpers import assert_ok, gyrolab
+from test_figures import overlaps, texts
 
 ENGINES = "conf/experiment/engines.yaml"
 

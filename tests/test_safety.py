@@ -217,13 +217,13 @@ def test_plot_labels_cannot_write_outside(evil, kind):
 def test_verdict_figures_cannot_write_outside(tmp_path, monkeypatch):
     import matplotlib.pyplot as plt
 
-    from gyrolab.analysis.verdicts import study as verdict_study
+    from gyrolab.analysis.verdicts import figures as verdict_figures
 
-    monkeypatch.setattr(verdict_study, "scene_figure", lambda *a: plt.figure(figsize=(1, 1)))
+    monkeypatch.setattr(verdict_figures, "scene_figure", lambda *a: plt.figure(figsize=(1, 1)))
     out = tmp_path / "figs"
     out.mkdir()
     records = [{"kind": "summary", "scene": "../../.."}, {"kind": "summary", "scene": "heavy_top"}]
-    paths = verdict_study.draw_figures(records, [], out)
+    paths = verdict_figures.draw_figures(records, [], out)
     assert [p.name for p in paths] == ["verdict_0.png", "verdict_heavy_top.png"]
     assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*.png")) == [p.relative_to(tmp_path) for p in paths]
 

@@ -245,9 +245,9 @@ def test_wording_comes_from_the_data():
 
 
 def test_the_figures_fitted_line_lies_on_its_data(drift_files, tmp_path):
-    """Issue 26: the dashed line panel (c) draws for a linear run (verdict_study.fitted_line, from the
+    """Issue 26: the dashed line panel (c) draws for a linear run (analysis/verdicts/figures.py fitted_line, from the
     record's own intercept and rate) is within a factor 2 of |e| over the run's last eighth."""
-    from gyrolab.analysis.verdicts.study import fitted_line
+    from gyrolab.analysis.verdicts.figures import fitted_line
     from gyrolab.kernels.invariants import invariant
 
     recs = records(drift_files, tmp_path)

@@ -818,3 +818,17 @@ def method_stability_threshold(
         return status == 0
 
     return stability_threshold(run_ok, lo, hi, omega=omega, rtol=rtol, batch=batch, max_evals=max_evals)
+
+
+def signed_error(values):
+    """e(t) of an invariant series: (x − x0)/|x0| for a scalar (x0 → max |x| when |x0| is ~0 next to it),
+    |X − X0|/|X0| for a vector (time, xyz)."""
+    x = np.asarray(values, dtype=float)
+    if x.ndim == 2:
+        scale = np.linalg.norm(x[0]) or np.nanmax(np.linalg.norm(x, axis=-1))
+        return np.linalg.norm(x - x[:1], axis=-1) / scale
+    scale = abs(x[0])
+    big = np.nanmax(np.abs(x)) if np.isfinite(x).any() else 0.0
+    if not scale > 1e-9 * big:
+        scale = big or 1.0
+    return (x - x[0]) / scale

@@ -1,7 +1,7 @@
-"""The verdict study's outputs: one figure per scene, and the callback of ``gyrolab experiment=verdict``.
+"""The verdict study's callback: what ``gyrolab experiment=verdict`` writes once its jobs are done.
 
 ``gyrolab experiment=verdict`` (conf/experiment/verdict.yaml) is a Hydra
-multirun of six jobs, a dt ladder and a long run per scene.  When they are
+multirun of two jobs per scene, a dt ladder and a long run.  When they are
 done, ``VerdictStudyCallback`` reads every results file of the multirun
 directory through analysis/verdicts/verdict.py, bisects the stability thresholds and
 writes ``verdict.md``, ``verdict.json`` and ``verdict_<scene>.png`` into that
@@ -10,193 +10,12 @@ directory (and into ``docs_dir`` when set, e.g.
 ``gyrolab-verdict <multirun dir> --stability 10 --markdown verdict.md --json
 verdict.json --figures DIR``.
 
-Figure ``verdict_<scene>.png``: (a) the order fits, final-state error
-against dt with the fitted line over the range used; (b) (|ω| dt)_crit per
-method; (c) one panel per declared invariant: |e(t)| of the long run on
-log–log axes with the fitted class drawn dashed (the fitted line |a + b t| over
-its span, a wander σ √t, bounded its max |e|; ▽ a collapse's size and time;
-× where a run diverged).
+The figures are drawn by analysis/verdicts/figures.py.
 """
 
-import math
 import sys
 import time
 from pathlib import Path
-
-import matplotlib.pyplot as plt
-import numpy as np
-
-from ..io import FLOOR, color, save_figure
-
-MARKERS = "osv^<>DPX*h"  # with the colours: PALETTE repeats after 12 methods
-
-
-def marker(method, methods):
-    return MARKERS[methods.index(method) % len(MARKERS)] if method in methods else "o"
-
-
-def _order_panel(ax, orders, methods):
-    for o in orders:
-        dt, err = np.array(o["ladder_dt"], float), np.array(o["ladder_err"], float)
-        ok = np.isfinite(err) & (err > 0)
-        c = color(o["method"])
-        ax.loglog(
-            dt[ok], np.maximum(err[ok], FLOOR), marker(o["method"], methods), ms=3, color=c, alpha=0.6, mfc="none"
-        )
-        if o["order"] is not None and math.isfinite(o["order"]):
-            used = np.array(o["ladder_used"], bool)
-            p = o["order"]
-            logc = np.mean(np.log(err[used]) - p * np.log(dt[used]))
-            x = np.geomspace(o["order_dt_range"][0], o["order_dt_range"][1], 10)
-            ax.loglog(x, np.exp(logc) * x**p, "-", color=c, lw=1.2)
-    ax.set_xlabel("time step dt (s)")
-    ax.set_ylabel("final-state error (dimensionless)")
-    o = orders[0] if orders else None
-    ref = o["reference"] if o else ""
-    ax.set_title(
-        f"(a) order fits: lines over the asymptotic range, final state at t = {o['t_end']:g} s\nreference: {ref}"
-        if o
-        else "(a) no dt ladder",
-        fontsize=9,
-    )
-    ax.grid(alpha=0.3, which="both")
-
-
-def _threshold_panel(ax, thresholds):
-    if not thresholds:
-        ax.text(
-            0.5, 0.5, "no stability bisection\n(gyrolab-verdict --stability T)", ha="center", transform=ax.transAxes
-        )
-        ax.set_axis_off()
-        return
-    y = np.arange(len(thresholds))
-    for k, r in enumerate(thresholds):
-        lo, hi = r["omega_dt_bracket"]
-        crit = r["omega_dt_crit"]
-        c = color(r["method"])
-        if crit is not None and math.isfinite(crit):
-            ax.barh(k, crit, color=c, alpha=0.8)
-            ax.text(crit * 1.1, k, f"{crit:.3g}", va="center", fontsize=6.5)
-        elif hi is not None and math.isfinite(hi):
-            ax.plot(hi, k, "<", color=c)
-            ax.text(hi * 1.3, k, f"< {hi:.3g}", va="center", fontsize=6.5)
-        elif lo is not None and math.isfinite(lo):
-            ax.plot(lo, k, ">", color=c)
-            ax.text(lo * 0.25, k, f"> {lo:.3g}", va="center", fontsize=6.5)
-    ax.set_yticks(y, [r["method"] for r in thresholds], fontsize=7)
-    ax.invert_yaxis()
-    ax.set_xscale("log")
-    ax.set_xlim(3e-4, 60)
-    r = thresholds[0]
-    ax.set_xlabel("(|ω| dt)_crit (rad)")
-    ax.set_title(
-        f"(b) stability threshold by bisection\nbounded over {r['stability_t_end']:g} s, "
-        f"f = {r['f']:g} Hz, θ0 = {r['theta0']:g}°",
-        fontsize=9,
-    )
-    ax.grid(alpha=0.3, axis="x", which="both")
-
-
-def _drift_panel(ax, q, runs, datasets):
-    from ...kernels.invariants import invariant
-    from .verdict import signed_error
-
-    for r in runs:
-        ds = next((d for d in datasets if _has_run(d, r)), None)
-        if ds is None:
-            continue
-        run = ds.sel({"integrator": r["method"], "f": r["f"], "theta0": r["theta0"], "dt": r["dt"]})
-        t = ds.time.values
-        e = np.abs(signed_error(invariant(run, q).values))
-        idx = np.unique(np.geomspace(1, t.size - 1, 300).astype(int))
-        c = color(r["method"])
-        ax.loglog(t[idx], np.maximum(e[idx], FLOOR), "-", color=c, lw=0.7, alpha=0.8)
-        tt = t[idx]
-        line = fitted_line(r, tt)
-        if line is not None:
-            ax.loglog(tt, np.maximum(np.abs(line), FLOOR), "--", color=c, lw=1.1)
-        elif r["drift_class"] == "wander":
-            ax.loglog(tt, np.maximum(r["drift_rate"] * np.sqrt(tt), FLOOR), "--", color=c, lw=1.1)
-        elif r["drift_class"] == "bounded" and r["amplitude"]:
-            ax.axhline(r["amplitude"], color=c, ls=":", lw=0.9)
-        elif r["drift_class"] == "diverged" and r["t_diverged"] is not None and math.isfinite(r["t_diverged"]):
-            ax.plot(max(r["t_diverged"], t[1]), 1.0, "x", color=c, ms=6)
-        elif r["drift_class"] == "collapse" and r.get("collapse_time") is not None:
-            ax.plot(max(r["collapse_time"], t[1]), abs(r["collapse_size"]), "v", color=c, ms=5)
-    r = runs[0] if runs else None
-    cond = f"f = {r['f']:g} Hz, θ0 = {r['theta0']:g}°, dt = {r['dt']:g} s" if r else ""
-    ax.set_title(f"(c) |e| of {q}: {cond}\ndashed: fitted line / √t; dotted: bounded max; ▽ collapse", fontsize=8.5)
-    ax.set_xlabel("time t (s)")
-    ax.set_ylabel(f"|{q}(t) − {q}(0)| / |{q}(0)|")
-    ax.set_ylim(1e-17, 10)
-    ax.grid(alpha=0.3, which="both")
-
-
-def fitted_line(r, t):
-    """The line e = intercept + rate·t a drift record fitted (linear, a slow oscillation's trend, a
-    collapse's linear tail) at times t (s), NaN outside the span it was fitted on; None if no line."""
-    if r["drift_class"] in ("linear", "slow_oscillation"):
-        a, b = r.get("intercept"), r.get("drift_rate")
-    elif r["drift_class"] == "collapse" and r.get("then_class") == "linear":
-        a, b = r.get("then_intercept"), r.get("then_rate")
-    else:
-        return None
-    if a is None or b is None or r.get("fit_t0") is None:
-        return None
-    t = np.asarray(t, dtype=float)
-    return np.where((t >= r["fit_t0"]) & (t <= r["fit_t1"]), a + b * t, np.nan)
-
-
-def _has_run(ds, r):
-    from ..io import scene_name
-
-    return (
-        scene_name(ds) == r["scene"]
-        and r["method"] in ds.integrator.values
-        and ds.sizes["time"] > 2
-        and np.any(np.isclose(ds.dt.values, r["dt"]))
-        and np.any(np.isclose(ds.f.values, r["f"]))
-    )
-
-
-def scene_figure(scene, records, datasets):
-    """The verdict figure of one scene (matplotlib Figure)."""
-    orders = [r for r in records if r["kind"] == "order" and r["scene"] == scene]
-    thresholds = [r for r in records if r["kind"] == "threshold" and r["scene"] == scene]
-    summ = [r for r in records if r["kind"] == "summary" and r["scene"] == scene]
-    quantities = list(dict.fromkeys(r["quantity"] for r in summ))
-    methods = list(dict.fromkeys(r["method"] for r in summ))
-    ncol = max(3, len(quantities))
-    fig = plt.figure(figsize=(4.2 * ncol, 10.5))
-    grid = fig.add_gridspec(2, ncol, height_ratios=[1.1, 1.0])
-    half = ncol // 2 + ncol % 2
-    _order_panel(fig.add_subplot(grid[0, :half]), orders, methods)
-    _threshold_panel(fig.add_subplot(grid[0, half:]), thresholds)
-    for k, q in enumerate(quantities):
-        runs = [r for r in summ if r["quantity"] == q and r.get("drift_class")]
-        _drift_panel(fig.add_subplot(grid[1, k]), q, runs, datasets)
-    handles = [plt.Line2D([], [], color=color(m), lw=2, marker=marker(m, methods), mfc="none") for m in methods]
-    fig.legend(
-        handles, methods, loc="lower center", ncol=min(10, len(methods)), fontsize=7.5, bbox_to_anchor=(0.5, -0.045)
-    )
-    fig.suptitle(f"Verdicts measured on {scene}: order, stability threshold, long-time invariant errors", fontsize=12)
-    fig.tight_layout()
-    return fig
-
-
-def draw_figures(records, datasets, out_dir):
-    """verdict_<scene>.png per scene of ``records`` into ``out_dir``; returns the paths."""
-    from ...safe_files import inside, safe_name
-
-    ds_list = [d for _, d in datasets]
-    out = []
-    scenes = dict.fromkeys(r["scene"] for r in records if r["kind"] == "summary")
-    for k, scene in enumerate(scenes):
-        # the scene is text from a file: a safe basename (else its index), checked to stay in out_dir
-        path = inside(out_dir, Path(out_dir) / f"verdict_{safe_name(scene, k)}.png")
-        out.append(save_figure(scene_figure(scene, records, ds_list), path))
-    return out
-
 
 try:
     from hydra.experimental.callback import Callback

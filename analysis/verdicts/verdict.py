@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from ...safe_files import UnsafePathError, check_replaceable, write_text
-from .classify import EPS, classify_drift, fit_order
+from .classify import EPS, classify_drift, fit_order, signed_error
 
 EXIT_BAD_INPUT = 2
 YARDSTICKS = ("lie_poisson4", "split6_exact")
@@ -289,20 +289,6 @@ def order_records(ds, refs):
 
 
 # ---------------------------------------------------------------- drift
-
-
-def signed_error(values):
-    """e(t) of an invariant series: (x − x0)/|x0| for a scalar (x0 → max |x| when |x0| is ~0 next to it),
-    |X − X0|/|X0| for a vector (time, xyz)."""
-    x = np.asarray(values, dtype=float)
-    if x.ndim == 2:
-        scale = np.linalg.norm(x[0]) or np.nanmax(np.linalg.norm(x, axis=-1))
-        return np.linalg.norm(x - x[:1], axis=-1) / scale
-    scale = abs(x[0])
-    big = np.nanmax(np.abs(x)) if np.isfinite(x).any() else 0.0
-    if not scale > 1e-9 * big:
-        scale = big or 1.0
-    return (x - x[0]) / scale
 
 
 def preserved_ulps(n_steps):
@@ -892,7 +878,7 @@ def write_outputs(records, json_path=None, markdown_path=None, figures_dir=None,
         write_text(Path(markdown_path), markdown(records) + "\n")
         written.append(Path(markdown_path))
     if figures_dir:
-        from .study import draw_figures
+        from .figures import draw_figures
 
         written += draw_figures(records, datasets or [], figures_dir)
     return written
