@@ -103,7 +103,7 @@ def drawn_or_listed(fig, key, value, ds=None):
     """``value`` of grid axis ``key`` appears in the figure: in a title/label as 'f = 10 Hz', in a note, or
     (with the file ``ds``) as the title of a grid point with that value in the problem's own terms
     (figure.run_title: a peer problem's initial body rates)."""
-    from gyrolab.analysis.figure import run_title
+    from gyrolab.analysis.figures.record import run_title
 
     text = all_text(fig)
     v = f"{value:g}"
