@@ -191,7 +191,7 @@ def _qacc_max(m, Is):
     return np.abs(c).max(axis=(1, 2))
 
 
-def predict_many(method, I, omega0, dt, n_max=1e5, criterion="energy", frac=0.05, max_stages=4000, n=N_ORBIT):
+def predict_many(method, I, omega0, dt, n_max=1e5, criterion="energy", frac=0.1, max_stages=3000, n=N_ORBIT):
     """Predict each of B runs of ``method`` on free bodies I (B, 3) kg m² from ω0 (B, 3) rad/s at dt (B,) s.
 
     Returns a list of ``Prediction``.  ``criterion`` "energy" (|E − E0| > BLOWUP_ENERGY E0) or
@@ -226,22 +226,34 @@ def predict_many(method, I, omega0, dt, n_max=1e5, criterion="energy", frac=0.05
             toward_pole = rd < 0
             target[a] = np.where(rd == 0, "", np.where(toward_pole, "pole axis", "separatrix L²/(2 I2)"))
             d_start[a] = np.where(toward_pole, delta[a], dsep - delta[a])
-        scale = np.maximum(np.abs(rG) / G2[a], np.abs(rd) / np.maximum(delta[a], 1e-300))
+        # Heun in log G² and log δ (exact for the exponential growth of a nutation about an axis), each
+        # stage moving either by at most frac; shortened while the corrector's rates say it went too far
+        tiny = 1e-300
+        gG, gd = rG / G2[a], rd / np.maximum(delta[a], tiny)
+        scale = np.maximum(np.abs(gG), np.abs(gd))
         with np.errstate(divide="ignore"):
             dn = np.where(scale > 0, frac / scale, np.inf)
         dn = np.minimum(dn, n_max - n_done[a])
-        # Heun: predictor, then the corrector with the rates at the predicted state
-        G2p = np.maximum(G2[a] + dn * rG, 0.0)
-        dp = np.maximum(delta[a] + dn * rd, 0.0)
-        fin = np.isfinite(dn)
-        rG2, rd2 = rG.copy(), rd.copy()
-        if fin.any():
-            f = np.flatnonzero(fin)
-            rG2[f], rd2[f], _, _ = averaged_rates(
-                method, Is[a][f], perm[a][f], G2p[f], dp[f], pole[a][f], sign[a][f], dt[a][f], n
-            )
-        G2_new = np.maximum(G2[a] + 0.5 * dn * (rG + rG2), 0.0)
-        d_new = np.maximum(delta[a] + 0.5 * dn * (rd + rd2), 0.0)
+        gG2, gd2 = gG.copy(), gd.copy()
+        todo = np.isfinite(dn)
+        for _ in range(10):
+            f = np.flatnonzero(todo)
+            if f.size == 0:
+                break
+            G2p = G2[a][f] * np.exp(dn[f] * gG[f])
+            dp = np.maximum(delta[a][f], tiny) * np.exp(dn[f] * gd[f])
+            rG2, rd2, _, _ = averaged_rates(method, Is[a][f], perm[a][f], G2p, dp, pole[a][f], sign[a][f], dt[a][f], n)
+            gG2[f], gd2[f] = rG2 / G2p, rd2 / dp
+            jump = dn[f] * np.maximum(np.abs(gG2[f]), np.abs(gd2[f]))
+            too_far = ~(jump <= 3 * frac)  # NaN too
+            dn[f[too_far]] *= 0.25
+            todo[:] = False
+            todo[f[too_far]] = True
+        gG2[todo], gd2[todo] = gG[todo], gd[todo]  # still too far after the retries: an Euler stage
+        with np.errstate(over="ignore", invalid="ignore"):
+            G2_new = G2[a] * np.exp(0.5 * dn * (gG + gG2))
+            d_new = np.where(delta[a] > 0, delta[a] * np.exp(0.5 * dn * (gd + gd2)), 0.0)
+        d_new = np.nan_to_num(d_new, nan=0.0, posinf=np.inf)
         n_new = n_done[a] + dn
         T_new = 0.5 * two_T(Is[a], G2_new, d_new, pole[a])
         # blow-up test on the new orbit, interpolated in log energy between the stage's ends
@@ -251,9 +263,9 @@ def predict_many(method, I, omega0, dt, n_max=1e5, criterion="energy", frac=0.05
             m_new, _ = orbit_points(Is[a], G2_new, d_new, pole[a], sign[a], n)
             x0, x1, lim = _qacc_max(m, Is[a]), _qacc_max(m_new, Is[a]), np.full(a.size, MJ_MAXVAL)
         with np.errstate(divide="ignore", invalid="ignore"):
-            hit = (x1 >= lim) & np.isfinite(dn)
+            hit = ((x1 >= lim) | ~np.isfinite(x1)) & np.isfinite(dn)  # a non-finite orbit: past any limit
             t = np.clip(np.log(lim / x0) / np.log(x1 / x0), 0.0, 1.0)
-        blow[a[hit]] = n_done[a][hit] + np.nan_to_num(t[hit], nan=1.0) * dn[hit]
+        blow[a[hit]] = n_done[a][hit] + np.nan_to_num(t[hit], nan=0.5) * dn[hit]
         # relaxation: the step where the distance to the target has fallen by e
         dsep_new = separatrix_delta(Is[a], G2_new, pole[a])
         dist = np.where(target[a] == "pole axis", d_new, dsep_new - d_new)
