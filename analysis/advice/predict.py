@@ -214,6 +214,7 @@ def predict_many(method, I, omega0, dt, n_max=1e5, criterion="energy", frac=0.1,
     relax = np.full(B, np.inf)
     target = np.array([""] * B, dtype=object)
     d_start = np.full(B, np.nan)  # distance to the relaxation target at the start
+    kind = KINDS.get(method, "")
     for stage in range(max_stages):
         if not active.any():
             break
@@ -283,7 +284,13 @@ def predict_many(method, I, omega0, dt, n_max=1e5, criterion="energy", frac=0.1,
         G2[a], delta[a], n_done[a] = G2_new, d_new, n_new
         for j, b in enumerate(a):
             hist[b].append((n_new[j], T_new[j], G2_new[j]))
-        active[a] = ~hit & (n_new < n_max) & np.isfinite(dn) & (T_new > 0)
+        # a rescale that has reached the separatrix stays there (the orbit's period diverges)
+        settled = (
+            (kind == "|L| rescale")
+            & (target[a] == "separatrix L²/(2 I2)")
+            & (np.abs(dsep_new - d_new) <= 1e-3 * dsep_new)
+        )
+        active[a] = ~hit & ~settled & (n_new < n_max) & np.isfinite(dn) & (T_new > 0)
     kind = KINDS.get(method, "")
     out = []
     for b in range(B):
@@ -336,3 +343,104 @@ def amplification(method, I, omega0, dt, eps=1e-7):
     w1 = one_step(method, np.repeat(I, 6, axis=0), pts, np.full(6, float(dt)))
     J = np.stack([(w1[2 * k] - w1[2 * k + 1]) / (2 * h) for k in range(3)], axis=1)
     return np.linalg.eigvals(J)
+
+
+# --- command line: what each engine update does to one free body -------------------------------
+
+DEFAULT_METHODS = ("mujoco_euler", "bullet_explicit", "mujoco_implicit", "jolt_rescale_bare", "rapier_rescale")
+
+
+def measure_blow_up(method, I, omega0, dt, n_max, horizon_steps=None):
+    """Measured blow-up step (|E − E0| > BLOWUP_ENERGY E0; inf: none in the horizon) and the kinetic
+    energy (J) after min(horizon, n_max) steps (NaN once blown up), at a resolution of 1/2000 of it."""
+    horizon = int(min(n_max, horizon_steps or n_max))
+    stride = max(1, math.ceil(horizon / 2000))
+    bodies = np.zeros((1, N_BODY))
+    bodies[0, :3] = I
+    q0 = np.array([[1.0, 0.0, 0.0, 0.0]])
+    n_samples = horizon // stride + 1
+    out, status, n_steps = integrate(
+        method, bodies, np.asarray(omega0, float)[None], q0, [dt], stride, n_samples, threshold=BLOWUP_ENERGY
+    )
+    blown = float(n_steps[0]) if status[0] != 0 else math.inf
+    return blown, float(out[0, -1, FIELDS.index("energy")]), (n_samples - 1) * stride
+
+
+def _fmt_steps(n, dt):
+    return "never" if not math.isfinite(n) else f"{n:.4g} ({n * dt:.3g} s)"
+
+
+def main(argv=None):
+    """``python -m gyrolab.analysis.advice.predict I1 I2 I3 --omega W1 W2 W3 --dt DT [--check]``."""
+    import argparse
+    import sys
+    import time
+
+    from ...kernels.registry import METHODS
+
+    ap = argparse.ArgumentParser(
+        prog="python -m gyrolab.analysis.advice.predict",
+        description="Predict what the engine rotation updates do to a torque-free body: per-step "
+        "amplification of a nutation about its spin axis, blow-up step (|E - E0| > 1e6 E0), energy "
+        "drift, relaxation of the |L|-rescaled updates.  --check runs each update to compare.",
+    )
+    ap.add_argument("inertia", nargs=3, type=float, metavar="I", help="principal moments (kg m^2)")
+    ap.add_argument("--omega", nargs=3, type=float, required=True, metavar="W", help="body rates (rad/s)")
+    ap.add_argument("--dt", type=float, required=True, help="time step (s)")
+    ap.add_argument("--steps", type=float, default=1e5, help="horizon in steps (default 1e5)")
+    ap.add_argument("--methods", default=",".join(DEFAULT_METHODS), help="comma-separated engine updates")
+    ap.add_argument("--check", action="store_true", help="also run each update and show the measured values")
+    args = ap.parse_args(argv)
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    problems = []
+    if not all(math.isfinite(v) and v > 0 for v in args.inertia):
+        problems.append(f"inertia={args.inertia}: the moments must be finite and > 0")
+    if not all(math.isfinite(v) for v in args.omega) or not any(args.omega):
+        problems.append(f"--omega={args.omega}: must be finite and not all zero")
+    if not (math.isfinite(args.dt) and args.dt > 0):
+        problems.append(f"--dt={args.dt}: must be finite and > 0")
+    if not (math.isfinite(args.steps) and 1 <= args.steps <= 1e8):
+        problems.append(f"--steps={args.steps}: must be in [1, 1e8]")
+    unknown = [m for m in methods if m not in KINDS or m not in METHODS]
+    if unknown:
+        problems.append(f"--methods: {', '.join(unknown)} not predicted; choose from {', '.join(KINDS)}")
+    if problems:
+        print("error: " + problems[0], file=sys.stderr)
+        return 2
+    I, w, dt = np.array(args.inertia), np.array(args.omega), args.dt
+    wn = float(np.linalg.norm(w))
+    print(
+        f"body I = {tuple(args.inertia)} kg m^2, omega = {tuple(args.omega)} rad/s (|omega| dt = {wn * dt:.3g}), "
+        f"dt = {dt:g} s, horizon {args.steps:.3g} steps"
+    )
+    head = f"{'method':<20} {'kind':<20} {'|lambda|/step':>13} {'blow-up step':>22} {'dE/dt / E0 (1/s)':>17}"
+    head += f" {'relaxation':>28}" + (f" {'measured blow-up':>22} {'E(end)/E0 pred|meas':>20}" if args.check else "")
+    print(head)
+    for method in methods:
+        t0 = time.perf_counter()
+        p = predict(method, I, w, dt, n_max=args.steps)
+        mods = np.abs(amplification(method, I, w, dt))
+        lam = float(mods[np.argmax(np.abs(mods - 1.0))])  # the nutation's, not the spin's ≈ 1
+        relax = (
+            ""
+            if not p.relaxes_to
+            else (
+                f"{p.relaxation_time:.3g} s to {p.relaxes_to}"
+                if math.isfinite(p.relaxation_time)
+                else f"to {p.relaxes_to}"
+            )
+        )
+        row = f"{method:<20} {p.kind:<20} {lam:>13.6f} {_fmt_steps(p.blow_up_step, dt):>22} "
+        row += f"{p.energy_rate_relative:>17.3e} {relax:>28}"
+        if args.check:
+            blown, E_end, n_run = measure_blow_up(method, I, w, dt, args.steps)
+            E0 = 0.5 * float(np.sum(I * w * w))
+            pred_end = energy_after(p, n_run) / E0
+            ends = f"{pred_end:>9.4g}|{E_end / E0:<10.4g}" if not math.isfinite(blown) else f"{'blown up':>20}"
+            row += f" {_fmt_steps(blown, dt):>22} {ends}"
+        print(row + f"   [{time.perf_counter() - t0:.1f} s]", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
