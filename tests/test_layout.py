@@ -19,6 +19,19 @@ from helpers import BIN, make_dataset
 DATA = Path(__file__).resolve().parent / "data"
 
 
+@pytest.fixture
+def stored_rk4(tmp_path):
+    """The stored regression dataset heavy_top_release/rk4 (layout 1) as a results file."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("regenerate", DATA / "regenerate.py")
+    regen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(regen)
+    out = tmp_path / "stored_rk4.h5"
+    regen.export_results(regen.stored_path("heavy_top_release", "rk4"), out)
+    return out
+
+
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     """(current, layout 0) files of the same runs: layout 0 is gyrolab at c0ed527 (no layout_version,
@@ -104,14 +117,14 @@ def test_a_fresh_file_selects_one_integrator_with_sel_and_opens_with_netcdf_c(fr
         )
 
 
-def test_older_layouts_open_with_integrator_not_method(files, layout_1, layout_2):
+def test_older_layouts_open_with_integrator_not_method(files, layout_1, layout_2, stored_rk4):
     """Every older layout (0, 1, 2 and the stored regression data) reads with the dim ``integrator``:
     the rename happens once, when the file is opened (layout.current)."""
     import xarray as xr
 
     from gyrolab.results.migrate import current
 
-    stored = DATA / "regression" / "heavy_top_release" / "rk4.h5"
+    stored = stored_rk4
     for path in (files[1], layout_1, layout_2, stored):
         with xr.open_dataset(path, engine="h5netcdf") as raw:
             assert "method" in raw.dims and file_layout_version(raw) < 3
@@ -160,10 +173,10 @@ def test_layout_1_file_opens_with_the_body_it_meant(files, layout_1):
     assert any("variable gamma" in note for note in report.dropped)
 
 
-def test_stored_regression_data_of_layout_1_open_with_the_current_body():
+def test_stored_regression_data_of_layout_1_open_with_the_current_body(stored_rk4):
     from gyrolab.kernels.body import FIELDS
 
-    ds = open_results(DATA / "regression" / "heavy_top_release" / "rk4.h5")
+    ds = open_results(stored_rk4)
     assert file_layout_version(ds) == 1 and list(ds["body_param"].values) == list(FIELDS)
     assert float(ds["body"].sel(body_param="mgl").values.max()) > 0.0
 

@@ -1,6 +1,7 @@
 """Regression: re-run every regression config for every registered method with the real ``gyrolab``
-command and compare each fresh file with its stored dataset (tests/data/regression/<config>/<method>.h5),
-using gyrolab-compare's own ``compare_files``.  A method or config without stored data fails with
+command and compare each fresh file with its stored dataset
+(tests/data/regression/<config>/<method>.pack.xz, read by regenerate.read_pack), using
+gyrolab-compare's own ``compare_datasets``.  A method or config without stored data fails with
 the one command that adds it (``python tests/data/regenerate.py --add``).
 
 Tolerance (tests/data/README.md explains the numbers): a value passes when
@@ -13,7 +14,6 @@ scale; a 6e-5 relative change in one coefficient of lie_poisson4 moves them by
 
 import importlib.resources
 import importlib.util
-import shutil
 import warnings
 from pathlib import Path
 
@@ -37,7 +37,9 @@ _spec = importlib.util.spec_from_file_location("regenerate", Path(__file__).pare
 regen = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(regen)
 
-# One file per (config, method); each carries ~70 kB of netCDF/HDF5 metadata next to ~20 kB of data.
+# One pack per (config, method), ~5-19 kB each (tests/data/README.md): a method's data over all the
+# datasets must stay within MAX_METHOD_BYTES, so ~100 methods fit in MAX_TOTAL_BYTES.
+MAX_METHOD_BYTES = 100 * 1024
 MAX_TOTAL_BYTES = 12 * 2**20
 
 
@@ -64,11 +66,10 @@ def check_against_stored(fresh, name, method, stored=None):
             pytrace=False,
         )
     if isinstance(fresh, xr.Dataset):
-        with xr.open_dataset(stored, engine="h5netcdf") as ref:
-            report = compare_datasets(fresh, ref.load(), scaled=regen.SCALED_TOL)
+        report = compare_datasets(fresh, regen.read_pack(stored), scaled=regen.SCALED_TOL)
         report.a, report.b = "fresh run", str(stored)
     else:
-        report = compare_files(fresh, stored, scaled=regen.SCALED_TOL)
+        report = regen.compare_with_stored(fresh, stored)
     hint = (
         f"If the change is intended, regenerate on purpose and commit the new file:\n"
         f"    python tests/data/regenerate.py --write {name}:{method}"
@@ -102,16 +103,28 @@ def fresh(tmp_path_factory):
     return get
 
 
+def selected_methods(session, name):
+    """The methods whose rerun test of dataset ``name`` this session runs (after -k and the like)."""
+    return [
+        item.callspec.params["method"]
+        for item in session.items
+        if getattr(item, "originalname", None) == "test_rerun_matches_stored_dataset"
+        and item.callspec.params["name"] == name
+    ]
+
+
 @pytest.fixture(scope="module")
-def fresh_all(tmp_path_factory):
-    """``fresh_all(name)``: path of one fresh run of regression config ``name`` with every registered
-    method (one gyrolab process per config instead of one per method)."""
+def fresh_all(request, tmp_path_factory):
+    """``fresh_all(name)``: path of one fresh run of regression config ``name`` with every method
+    whose rerun test is selected (one gyrolab process per config instead of one per method, and
+    ``pytest -k METHOD`` compiles and runs only the methods it selects)."""
     work = tmp_path_factory.mktemp("regression_all")
     done = {}
 
     def get(name):
         if name not in done:
-            done[name] = regen.run_config(name, list(regen.dataset_methods(name)), work / f"{name}.h5", work)
+            methods = selected_methods(request.session, name)
+            done[name] = regen.run_config(name, methods, work / f"{name}.h5", work)
         return done[name]
 
     return get
@@ -137,18 +150,19 @@ def test_same_machine_rerun_is_bit_identical(fresh, tmp_path):
 def test_stored_dataset_from_another_config_or_version_is_named_up_front(fresh, tmp_path):
     """A stored file whose recorded config (g) and gyrolab version differ: the check fails on the
     config, and the first lines of its message say what differs."""
-    copy = tmp_path / "old.h5"
-    shutil.copyfile(regen.stored_path("heavy_top_release", "rk4"), copy)
-    with h5py.File(copy, "r+") as fh:
-        config = yaml.safe_load(fh.attrs["config"])
-        config["scene"]["g"] = 9.81
-        fh.attrs["config"] = yaml.safe_dump(config, sort_keys=False)
-        fh.attrs["gyrolab_version"] = "0.0.9"
+    copy = tmp_path / f"old{regen.PACK_SUFFIX}"
+    ds = regen.read_pack(regen.stored_path("heavy_top_release", "rk4"))
+    config = yaml.safe_load(ds.attrs["config"])
+    config["scene"]["g"] = 9.81
+    ds.attrs["config"] = yaml.safe_dump(config, sort_keys=False)
+    ds.attrs["gyrolab_version"] = "0.0.9"
+    regen.write_pack(ds, copy)
     with pytest.raises(pytest.fail.Exception) as failure:
         check_against_stored(fresh("heavy_top_release", "rk4"), "heavy_top_release", "rk4", stored=copy)
     lines = str(failure.value).splitlines()
     assert lines[0] == (
-        "old.h5 was made with a different config than conf/experiment/regression_heavy_top_release.yaml now holds"
+        f"old{regen.PACK_SUFFIX} was made with a different config than "
+        "conf/experiment/regression_heavy_top_release.yaml now holds"
     )
     assert lines[4] == f"PROVENANCE: gyrolab_version differs: A {gyrolab.__version__}, B 0.0.9"
     assert lines[5] == "PROVENANCE: config differs: scene.g: A 10.0, B 9.81"
@@ -170,16 +184,21 @@ def test_every_regression_config_and_method_has_a_stored_dataset():
     missing = [f"{n}/{m}" for n, m in PAIRS if not regen.stored_path(n, m).exists()]
     assert not missing, f"no stored regression data for {', '.join(missing)}; add it with: {regen.ADD_COMMAND}"
     expected = {regen.stored_path(n, m) for n, m in PAIRS}
-    stray = sorted(str(p.relative_to(regen.DATA_DIR)) for p in regen.DATA_DIR.rglob("*.h5") if p not in expected)
+    stray = sorted(
+        str(p.relative_to(regen.DATA_DIR))
+        for p in regen.STORE.rglob("*")
+        if p.is_file() and p not in expected and not p.name.startswith(".")
+    )
     assert not stray, f"stored files of no registered (config, method): {', '.join(stray)}"
 
 
 def test_stored_datasets_open_are_small_and_cover_every_scene_and_method():
-    total, scenes, inits = 0, set(), set()
+    total, scenes, inits, per_method = 0, set(), set(), {}
     for name, method in PAIRS:
         path = regen.stored_path(name, method)
         total += path.stat().st_size
-        with xr.open_dataset(path, engine="h5netcdf") as ds:
+        per_method[method] = per_method.get(method, 0) + path.stat().st_size
+        with regen.read_pack(path) as ds:
             config = yaml.safe_load(ds.attrs["config"])
             assert ds.attrs["scene"] == config["scene"]["name"]
             stored_dim = "integrator" if ds.attrs["layout_version"] >= 3 else "method"  # renamed at layout 3
@@ -193,6 +212,8 @@ def test_stored_datasets_open_are_small_and_cover_every_scene_and_method():
             if ds.attrs["scene"] == "heavy_top":
                 inits.add(ds.attrs["scene_init"])
     assert total < MAX_TOTAL_BYTES, f"stored datasets take {total / 2**20:.2f} MB"
+    large = {m: f"{n / 1024:.0f} kB" for m, n in per_method.items() if n > MAX_METHOD_BYTES}
+    assert not large, f"stored data of a method over {MAX_METHOD_BYTES // 1024} kB: {large}"
     assert scenes == set(SCENES)
     assert {"release", "steady_slow"} <= inits
 
@@ -237,12 +258,31 @@ def overwrite_method(path, method, run_batch):
                     fh["n_steps"][im, jf, kt, ld] = n_steps[0]
 
 
+def test_a_pack_reads_back_as_the_results_file_it_stores(tmp_path):
+    """export (a results file again) and pack once more: the same Dataset, bit for bit, and the
+    same bytes; a pack that lost bytes is refused."""
+    stored = regen.stored_path("scene_forced_body", "rk4")  # ndarray attrs, layout 3
+    exported = tmp_path / "rk4.h5"
+    regen.export_results(stored, exported)
+    again = tmp_path / f"again{regen.PACK_SUFFIX}"
+    regen.pack_results(exported, again)
+    assert again.read_bytes() == stored.read_bytes()
+    with xr.open_dataset(exported, engine="h5netcdf") as ds:
+        assert ds.load().identical(regen.read_pack(stored))
+    import lzma
+
+    cut = tmp_path / f"cut{regen.PACK_SUFFIX}"
+    cut.write_bytes(lzma.compress(lzma.decompress(stored.read_bytes())[:-8]))
+    with pytest.raises(ValueError, match="bytes"):
+        regen.read_pack(cut)
+
+
 def test_coefficient_change_fails_with_a_readable_message(tmp_path):
     """Yoshida's w1 = 1/(2 − 2^(1/3)) with 2^(1/3) written as 1.26 (a 6e-5 relative change):
     the regression check of a copy of the stored file must fail and name lie_poisson4."""
     copy = tmp_path / "perturbed.h5"
     stored = regen.stored_path("heavy_top_release", "lie_poisson4")
-    shutil.copyfile(stored, copy)
+    regen.export_results(stored, copy)
     overwrite_method(copy, "lie_poisson4", regen.lie_poisson4_with(1.0 / (2.0 - 1.26)))
     with pytest.raises(pytest.fail.Exception) as failure:
         check_against_stored(copy, "heavy_top_release", "lie_poisson4")
@@ -252,7 +292,7 @@ def test_coefficient_change_fails_with_a_readable_message(tmp_path):
     assert "run differing most: integrator=lie_poisson4" in message
     assert "out of tolerance in 2 of 2 runs" in message  # both dt
     assert "python tests/data/regenerate.py --write heavy_top_release:lie_poisson4" in message
-    report = compare_files(copy, stored, scaled=regen.SCALED_TOL)
+    report = regen.compare_with_stored(copy, stored)
     worst = max((v for v in report.variables if not v.ok), key=lambda v: v.max_abs / max(v.atol, 1e-300))
     assert worst.max_abs > 10 * worst.atol  # fails by a wide margin, not by a hair
     # the same copy with the true coefficient passes again: the check is about the coefficient

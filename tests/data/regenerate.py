@@ -4,7 +4,7 @@
     python tests/data/regenerate.py --add           # write the files that are missing (a new method or config)
     python tests/data/regenerate.py --write heavy_top_release:rk4 free_symmetric   # replace these on purpose
 
-Each file ``tests/data/regression/<name>/<method>.h5`` is the output of the
+Each file ``tests/data/regression/<name>/<method>.pack.xz`` holds the output of the
 real command ``gyrolab experiment=regression_<name> sweep.method=[<method>]``
 (config in ``conf/experiment/regression_<name>.yaml``).  A registered scene
 that no pinned config uses gets a dataset ``scene_<scene>`` of its own: a
@@ -15,17 +15,31 @@ the named files (``NAME`` for all methods of a config, ``NAME:METHOD`` for
 one) after printing the comparison of each fresh run with the stored file,
 so a regeneration is always a decision someone made after reading it.
 Without options nothing is written.  The regression tests
-(tests/test_regression.py) import ``run_config``, ``DATASETS``, ``stored_path``
-and ``SCALED_TOL`` from here.
+(tests/test_regression.py) import ``run_config``, ``DATASETS``, ``stored_path``,
+``read_pack`` and ``SCALED_TOL`` from here.
+
+A stored file is a *pack*, not the results file itself: an xz stream of one JSON
+line (the Dataset's attrs, and each variable's dims, dtype, shape and attrs) and
+then every variable's raw bytes, C order, in that line's order.  ``read_pack``
+gives back the Dataset ``xr.open_dataset(results_file).load()`` gave, bit for bit;
+``--export NAME:METHOD OUT.h5`` writes it as a results file again (for
+``gyrolab-compare`` or ``gyrolab-plot``).  The pack drops the ~70 kB of
+netCDF/HDF5 structure a results file of this size carries, so a method's data
+over all the datasets is ~80 kB instead of ~630 kB.
 """
 
 import argparse
+import io
+import json
+import lzma
 import os
 import shutil
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+import numpy as np
 
 DATA_DIR = Path(__file__).resolve().parent
 STORE = DATA_DIR / "regression"
@@ -73,9 +87,98 @@ def datasets():
 DATASETS = datasets()
 
 
+PACK_SUFFIX = ".pack.xz"
+PACK_FORMAT = "gyrolab regression pack 1"
+
+
 def stored_path(name, method):
-    """The stored dataset of regression config ``name`` for ``method``."""
-    return STORE / name / f"{method}.h5"
+    """The stored dataset (a pack) of regression config ``name`` for ``method``."""
+    return STORE / name / f"{method}{PACK_SUFFIX}"
+
+
+def _attr_json(value):
+    """A JSON form of one attr value: a str as is, a number or array with its dtype (exact: JSON
+    floats are written by repr, which round-trips)."""
+    if isinstance(value, str):
+        return value
+    a = np.asarray(value)
+    return {"dtype": a.dtype.str, "shape": list(a.shape), "data": a.ravel().tolist()}
+
+
+def _attr_value(item):
+    if isinstance(item, str):
+        return item
+    a = np.asarray(item["data"], dtype=item["dtype"]).reshape(item["shape"])
+    return a[()] if a.ndim == 0 else a  # a 0-d attr reads back as a numpy scalar, as from HDF5
+
+
+def write_pack(ds, path):
+    """Write the loaded Dataset ``ds`` as a pack at ``path`` (atomically: a temp file, then rename)."""
+    names = list(ds.coords) + list(ds.data_vars)
+    header = {
+        "format": PACK_FORMAT,
+        "attrs": {k: _attr_json(v) for k, v in ds.attrs.items()},
+        "coords": list(ds.coords),
+        "variables": [
+            {
+                "name": n,
+                "dims": list(ds[n].dims),
+                "dtype": ds[n].dtype.str,
+                "shape": list(ds[n].shape),
+                "attrs": {k: _attr_json(v) for k, v in ds[n].attrs.items()},
+            }
+            for n in names
+        ],
+    }
+    body = io.BytesIO()
+    body.write(json.dumps(header).encode() + b"\n")  # json.dumps escapes newlines: one line
+    for n in names:
+        body.write(np.ascontiguousarray(ds[n].values).tobytes())
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    part = path.with_name(f".{path.name}.tmp")
+    part.write_bytes(lzma.compress(body.getvalue(), preset=9 | lzma.PRESET_EXTREME))
+    os.replace(part, path)
+
+
+def read_pack(path):
+    """The Dataset stored in the pack ``path`` (raw names, as the results file had them: pass it
+    through ``layout.current`` or compare_datasets for today's)."""
+    import xarray as xr
+
+    raw = lzma.decompress(Path(path).read_bytes())
+    line, _, data = raw.partition(b"\n")
+    header = json.loads(line)
+    if header.get("format") != PACK_FORMAT:
+        raise ValueError(f"{path}: not a {PACK_FORMAT} file")
+    arrays, offset = {}, 0
+    for var in header["variables"]:
+        dtype = np.dtype(var["dtype"])
+        size = dtype.itemsize * int(np.prod(var["shape"], dtype=np.int64))
+        if offset + size > len(data):
+            raise ValueError(f"{path}: ends {offset + size - len(data)} bytes before its header's variables do")
+        values = np.frombuffer(data, dtype, offset=offset, count=size // dtype.itemsize).reshape(var["shape"])
+        arrays[var["name"]] = xr.Variable(
+            var["dims"], values.copy(), {k: _attr_value(v) for k, v in var["attrs"].items()}
+        )
+        offset += size
+    if offset != len(data):
+        raise ValueError(f"{path}: {len(data) - offset} bytes more than its header declares")
+    coords = {n: arrays.pop(n) for n in header["coords"]}
+    return xr.Dataset(arrays, coords, {k: _attr_value(v) for k, v in header["attrs"].items()})
+
+
+def pack_results(results, path):
+    """Store the results file ``results`` (a path) as a pack at ``path``."""
+    import xarray as xr
+
+    with xr.open_dataset(results, engine="h5netcdf") as ds:
+        write_pack(ds.load(), path)
+
+
+def export_results(pack, out):
+    """Write the pack ``pack`` as a results file ``out`` (netCDF4/HDF5, as gyrolab writes)."""
+    read_pack(pack).to_netcdf(out, engine="h5netcdf")
 
 
 def registered_methods():
@@ -101,12 +204,11 @@ def dataset_methods(name):
 
 
 def gyrolab_command():
-    """The ``gyrolab`` console script of the running interpreter's environment (else the one on PATH)."""
+    """The ``gyrolab`` console script of the running interpreter's environment, else the one on
+    PATH, else ``python -m gyrolab.runner.app`` (the same command, from an uninstalled checkout)."""
     local = Path(sys.executable).parent / "gyrolab"
     found = str(local) if local.exists() else shutil.which("gyrolab")
-    if found is None:
-        raise RuntimeError("the gyrolab command is not installed (pip install -e .)")
-    return found
+    return [found] if found else [sys.executable, "-m", "gyrolab.runner.app"]
 
 
 def config_overrides(name):
@@ -124,7 +226,7 @@ def run_config(name, method, out, workdir, overrides=()):
     methods = method if isinstance(method, (list, tuple)) else [method]
     tag = method if isinstance(method, str) else "all"
     cmd = [
-        gyrolab_command(),
+        *gyrolab_command(),
         *config_overrides(name),
         f"sweep.method=[{','.join(methods)}]",
         f"output.path={Path(out).resolve()}",
@@ -187,15 +289,22 @@ def _targets(words, methods):
 
 
 def _store(new, path):
-    path.parent.mkdir(parents=True, exist_ok=True)
-    part = path.with_name(f".{path.name}.tmp")
-    shutil.copyfile(new, part)
-    os.replace(part, path)
+    pack_results(new, path)
     print(f"WROTE {path.relative_to(DATA_DIR.parent.parent)} ({path.stat().st_size / 1024:.0f} kB)")
 
 
+def compare_with_stored(fresh, path, names=("fresh run", None)):
+    """gyrolab-compare's Report of the results file ``fresh`` (a path) against the pack ``path``,
+    at the regression tolerance."""
+    from gyrolab.analysis.files.compare import compare_datasets, open_results
+
+    return compare_datasets(
+        open_results(fresh, "A"), read_pack(path), scaled=SCALED_TOL, names=(names[0], names[1] or str(path))
+    )
+
+
 def main(argv=None):
-    from gyrolab.analysis.files.compare import CompareError, compare_files
+    from gyrolab.analysis.files.compare import CompareError
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument(
@@ -207,7 +316,22 @@ def main(argv=None):
     what = parser.add_mutually_exclusive_group()
     what.add_argument("--add", action="store_true", help="write only the files that are missing")
     what.add_argument("--write", action="store_true", help="replace the named stored files (default: only compare)")
+    what.add_argument(
+        "--export",
+        metavar="OUT.h5",
+        help="write the one stored NAME:METHOD as a results file OUT.h5 (for gyrolab-compare, gyrolab-plot)",
+    )
     args = parser.parse_args(argv)
+    if args.export:
+        words = args.targets
+        if len(words) != 1 or ":" not in words[0]:
+            parser.error("--export takes exactly one NAME:METHOD")
+        (pair,) = _targets(words, registered_methods())
+        if not stored_path(*pair).exists():
+            parser.error(f"{words[0]}: no stored dataset; add it with: {ADD_COMMAND}")
+        export_results(stored_path(*pair), args.export)
+        print(f"WROTE {args.export} (stored {words[0]} as a results file)")
+        return
     pairs = _targets(args.targets, registered_methods())
     if args.add:
         pairs = [(n, m) for n, m in pairs if not stored_path(n, m).exists()]
@@ -220,7 +344,7 @@ def main(argv=None):
             print(f"=== {name} / {method}: {old.relative_to(DATA_DIR.parent.parent)}")
             if old.exists():
                 try:
-                    report = compare_files(new, old, scaled=SCALED_TOL)
+                    report = compare_with_stored(new, old)
                     print(f"A = fresh run, B = stored file, tolerance {SCALED_TOL:g} x each variable's largest |value|")
                     print(report.text())
                 except CompareError as err:
@@ -229,7 +353,7 @@ def main(argv=None):
                 print("no stored file yet")
             if args.write or args.add:
                 _store(new, old)
-    total = sum(p.stat().st_size for p in STORE.rglob("*.h5"))
+    total = sum(p.stat().st_size for p in STORE.rglob(f"*{PACK_SUFFIX}"))
     print(
         f"stored datasets: {total / 1024:.0f} kB in all"
         + ("" if args.write or args.add else " (nothing written: add --add or --write)")
