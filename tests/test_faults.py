@@ -150,10 +150,19 @@ def test_ctrl_c_is_answered_within_seconds_in_a_long_single_run(tmp_path):
 
 
 def _cpu_seconds(pid):
-    """CPU time (s) process ``pid`` and its waited-for children have used so far (/proc/<pid>/stat)."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    utime, stime, cutime, cstime = (int(x) for x in fields[11:15])
-    return (utime + stime + cutime + cstime) / os.sysconf("SC_CLK_TCK")
+    """CPU time (s) that process ``pid`` and all its descendants (the chunk worker, spawned and not yet
+    waited for, included) have used so far (/proc/<pid>/stat of each)."""
+    total, todo = 0.0, [pid]
+    while todo:
+        p = todo.pop()
+        try:
+            fields = Path(f"/proc/{p}/stat").read_text().rsplit(")", 1)[1].split()
+            total += sum(int(x) for x in fields[11:15]) / os.sysconf("SC_CLK_TCK")
+            for task in Path(f"/proc/{p}/task").iterdir():
+                todo.extend(int(c) for c in (task / "children").read_text().split())
+        except (FileNotFoundError, ProcessLookupError):
+            continue  # ended meanwhile: its time is in its parent's children totals, counted above
+    return total
 
 
 def test_chunks_in_the_worker_process_give_the_same_bits(tmp_path, reference):
