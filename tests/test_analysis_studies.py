@@ -45,7 +45,7 @@ def test_stability_map_cells_and_diverged_marks(tmp_path):
     # diverged cells are marked with a red x, ok cells carry their number
     n_bad = int((ds.status.sel({"integrator": "seed_prev"}) != 0).sum())
     crosses = [ln for ln in ax_prev.get_lines() if ln.get_marker() == "x"]
-    assert len(crosses) == n_bad and f"({n_bad} diverged)" in ax_prev.get_title()
+    assert len(crosses) == n_bad and f"{n_bad} diverged" in ax_prev.get_title()
     assert "log10" in fig.axes[-1].get_ylabel()  # the colour bar says what the colour is
     # the figure step draws what the study's config names (output.figures), whatever the file is called
     other = tmp_path / "renamed.h5"
