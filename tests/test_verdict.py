@@ -263,3 +263,35 @@ def test_the_figures_fitted_line_lies_on_its_data(drift_files, tmp_path):
         tail = e[t >= t[-1] - t[-1] / 8]
         assert 0.5 * tail.min() <= line[-1] <= 2 * tail.max(), r
         assert np.isnan(line[t < r["fit_t0"]]).all()
+
+
+def test_errors_below_the_references_own_error_leave_the_fit_and_say_so():
+    # A second-order ladder err = 1e-2 dt²/dt0² measured against a reference good to 1e-7: the three finest
+    # points (≤ 1e-7) measure the reference, so they leave the fit, which keeps order 2 on the others.
+    dt = 1e-2 / 2.0 ** np.arange(10)
+    err = 1e-2 * (dt / dt[0]) ** 2
+    fit = V.fit_order(dt, err, reference_error=1e-7)
+    assert [x for x in fit.excluded if x] == ["reference"] * int(np.sum(err <= 1e-7))
+    assert abs(fit.order - 2.0) < 1e-9
+    # all of them below it: no order, and the table says why instead of 'flat' or a bare reason
+    fit = V.fit_order(dt, err * 1e-6, reference_error=1e-7)
+    assert math.isnan(fit.order) and "reference" in fit.reason
+    rec = dict(order=None, order_reason=fit.reason, ladder_excluded=fit.excluded, ladder_err=list(err * 1e-6))
+    text = V.fmt_order(rec)
+    assert text.startswith("— (≤ reference") and f"{err[0] * 1e-6:.0e}" in text
+
+
+def test_a_rounding_level_trend_is_a_rounding_drift_whatever_the_window_calls_it():
+    # lie_poisson4's |L − L0| on the free disc over 1e6 steps: 9.3e-12 in all, 0.04 ulp per step, which a
+    # 1000 s window sees as the start of an oscillation of period ~7000 s (docs/verdict.md said
+    # "!L declared, not kept").
+    for cls in V.TREND_CLASSES:
+        assert V.is_rounding_drift(cls, 9.3e-12, 1_000_000, False)
+        assert not V.is_rounding_drift(cls, 1e-9, 1_000_000, False)  # 4.5 ulp a step: truncation
+    for cls in ("bounded", "collapse", "diverged", "growing"):
+        assert not V.is_rounding_drift(cls, 1e-15, 1_000_000, False)
+    assert not V.is_rounding_drift("linear", 1e-15, 1_000_000, True)  # preserved is said as such
+    assert not V.is_rounding_drift("linear", None, 1_000_000, False)
+    rec = dict(quantity="L", preserved=False, declared_preserved=True, drift_class="slow_oscillation")
+    assert V.fmt_preserved([dict(rec, amplitude=9.3e-12, n_steps=1_000_000)]) == "L (rounding drift)"
+    assert V.fmt_preserved([dict(rec, amplitude=1e-9, n_steps=1_000_000)]) == "!L declared, not kept"

@@ -72,7 +72,7 @@ class OrderFit(_Record):
     NaN with 2 points); stderr: the slope's standard error; dt_min, dt_max (s):
     the range of steps used; n_points: how many; used: per input point (in the
     caller's order) whether it entered the fit; excluded: per input point why
-    not ("nonfinite", "diverged", "floor", "flat", "pre_asymptotic", or "").
+    not ("nonfinite", "diverged", "floor", "reference", "flat", "pre_asymptotic", or "").
     reason: "" for a fit, else why there is none.
     """
 
@@ -98,7 +98,17 @@ def _local_slopes(ldt, lerr):
 
 
 def fit_order(
-    dt, err, *, scale=1.0, floor_ulps=1e3, diverged_err=1.0, min_slope=0.3, slope_tol=0.1, min_points=3, confidence=0.95
+    dt,
+    err,
+    *,
+    scale=1.0,
+    floor_ulps=1e3,
+    reference_error=0.0,
+    diverged_err=1.0,
+    min_slope=0.3,
+    slope_tol=0.1,
+    min_points=3,
+    confidence=0.95,
 ):
     """Order of convergence of a dt ladder, fitted over its asymptotic range.
 
@@ -111,7 +121,9 @@ def fit_order(
     2. ``diverged``: err/scale ≥ ``diverged_err`` (an O(1) error is no
        convergence data);
     3. ``floor``: err/scale < ``floor_ulps`` · eps (round-off floor,
-       1e3 eps ≈ 2.2e-13 by default);
+       1e3 eps ≈ 2.2e-13 by default); ``reference``: err ≤ ``reference_error``
+       (in err's units), the reference's own error estimate, below which the
+       error measures the reference, not the method;
     4. the asymptotic range: the local slopes between neighbouring steps are
        grouped into runs, each grown from a fine end towards coarser steps for
        as long as the next slope is within ``slope_tol`` (0.1) of the run's
@@ -141,6 +153,8 @@ def fit_order(
             excluded[i] = "diverged"
         elif rel[i] < floor_ulps * EPS:
             excluded[i] = "floor"
+        elif err[i] <= reference_error:
+            excluded[i] = "reference"
     # Coarse → fine order of the points still in; local slopes between neighbours.
     order = [i for i in np.argsort(-dt, kind="stable") if not excluded[i]]
     slopes = _local_slopes(np.log(dt[order]), np.log(err[order])) if len(order) >= 2 else np.array([])
@@ -173,7 +187,7 @@ def fit_order(
             + (
                 ", ".join(
                     f"{excluded.count(k)} {k}"
-                    for k in ("nonfinite", "diverged", "floor", "flat", "pre_asymptotic")
+                    for k in ("nonfinite", "diverged", "floor", "reference", "flat", "pre_asymptotic")
                     if excluded.count(k)
                 )
                 or "none"

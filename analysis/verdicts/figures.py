@@ -38,6 +38,11 @@ def _order_panel(ax, orders, methods):
             logc = np.mean(np.log(err[used]) - p * np.log(dt[used]))
             x = np.geomspace(o["order_dt_range"][0], o["order_dt_range"][1], 10)
             ax.loglog(x, np.exp(logc) * x**p, "-", color=c, lw=1.2)
+    # Below the reference's own error the points measure the reference, not the method (left out of the fits).
+    ref_errors = [o.get("reference_error") or 0.0 for o in orders]
+    if ref_errors and max(ref_errors) > FLOOR:
+        ax.axhspan(FLOOR, max(ref_errors), color="0.85", alpha=0.5, lw=0, zorder=0)
+        ax.text(0.02, 0.02, "≤ reference (its own error)", transform=ax.transAxes, fontsize=6.5, color="0.35")
     ax.set_xlabel("time step dt (s)")
     ax.set_ylabel("final-state error (dimensionless)")
     o = orders[0] if orders else None

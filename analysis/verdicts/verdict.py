@@ -25,7 +25,8 @@ Per (scene, method) it reports, from whatever the files hold:
 - **preserved**: max |e| at rounding level, ≤ max(500, 5 √N) eps for a run of
   N steps (a Brouwer walk of a few ulps per step's worth; 1.1e-12 at N = 1e6),
   and whether the method declares it (``PRESERVES``); ``rounding_drift``: not
-  that, but a linear or √t drift totalling ≤ 0.1 eps per step (a rounding bias);
+  that, but a trend (linear, √t, or a slow oscillation or slowing trend the
+  window cannot close) totalling ≤ 0.1 eps per step (a rounding bias);
 - the **stability threshold** (|ω| dt)_crit, only with ``--stability T``:
   bisection in dt (``classify.method_stability_threshold``) of "the run stays
   bounded over T seconds" from the file's stored initial state.
@@ -179,7 +180,9 @@ class References:
         self.cache = {}
 
     def get(self, ds, f, theta0):
-        """(axis (3,), ω (3,) rad/s, label, yardstick (method, dt) or None) at the file's last sample time."""
+        """(axis (3,), ω (3,) rad/s, label, yardstick (method, dt) or None, own error) at the file's last
+        sample time.  ``own error`` is the reference's own error estimate in ``state_error``'s measure (0 for
+        a closed form or the exact flow): an error below it measures the reference, not the method."""
         from ...results.layout import closed_form
         from ..io import build_run_scene
 
@@ -190,14 +193,14 @@ class References:
             from ...kernels.closed_form import free_symmetric_solution
 
             axis, omega = free_symmetric_solution(scene, [t])
-            return axis[0], omega[0], f"closed form ({form})", None
+            return axis[0], omega[0], f"closed form ({form})", None, 0.0
         if self.how in ("auto", "closed_form") and form == "euler_poinsot":
             from ...kernels.euler_poinsot import free_body
 
             omega, q = free_body(scene.body[:3], scene.omega0, scene.q0, np.array([t]))
             a, b, c, d = q[0]
             axis = np.array([2 * (b * d + a * c), 2 * (c * d - a * b), a * a + d * d - b * b - c * c])
-            return axis, omega[0], "exact flow (euler_poinsot: gyrolab.free_body)", None
+            return axis, omega[0], "exact flow (euler_poinsot: gyrolab.free_body)", None, 0.0
         if self.how == "closed_form":
             raise VerdictError(f"--reference closed_form: scene {scene.name} has no closed-form state")
         if self.how in ("auto", "yardstick"):
@@ -222,6 +225,7 @@ class References:
                     run.omega.values,
                     f"finest {name} run (dt = {dt:.3g} s; differs from its next finest by {spread:.1e})",
                     (name, dt),
+                    spread,  # an upper estimate of its own error (the next finest is the worse of the two)
                 )
         if self.how == "yardstick":
             raise VerdictError(f"--reference yardstick: no ok run of {' or '.join(YARDSTICKS)} in the file")
@@ -235,7 +239,7 @@ class References:
             own = float(max(np.max(e[0:3]), np.max(e[3:6]) / float(np.linalg.norm(scene.omega0))))
             self.cache[key] = (s[0:3], s[3:6], own)
         axis, omega, own = self.cache[key]
-        return axis, omega, f"DOP853 (rtol = atol = {DOP853_TOL:g}; its error ≤ {own:.1e})", None
+        return axis, omega, f"DOP853 (rtol = atol = {DOP853_TOL:g}; its error ≤ {own:.1e})", None, own
 
 
 def order_records(ds, refs):
@@ -247,7 +251,7 @@ def order_records(ds, refs):
     out = []
     for f in ds.f.values:
         for th in ds.theta0.values:
-            ref_axis, ref_omega, label, own = refs.get(ds, f, th)
+            ref_axis, ref_omega, label, own, ref_error = refs.get(ds, f, th)
             omega0 = float(np.linalg.norm(ds["omega0"].sel(f=f, theta0=th).values))
             for m in ds.integrator.values:
                 runs = ds.sel({"integrator": m, "f": f, "theta0": th}).isel(time=-1)
@@ -261,7 +265,7 @@ def order_records(ds, refs):
                     errs.append(
                         math.inf if bad else state_error(run.axis.values, run.omega.values, ref_axis, ref_omega, omega0)
                     )
-                fit = fit_order(dts, errs)
+                fit = fit_order(dts, errs, reference_error=ref_error)
                 out.append(
                     dict(
                         kind="order",
@@ -273,6 +277,7 @@ def order_records(ds, refs):
                         dt=None,
                         t_end=float(ds.time.values[-1]),
                         reference=label,
+                        reference_error=ref_error,
                         order=fit.order,
                         order_ci=[fit.ci_low, fit.ci_high],
                         order_dt_range=[fit.dt_min, fit.dt_max],
@@ -294,6 +299,23 @@ def order_records(ds, refs):
 def preserved_ulps(n_steps):
     """The rounding level of a run of n_steps steps, in ulps: max(500, 5 √N)."""
     return max(500.0, 5.0 * math.sqrt(max(n_steps, 0)))
+
+
+# The drift classes that are a trend (a rate, however it bends); a bounded, collapsing or diverging
+# invariant is not a rounding bias whatever its size.
+TREND_CLASSES = ("linear", "wander", "slow_oscillation", "slowing")
+
+
+def is_rounding_drift(drift_class, amplitude, n_steps, preserved):
+    """A trend whose total stays below 0.1 ulp per step (``amplitude`` ≤ 0.1 eps N): a rounding bias,
+    not truncation, whether the window shows it as a line, a √t wander or the start of a slow oscillation."""
+    return (
+        not preserved
+        and drift_class in TREND_CLASSES
+        and amplitude is not None
+        and math.isfinite(amplitude)
+        and amplitude <= 0.1 * EPS * n_steps
+    )
 
 
 def drift_records(ds):
@@ -319,11 +341,7 @@ def drift_records(ds):
                         d = classify_drift(t, e, preserved_ulps=preserved_ulps(n_steps))
                         d.drift_reason = d.reason
                         # A drift whose total stays below 0.1 ulp per step is a rounding bias, not truncation.
-                        rounding_drift = (
-                            not d.preserved_to_rounding
-                            and d.drift_class in ("linear", "wander")
-                            and d.amplitude <= 0.1 * EPS * n_steps
-                        )
+                        rounding_drift = is_rounding_drift(d.drift_class, d.amplitude, n_steps, d.preserved_to_rounding)
                         out.append(
                             dict(
                                 kind="run",
@@ -460,6 +478,7 @@ def _group_summaries(scene, m, f, th, order, group_runs, thr, quantities):
                         "order_points",
                         "order_reason",
                         "reference",
+                        "reference_error",
                         "ladder_excluded",
                         "ladder_err",
                         "ladder_dt",
@@ -548,7 +567,11 @@ def fmt_order(rec, short=False):
     if rec.get("order") is None or not math.isfinite(rec["order"]):
         excl = rec.get("ladder_excluded") or []
         reason = rec.get("order_reason") or ""
-        if "floor" in reason and not any(k in reason for k in ("diverged", "flat", "pre_asymptotic")):
+        if "reference" in reason and not any(k in reason for k in ("flat", "pre_asymptotic")):
+            ref_errs = [e for e, x in zip(rec.get("ladder_err") or [], excl) if x == "reference" and e is not None]
+            top = f" (err ≤ {max(ref_errs):.0e})" if ref_errs else ""
+            return f"— (≤ reference{top}: below the reference's own error)"
+        if "floor" in reason and not any(k in reason for k in ("diverged", "reference", "flat", "pre_asymptotic")):
             return "exact (err at rounding floor)"
         if "diverged" in reason:
             return "— (err ≥ 1 at most dt)"
@@ -639,7 +662,9 @@ def fmt_preserved(recs):
             continue
         if r["preserved"]:
             parts.append(r["quantity"] + ("" if r.get("declared_preserved") in (True, None) else " (undeclared)"))
-        elif r.get("rounding_drift"):
+        elif r.get("rounding_drift") or is_rounding_drift(
+            r.get("drift_class"), r.get("amplitude"), r.get("n_steps") or 0, r.get("preserved")
+        ):
             parts.append(f"{r['quantity']} (rounding drift)")
         elif r.get("declared_preserved"):
             parts.append(f"!{r['quantity']} declared, not kept")
@@ -661,8 +686,10 @@ def markdown(records, title="Verdicts measured by gyrolab"):
         "declared invariant (|L(t) − L0|/|L0| for L) with its fitted rate; bounded shows max |e|; a collapse "
         "its size, the time it took and what follows; a trend that bends, how long a run would decide; "
         "'wander' (σ√t) claims no randomness.  "
-        "Preserved: max |e| ≤ max(500, 5√N) eps over N steps; 'rounding drift': a linear or √t drift whose "
-        "total stays below 0.1 eps per step; '!' = declared in PRESERVES but not kept.  "
+        "Preserved: max |e| ≤ max(500, 5√N) eps over N steps; 'rounding drift': a trend (linear, √t, slowing "
+        "or the start of a slow oscillation) whose total stays below 0.1 eps per step; '!' = declared in "
+        "PRESERVES but not kept.  '≤ reference': the errors lie below the reference's own error estimate, "
+        "so they measure the reference, not the method (such points are left out of every fit).  "
         "(‖ω‖dt)_crit: largest step, by bisection, whose run stays bounded (|E − E0| ≤ T0 + |Mgl|) over the "
         "stated time; '< x' = not bounded even at the smallest step tried, '> x' = bounded at the largest.",
         "",
