@@ -62,12 +62,12 @@ def absent_variable(ds, err):
 
 def missing_variable_error(ds, name, figure):
     """The one-line MissingVariableError of figure ``figure`` needing variable ``name``."""
-    from ..results.layout import held_variables
+    from ..results.layout import absence_reason, held_variables
 
     held = ", ".join(held_variables(ds)) or "none"
     return MissingVariableError(
         f"figure {figure} needs variable {name}, which this file does not hold "
-        f"(it holds {held}: output.variables chose them when it was written)"
+        f"(it holds {held}: {absence_reason(ds, name)})"
     )
 
 

@@ -56,6 +56,7 @@ from ...results.layout import (
     VARIABLES_ATTR,
     held_variables,
     sample_dims,
+    variables_attr,
 )
 from ...results.migrate import file_layout_version
 from ...safe_files import (
@@ -90,8 +91,8 @@ def load(path):
         raise CombineError(f"{path}: {problem}")
     held = held_variables(ds, version)
     ds.attrs["layout_version"] = LAYOUT_VERSION  # today's names and body now, what it holds named below
-    if held != tuple(SAMPLE_VARIABLES):
-        ds.attrs[VARIABLES_ATTR] = " ".join(held)
+    if variables_attr(held) is not None:
+        ds.attrs[VARIABLES_ATTR] = variables_attr(held)
     return ds
 
 
