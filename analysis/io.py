@@ -205,10 +205,6 @@ def fmt_dt(dt):
     return f"dt = {float(dt):.0e} s".replace("e-0", "e-")
 
 
-def run_ok(ds_run):
-    return int(ds_run["status"].values) == 0
-
-
 def relative_error(values, reference=None):
     """|x(t) − x0| / |x0| along the last axis (x0 = first sample unless given).
 
