@@ -1,7 +1,5 @@
 """``gyrolab-combine``: merge the results files of a multirun into one Dataset/file.
-
-    gyrolab-combine multirun/2026-01-01/12-00-00-000000            # -> <dir>/combined.h5
-    gyrolab-combine a/results.h5 b/results.h5 -o both.h5
+Usage examples: README.md, "Using it".
 
 Every input is checked before anything is written: a gyrolab results file
 of a known ``layout_version`` with exactly the layout's variables, dims,

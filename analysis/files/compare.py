@@ -1,7 +1,5 @@
 """Compare two results files (the layout of gyrolab/results/layout.py) variable by variable: ``gyrolab-compare A B``.
-
-    gyrolab-compare new.h5 stored.h5 --rtol 1e-10 --atol energy=1e-12 --atol 1e-13
-    gyrolab-compare new.h5 stored.h5 --scaled 1e-10      # what the regression tests use
+Usage examples: README.md, "Using it".
 
 One function does the work, ``compare_files(a, b, rtol, atol) -> Report``; the
 command and the regression tests both call it.  Point by point, a value passes

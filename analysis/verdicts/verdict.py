@@ -1,7 +1,6 @@
 """``gyrolab-verdict FILE...``: measured verdicts from stored results files.
 
-    gyrolab-verdict ladder.h5 long.h5                      # table on stdout
-    gyrolab-verdict multirun/<date>/<time> --json v.json --markdown v.md --stability 10 --figures docs
+Usage examples: README.md, "Using it".
 
 Per (scene, method) it reports, from whatever the files hold:
 
