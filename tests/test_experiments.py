@@ -32,3 +32,58 @@ def test_pinned_experiment_plans_without_error(tmp_path, name):
     assert "gyrolab dry run:" in result.stdout
     assert "Traceback" not in result.stderr + result.stdout
     assert not list(tmp_path.rglob("*.h5")), "a dry run wrote a results file"
+
+
+def tiny_axes():
+    """Overrides that shrink any experiment's sweep axes to conf/sweep/tiny.yaml's (its methods kept)."""
+    import yaml
+
+    tiny = yaml.safe_load((importlib.resources.files("gyrolab.conf") / "sweep" / "tiny.yaml").read_text())
+    axes = [f"sweep.{key}=[{','.join(str(v) for v in tiny[key])}]" for key in ("f", "theta0", "dt")]
+    return [*axes, f"sweep.t_end={tiny['t_end']}", f"output.every={max(tiny['dt'])}"]
+
+
+def expected_figure_files(ds):
+    """{figure: file name} the figure step writes for the figures a results file's config names."""
+    import yaml
+
+    from gyrolab.analysis.figures.registry import FIGURES, figure_names
+
+    setting = yaml.safe_load(ds.attrs["config"])["output"]["figures"]
+    return {n: FIGURES[n].file_name or f"{n.replace('-', '_')}.png" for n in figure_names(setting)}
+
+
+# The verdict study runs every registered method on every scene (12 jobs); its coverage is what
+# test_pinned_experiment_plans_without_error plans, and here two methods run through all its jobs and its
+# callback (its stability bisection over 1 s, not 10), so the smoke run stays within seconds per job.
+FEWER_METHODS = {"verdict": ["sweep.method=[rk4,lie_poisson]", "hydra.callbacks.verdict.stability=1.0"]}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", EXPERIMENTS)
+def test_pinned_experiment_runs_at_tiny_size(tmp_path, name):
+    """``gyrolab experiment=NAME`` really runs, on conf/sweep/tiny.yaml's axes with the experiment's own
+    methods, scenes, jobs, figures and callbacks: every results file opens with the one reader and
+    every figure its config names is drawn (lightning-hydra-template's test_sweeps)."""
+    from gyrolab.results import find_results, open_results
+
+    result = gyrolab(
+        f"experiment={name}",
+        *tiny_axes(),
+        *FEWER_METHODS.get(name, []),
+        f"hydra.run.dir={tmp_path / 'run'}",
+        f"hydra.sweep.dir={tmp_path / 'multirun'}",
+        cwd=tmp_path,
+        timeout=600,
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert "Traceback" not in result.stderr + result.stdout
+    assert "skipped" not in result.stderr, result.stderr[-3000:]
+    files = find_results([tmp_path])
+    assert files
+    for path in files:
+        ds = open_results(path)
+        assert int((ds["status"] == 0).sum()) > 0, f"{path}: no run finished"
+        for figure, file_name in expected_figure_files(ds).items():
+            drawn = list((path.parent / "figures").glob(f"{file_name.rsplit('.', 1)[0]}.*"))
+            assert drawn, f"{path}: figure {figure} ({file_name}) was not drawn"
