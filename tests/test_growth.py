@@ -1,11 +1,11 @@
 """Adding a per-sample variable by the recipe (docs/design.md) keeps every older file readable.
 
 The recipe is applied to a scratch copy of the package: one raw field in kernels/driver.py
-(``FIELDS`` and ``_record``) and one ``SAMPLE_VARIABLES`` entry in gyrolab/results/layout.py,
-nothing else (no layout bump, no ``ABSENT_BEFORE`` entry).  With that copy a tiny sweep runs, and
-the one reader opens a file written before (by this gyrolab) and every stored regression pack: the
-new variable is absent in those, the others are read as before, and a reader that needs it says
-why in one line.
+(``FIELDS`` and ``_record``) and its formula in kernels/reference.py (``samples_from_states``), and
+one ``SAMPLE_VARIABLES`` entry in gyrolab/results/layout.py, nothing else (no layout bump, no
+``ABSENT_BEFORE`` entry).  With that copy a tiny sweep runs, and the one reader opens a file written
+before (by this gyrolab) and every stored regression pack: the new variable is absent in those, the
+others are read as before, and a reader that needs it says why in one line.
 """
 
 import re
@@ -47,13 +47,19 @@ def edit(path, old, new):
 
 
 def apply_recipe(package):
-    """The documented recipe: ``omega_norm`` (|ω|, rad/s) as a raw field and one layout entry."""
+    """The documented recipe: ``omega_norm`` (|ω|, rad/s) as a raw field (driver and reference) and one
+    layout entry."""
     driver = package / "kernels" / "driver.py"
     edit(driver, '    "gamma_3",\n)', '    "gamma_3",\n    "omega_norm",\n)')
     edit(
         driver,
         "    out[i, k, 13] = g[2]\n",
         "    out[i, k, 13] = g[2]\n    out[i, k, 14] = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])\n",
+    )
+    edit(
+        package / "kernels" / "reference.py",
+        '        "gamma_3": gamma[:, 2],\n    }',
+        '        "gamma_3": gamma[:, 2],\n        "omega_norm": np.linalg.norm(omega, axis=1),\n    }',
     )
     edit(
         package / "results" / "layout.py",
@@ -92,6 +98,10 @@ CHECK = textwrap.dedent(
     report = compare_datasets(new, old)
     assert report.ok, report.text()
     assert any("omega_norm" in d for d in report.dropped), report.dropped
+    from gyrolab.kernels.reference import samples_from_states
+
+    raw = samples_from_states((1.0, 2.0, 3.0, 0.0), np.array([[3.0, 4.0, 12.0]]), np.eye(3)[None])
+    assert raw[0, -1] == 13.0  # the reference gives the new field too
     print(missing_variable_error(old, "omega_norm", "omega_norm_plot"))
     packs = sorted(Path(regenerate.STORE).rglob("*" + regenerate.PACK_SUFFIX))
     assert len(packs) > 100, len(packs)

@@ -24,7 +24,8 @@ grid dim ``integrator`` ``method``, a keyword of xarray's ``.sel`` (``ds.sel(met
 silently selected every method), and they lack what ``ABSENT_BEFORE`` lists.
 
 Adding a per-sample variable (recipe, also in docs/design.md): a field in kernels/driver.py
-(``FIELDS`` and ``_record``) if the kernels must compute it, and one entry at the end of
+(``FIELDS`` and ``_record``) and its formula in kernels/reference.py (``samples_from_states``) if the
+kernels must compute it, and one entry at the end of
 ``SAMPLE_VARIABLES`` here; every writer, reader and size estimate follows.  No layout bump and no
 ``ABSENT_BEFORE`` entry: a file that does not name its variables (``VARIABLES_ATTR``) holds
 ``UNNAMED_HOLD`` (frozen), so every file written before the new variable reads as one without it,
