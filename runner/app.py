@@ -27,13 +27,12 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.errors import HydraException
 from omegaconf.errors import OmegaConfBaseException
 
+from ..results import EXIT_BAD_INPUT
 from ..safe_files import OutputBusyError, UnsafePathError
 from .config import ConfigError, register_configs
 from .preflight import check_run_dirs
 from .signals import exit_status, handle_signals, ignore_signals, signal_name
 from .sweep import run_sweep
-
-EXIT_BAD_INPUT = 2
 
 
 def fail(message):

@@ -30,8 +30,6 @@ import argparse
 import sys
 from pathlib import Path
 
-EXIT_BAD_INPUT = 2
-
 
 def _common(p, many=False):
     if many:
@@ -84,6 +82,8 @@ def build_parser():
 
 
 def _fail(message):
+    from ...results import EXIT_BAD_INPUT  # imported when needed: --help stays free of xarray
+
     sys.stderr.write(f"gyrolab-plot: error: {' '.join(str(message).split())}\n")
     sys.exit(EXIT_BAD_INPUT)
 

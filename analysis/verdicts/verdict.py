@@ -45,10 +45,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ...results import EXIT_BAD_INPUT
 from ...safe_files import UnsafePathError, check_replaceable, write_text
 from .classify import EPS, classify_drift, fit_order, signed_error
 
-EXIT_BAD_INPUT = 2
 YARDSTICKS = ("lie_poisson4", "split6_exact")
 MIN_DRIFT_SAMPLES = 16
 # What a drift record carries beyond class and rate (classify.Drift): the fitted line, a period,
