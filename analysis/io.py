@@ -10,16 +10,15 @@ match their coordinate to a relative 1e-9, so ``dt=1e-4`` finds 0.0001.
 import math
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")  # analysis is headless: files, never windows
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+from ..results import ResultsError
+from ..results.layout import GRID_DIMS
+from ..results.members import MEMBER_DIMS
+from ..safe_files import atomic_replace
 
-from ..results import ResultsError  # noqa: E402
-from ..results.layout import GRID_DIMS  # noqa: E402
-from ..results.members import MEMBER_DIMS  # noqa: E402
-from ..safe_files import atomic_replace  # noqa: E402
+plt.switch_backend("Agg")  # analysis is headless: files, never windows (pyplot picks its backend lazily)
 
 FORMATS = ("png", "svg", "pdf")
 # Fixed colours of the first methods and the peers; any other method gets one from PALETTE
