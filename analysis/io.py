@@ -13,6 +13,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
+from ..kernels.invariants import INVARIANTS
 from ..results import ResultsError
 from ..results.layout import GRID_DIMS
 from ..results.members import MEMBER_DIMS
@@ -35,7 +36,8 @@ METHOD_COLORS = {
     "LSODA": "#6baed6",
 }
 DT_STYLES = ("-", "--", ":", "-.")
-QUANTITY_LABELS = {"energy": "E", "Lz": "L_z", "L3": "L_3", "L": "L", "L_norm": "|L|", "kovalevskaya": "K"}
+# Each invariant's symbol, from its one declaration (kernels/invariants.py).
+QUANTITY_LABELS = {name: invariant.label for name, invariant in INVARIANTS.items()}
 
 
 class SelectionError(ResultsError):
