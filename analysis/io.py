@@ -10,16 +10,16 @@ match their coordinate to a relative 1e-9, so ``dt=1e-4`` finds 0.0001.
 import math
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")  # analysis is headless: files, never windows
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+from ..kernels.invariants import INVARIANTS
+from ..results import ResultsError
+from ..results.layout import GRID_DIMS
+from ..results.members import MEMBER_DIMS
+from ..safe_files import atomic_replace
 
-from ..results import ResultsError  # noqa: E402
-from ..results.layout import GRID_DIMS  # noqa: E402
-from ..results.members import MEMBER_DIMS  # noqa: E402
-from ..safe_files import atomic_replace  # noqa: E402
+plt.switch_backend("Agg")  # analysis is headless: files, never windows (pyplot picks its backend lazily)
 
 FORMATS = ("png", "svg", "pdf")
 # Fixed colours of the first methods and the peers; any other method gets one from PALETTE
@@ -36,7 +36,8 @@ METHOD_COLORS = {
     "LSODA": "#6baed6",
 }
 DT_STYLES = ("-", "--", ":", "-.")
-QUANTITY_LABELS = {"energy": "E", "Lz": "L_z", "L3": "L_3", "L": "L", "L_norm": "|L|", "kovalevskaya": "K"}
+# Each invariant's symbol, from its one declaration (kernels/invariants.py).
+QUANTITY_LABELS = {name: invariant.label for name, invariant in INVARIANTS.items()}
 
 
 class SelectionError(ResultsError):
@@ -62,12 +63,12 @@ def absent_variable(ds, err):
 
 def missing_variable_error(ds, name, figure):
     """The one-line MissingVariableError of figure ``figure`` needing variable ``name``."""
-    from ..results.layout import held_variables
+    from ..results.layout import absence_reason, held_variables
 
     held = ", ".join(held_variables(ds)) or "none"
     return MissingVariableError(
         f"figure {figure} needs variable {name}, which this file does not hold "
-        f"(it holds {held}: output.variables chose them when it was written)"
+        f"(it holds {held}: {absence_reason(ds, name)})"
     )
 
 
@@ -203,10 +204,6 @@ def scene_label(ds):
 def fmt_dt(dt):
     """1e-4 -> '1e-04 s' style label text (compact)."""
     return f"dt = {float(dt):.0e} s".replace("e-0", "e-")
-
-
-def run_ok(ds_run):
-    return int(ds_run["status"].values) == 0
 
 
 def relative_error(values, reference=None):

@@ -56,7 +56,7 @@ def integrate(
 ):
     """Integrate a batch of runs with one method, in parallel over runs.
 
-    bodies (n, body.N_FIELDS): rows of body.Body (I1, I2, I3 in kg m², M g l in N m); omega0 (n, 3) body rates
+    bodies (n, body.N_FIELDS): rows of body.Body (fields and units in kernels/body.py); omega0 (n, 3) body rates
     (rad/s); q0 (n, 4) quaternions; dt (n,) step (s); stride (n,) steps per
     sample.  Returns (samples (n, n_samples, driver.N_FIELDS) float64 in the field order of
     ``driver.FIELDS``, status (n,) int8, n_steps (n,) int64).  ``path``

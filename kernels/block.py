@@ -9,20 +9,19 @@ polynomial's range, or a run blowing up) are redone from before those steps
 with ``ieee_step`` (the method's own ``step``, never raising).  Every lane
 therefore gets exactly what ``step`` computes: results are bit-identical to
 the single-trajectory driver (driver.py), whatever the block size or thread
-count.  The one exception: where ``step`` would raise
-ZeroDivisionError (rk4 after its quaternion overflowed), the lane turns NaN
-and its run ends with status "non-finite"; driver.py's prange loses such an
-exception and returns that run half-written.
+count.  Where a division by zero occurs (rk4 after its quaternion
+overflowed), both paths give inf/NaN (``error_model="numpy"``) and the run
+ends with status "non-finite".
 
 Runs of a block may have different dt and strides: the block advances by the
 steps until the nearest lane's next sample, records the lanes due, and a run
 that is finished or diverged (driver._diverged) leaves the block by swapping
 with the last active lane, so it costs the others nothing.
 
-Each method module builds ``advance_queue = make_advance_queue(step)`` and a
-cached parallel ``run_blocks``, one prange iteration per thread, each running
-its queue of blocks planned by ``plan_blocks`` (entry.py: as for ``run_batch``, the
-step is bound as a global so that the kernel can be cached).
+entry.py builds ``advance_queue = make_advance_queue(step)`` for each method
+and a cached parallel ``run_blocks``, one prange iteration per thread, each
+running its queue of blocks planned by ``plan_blocks`` (as for ``run_batch``,
+the step is bound as a global so that the kernel can be cached).
 """
 
 import numpy as np

@@ -1,8 +1,8 @@
 """Advance one run of a batch and record its samples; shared by every method.
 
-Each method module defines ``step(w, q, dt, body) -> (w, q)``, builds
-``advance_run = make_advance(step)`` and a ``run_batch`` that calls it inside
-one ``prange`` over runs.  The step is bound by a closure, not passed as an
+Each method module defines ``step(w, q, dt, body) -> (w, q)``; entry.py builds
+``advance_run = make_advance(step)`` for it and a ``run_batch`` that calls it
+inside one ``prange`` over runs.  The step is bound by a closure, not passed as an
 argument: numba lowers a dispatcher passed by value to a raw pointer, which
 makes the calling kernel uncacheable.  Every kernel function is compiled with
 ``error_model="numpy"``: a division by zero (a blown-up run) gives inf/NaN and
@@ -10,15 +10,17 @@ the run is flagged non-finite, where the default would raise an exception that
 a ``prange`` loses, leaving the run unwritten with status ok.
 
 The parallel kernels are cached with the method (entry.py); the cache
-directory is keyed by a hash of every kernel source (kernels/__init__.py), so
-an edit of this file or of any helper never runs stale machine code.
+directory is keyed by what each file compiles (kernels/__init__.py,
+COMPILE_KEYS), so an edit of this file or of any helper never runs stale
+machine code.
 
 Sample layout, last axis of ``out`` (n_runs, n_samples, N_FIELDS):
 axis_x, axis_y, axis_z (R e3, lab), omega_1..3 (body, rad/s),
 energy (J), L_x, L_y, L_z (lab angular momentum, kg m²/s), L3 (kg m²/s),
 gamma_1..3 (γ = Rᵀ ẑ, the lab vertical in body coordinates).
-A new per-sample quantity is one more field here and in ``_record``, and one
-entry in the results layout (gyrolab/results/layout.py).
+A new per-sample quantity is one more field here and in ``_record``, its
+formula in reference.py's ``samples_from_states``, and one entry in the
+results layout (gyrolab/results/layout.py; the recipe in docs/design.md).
 """
 
 import math

@@ -28,7 +28,7 @@ from scipy.integrate import solve_ivp
 from .body import N_FIELDS as N_BODY
 from .body import Body
 from .closed_form import scene_rotation
-from .driver import N_FIELDS
+from .driver import FIELDS
 
 
 def rhs(t, y, I1, I2, I3, mgl, mgc1=0.0, mgc2=0.0, tau1=0.0, tau2=0.0, tau3=0.0, rate=0.0, on=0.0, off=0.0):
@@ -50,20 +50,37 @@ def rhs(t, y, I1, I2, I3, mgl, mgc1=0.0, mgc2=0.0, tau1=0.0, tau2=0.0, tau3=0.0,
 
 
 def samples_from_states(body, omega, R):
-    """Samples (n, driver.N_FIELDS) in driver.FIELDS order from ω (n, 3) and R (n, 3, 3)."""
+    """Samples (n, driver.N_FIELDS) in driver.FIELDS order from ω (n, 3) and R (n, 3, 3).
+
+    Each column is looked up by its name in driver.FIELDS, the one raw-field map the kernels'
+    ``_record`` writes too: a field added there without its formula here is a KeyError naming it,
+    never an uninitialised column."""
     I = np.asarray(body[:3], dtype=float)
     body = tuple(body) + (0.0,) * (N_BODY - len(body))
     weight_moment = np.array([body[4], body[5], body[3]])  # M g c in body coordinates
     Iw = omega * I
     L = np.einsum("nij,nj->ni", R, Iw)
-    out = np.empty((omega.shape[0], N_FIELDS))
-    out[:, 0:3] = R[:, :, 2]
-    out[:, 3:6] = omega
-    out[:, 6] = 0.5 * np.sum(omega * Iw, axis=1) + R[:, 2, :] @ weight_moment
-    out[:, 7:10] = L
-    out[:, 10] = Iw[:, 2]
-    out[:, 11:14] = R[:, 2, :]
-    return out
+    gamma = R[:, 2, :]  # γ = Rᵀ ẑ, the third row of R
+    columns = {
+        "axis_x": R[:, 0, 2],
+        "axis_y": R[:, 1, 2],
+        "axis_z": R[:, 2, 2],
+        "omega_1": omega[:, 0],
+        "omega_2": omega[:, 1],
+        "omega_3": omega[:, 2],
+        "energy": 0.5 * np.sum(omega * Iw, axis=1) + gamma @ weight_moment,
+        "L_x": L[:, 0],
+        "L_y": L[:, 1],
+        "L_z": L[:, 2],
+        "L3": Iw[:, 2],
+        "gamma_1": gamma[:, 0],
+        "gamma_2": gamma[:, 1],
+        "gamma_3": gamma[:, 2],
+    }
+    missing = [name for name in FIELDS if name not in columns]
+    if missing:
+        raise KeyError(f"kernels/reference.py samples_from_states: no formula for raw field {missing[0]!r}")
+    return np.stack([columns[name] for name in FIELDS], axis=1)
 
 
 def dop853(scene, t_end, every, rtol=1e-12, atol=1e-12):

@@ -373,6 +373,11 @@ class DaskCluster:
             chunks = plan_chunks(grid, runs, threads, seconds)
         return chunks
 
+    remote = True  # the sweep says where it runs
+
+    def start(self):
+        """Nothing before the first chunk: each worker sets its own numba threads (numba_threads)."""
+
     def warm_up(self, grid):
         """Register the warm-up plugin: every worker compiles the sweep's kernels now, and
         every worker that joins later does so before its first chunk."""

@@ -4,8 +4,9 @@ A run is one point (method, f, theta0, dt) of the Cartesian grid, numbered in
 C order of the results' dims (integrator, f, theta0, dt: the sweep's methods are the
 file's integrator dim).  ``build_grid`` builds
 every scene and every sample schedule before any work, so bad input fails
-first.  A chunk is a set of runs of ONE method and ONE step count, so the
-batch kernel's prange hands every thread the same amount of work.
+first.  A chunk is a set of runs of ONE method (``plan_chunks``): runs of one dt
+fill chunks of equal runs, so the batch kernel's prange hands every thread the
+same work, and each dt's leftovers are pooled into chunks of mixed dt.
 """
 
 import math

@@ -38,12 +38,12 @@ from ..results.layout import (
     INPUT_VARIABLES,
     RAW_PER_SAMPLE,
     RUN_VARIABLES,
-    SAMPLE_VARIABLES,
     VARIABLE_ATTRS,
     VARIABLES_ATTR,
     WALL_TIME_NOTE,
     sample_dims,
     sample_variables,
+    variables_attr,
 )
 from ..safe_files import atomic_replace, atomic_write, open_regular, remove_entry
 from .assembly import JournalChunk, MemoryChunk, box_runs, boxes, chunk_layout, gather, max_runs
@@ -514,5 +514,5 @@ def write_results(path, grid, chunks, attrs, after_read=None):
         for name, values in per_run.items():
             variables[name][...] = values.reshape(shape)
         nc.attrs.update(attrs)
-        if set(grid.variables) != set(SAMPLE_VARIABLES):
-            nc.attrs[VARIABLES_ATTR] = " ".join(grid.variables)
+        if variables_attr(grid.variables) is not None:  # a file names its variables unless they are UNNAMED_HOLD
+            nc.attrs[VARIABLES_ATTR] = variables_attr(grid.variables)

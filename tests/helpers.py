@@ -223,11 +223,11 @@ def make_file(path, *overrides):
     runner's own grid, chunk and store (no subprocess); return ``path``."""
     from hydra import compose, initialize_config_module
 
-    from gyrolab.runner.app import file_attrs
     from gyrolab.runner.config import config_hash, register_configs
     from gyrolab.runner.execute import run_chunk
     from gyrolab.runner.grid import build_grid
     from gyrolab.runner.store import write_results
+    from gyrolab.runner.sweep import file_attrs
 
     register_configs()
     with initialize_config_module(config_module="gyrolab.conf", version_base=None):

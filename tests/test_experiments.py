@@ -32,3 +32,73 @@ def test_pinned_experiment_plans_without_error(tmp_path, name):
     assert "gyrolab dry run:" in result.stdout
     assert "Traceback" not in result.stderr + result.stdout
     assert not list(tmp_path.rglob("*.h5")), "a dry run wrote a results file"
+    if name == "verdict":  # every registered method on every scene (that it can integrate), none typed in conf/
+        import re
+
+        import numpy as np
+
+        from gyrolab.kernels.body import is_driven
+        from gyrolab.kernels.registry import METHODS, driven_methods
+        from gyrolab.kernels.scenes import SCENES, build_scene
+
+        def can_run(scene):
+            driven = is_driven(np.array([build_scene(scene, 50.0, 45.0).body], dtype=float))
+            return len(driven_methods()) if driven else len(METHODS)
+
+        plans = re.findall(r"gyrolab dry run: (\w+): (\d+) method x", result.stdout)
+        assert sorted(plans) == sorted((s, str(can_run(s))) for s in SCENES for _ in range(2)), plans
+
+
+def tiny_axes():
+    """Overrides that shrink any experiment's sweep axes to conf/sweep/tiny.yaml's (its methods kept)."""
+    import yaml
+
+    tiny = yaml.safe_load((importlib.resources.files("gyrolab.conf") / "sweep" / "tiny.yaml").read_text())
+    axes = [f"sweep.{key}=[{','.join(str(v) for v in tiny[key])}]" for key in ("f", "theta0", "dt")]
+    return [*axes, f"sweep.t_end={tiny['t_end']}", f"output.every={max(tiny['dt'])}"]
+
+
+def expected_figure_files(ds):
+    """{figure: file name} the figure step writes for the figures a results file's config names."""
+    import yaml
+
+    from gyrolab.analysis.figures.registry import FIGURES, figure_names
+
+    setting = yaml.safe_load(ds.attrs["config"])["output"]["figures"]
+    return {n: FIGURES[n].file_name or f"{n.replace('-', '_')}.png" for n in figure_names(setting)}
+
+
+# The verdict study runs every registered method on every scene (12 jobs); its coverage is what
+# test_pinned_experiment_plans_without_error plans, and here two methods run through all its jobs and its
+# callback (its stability bisection over 1 s, not 10), so the smoke run stays within seconds per job.
+FEWER_METHODS = {"verdict": ["sweep.method=[rk4,lie_poisson]", "hydra.callbacks.verdict.stability=1.0"]}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", EXPERIMENTS)
+def test_pinned_experiment_runs_at_tiny_size(tmp_path, name):
+    """``gyrolab experiment=NAME`` really runs, on conf/sweep/tiny.yaml's axes with the experiment's own
+    methods, scenes, jobs, figures and callbacks: every results file opens with the one reader and
+    every figure its config names is drawn (lightning-hydra-template's test_sweeps)."""
+    from gyrolab.results import find_results, open_results
+
+    result = gyrolab(
+        f"experiment={name}",
+        *tiny_axes(),
+        *FEWER_METHODS.get(name, []),
+        f"hydra.run.dir={tmp_path / 'run'}",
+        f"hydra.sweep.dir={tmp_path / 'multirun'}",
+        cwd=tmp_path,
+        timeout=1800,  # seconds when the kernels are cached; a cold numba cache compiles the methods first
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert "Traceback" not in result.stderr + result.stdout
+    assert "skipped" not in result.stderr, result.stderr[-3000:]
+    files = find_results([tmp_path])
+    assert files
+    for path in files:
+        ds = open_results(path)
+        assert int((ds["status"] == 0).sum()) > 0, f"{path}: no run finished"
+        for figure, file_name in expected_figure_files(ds).items():
+            drawn = list((path.parent / "figures").glob(f"{file_name.rsplit('.', 1)[0]}.*"))
+            assert drawn, f"{path}: figure {figure} ({file_name}) was not drawn"

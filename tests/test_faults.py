@@ -22,11 +22,12 @@ from hydra import compose, initialize_config_module
 
 from gyrolab.analysis.figures.registry import FIGURES
 from gyrolab.analysis.files.combine import main as combine_main
-from gyrolab.runner.app import file_attrs, output_state
 from gyrolab.runner.config import ConfigError, config_hash, register_configs
 from gyrolab.runner.execute import run_chunk
 from gyrolab.runner.grid import build_grid
+from gyrolab.runner.preflight import output_state
 from gyrolab.runner.store import Journal, write_results
+from gyrolab.runner.sweep import file_attrs
 
 from faults import (
     BAD_FILES,

@@ -77,11 +77,11 @@ def fresh(tmp_path_factory):
     """A results file written by the runner (runner/store.py) of two integrators."""
     from hydra import compose, initialize_config_module
 
-    from gyrolab.runner.app import file_attrs
     from gyrolab.runner.config import config_hash, register_configs
     from gyrolab.runner.execute import run_chunk
     from gyrolab.runner.grid import build_grid
     from gyrolab.runner.store import write_results
+    from gyrolab.runner.sweep import file_attrs
 
     register_configs()
     overrides = ["sweep.method=[rk4,lie_poisson]", "sweep.f=[10]", "sweep.theta0=[45]", "sweep.dt=[1e-3]"]

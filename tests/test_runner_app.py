@@ -4,8 +4,9 @@ import pytest
 from hydra import compose, initialize_config_module
 
 from gyrolab.kernels.scenes import SCENES
-from gyrolab.runner.app import describe_hydra_error, output_state, remove_empty_dirs
+from gyrolab.runner.app import describe_hydra_error, remove_empty_dirs
 from gyrolab.runner.config import ConfigError, register_configs
+from gyrolab.runner.preflight import output_state
 from gyrolab.runner.store import Journal
 
 register_configs()
@@ -86,7 +87,7 @@ def test_a_signal_swallowed_by_a_finalizer_is_raised_before_the_results_are_rena
     import signal
     import weakref
 
-    from gyrolab.runner import app
+    from gyrolab.runner import signals as app
     from gyrolab.safe_files import atomic_replace
 
     monkeypatch.setattr(app, "_PENDING", [])
@@ -112,7 +113,7 @@ def test_an_interrupt_swallowed_by_a_finalizer_prints_no_traceback(monkeypatch, 
     import sys
     import weakref
 
-    from gyrolab.runner import app
+    from gyrolab.runner import signals as app
 
     monkeypatch.setattr(app, "_PENDING", [])
     monkeypatch.setattr(sys, "unraisablehook", app.quiet_swallowed_interrupts(sys.__unraisablehook__))

@@ -127,7 +127,7 @@ def test_dry_run_figure_memory_follows_the_file_and_the_setting(tmp_path):
     no figures, no figure step."""
     from types import SimpleNamespace
 
-    from gyrolab.runner.app import figure_memory
+    from gyrolab.runner.preflight import figure_memory
 
     for file_bytes, measured in ((1.09e9, 501e6), (5.45e9, 518e6)):
         assert figure_memory(SimpleNamespace(bytes_stored=lambda b=file_bytes: b)) == pytest.approx(measured, rel=0.1)

@@ -362,8 +362,8 @@ def test_odd_journal_entries_are_set_aside_unread(tmp_path, tiny_grid, victim):
 
 
 def test_resume_after_a_kernel_edit_is_refused(tmp_path):
-    from gyrolab.runner.app import output_state
     from gyrolab.runner.config import ConfigError
+    from gyrolab.runner.preflight import output_state
 
     out = tmp_path / "results.h5"
     Journal(out).create({"config_hash": "h", "kernel_source_hash": "0123456789abcdef-old-code"})
@@ -611,7 +611,8 @@ def one_run_cfg(*extra):
 def test_a_failed_first_manifest_write_leaves_no_journal(tmp_path, monkeypatch, capsys):
     import errno
 
-    from gyrolab.runner import app, store
+    from gyrolab.runner import store
+    from gyrolab.runner import sweep as app
 
     real = store.atomic_write
 
@@ -632,14 +633,15 @@ def test_an_interrupt_just_after_the_rename_reports_a_complete_file(tmp_path, mo
     import signal
 
     from gyrolab import safe_files
-    from gyrolab.runner import app
+    from gyrolab.runner import signals
+    from gyrolab.runner import sweep as app
 
     real = safe_files.fsync_dir
 
     def interrupted(directory):
         real(directory)
         if (tmp_path / "results.h5").exists():
-            raise app.Interrupted(signal.SIGTERM)
+            raise signals.Interrupted(signal.SIGTERM)
 
     monkeypatch.setattr(safe_files, "fsync_dir", interrupted)
     with pytest.raises(SystemExit) as done:
@@ -651,7 +653,7 @@ def test_an_interrupt_just_after_the_rename_reports_a_complete_file(tmp_path, mo
 
 
 def test_an_interrupt_in_the_figure_step_says_the_results_are_complete(tmp_path, monkeypatch, capsys):
-    from gyrolab.runner import app
+    from gyrolab.runner import sweep as app
 
     def interrupted(out, names):
         raise KeyboardInterrupt

@@ -37,3 +37,17 @@ def test_the_counter_sees_a_cycle_and_a_back_edge(tmp_path):
     edges = import_graph.edges(tmp_path)
     assert import_graph.cycles(edges) == [["analysis.a", "analysis.b"]]
     assert [(a, b) for a, b, _ in import_graph.back_edges(edges)] == [("kernels.k", "runner.app")]
+
+
+def test_results_files_are_opened_only_by_the_one_reader():
+    """No module of the package outside gyrolab/results opens a file with xarray or netCDF directly: every
+    command reads results files through gyrolab/results/reader.py (one check, one ResultsError)."""
+    openers = ("open_dataset", "open_mfdataset", "open_datatree", "load_dataset")
+    found = [
+        f"{name}: {opener}"
+        for name, path in import_graph.module_files().items()
+        if not name.startswith("results")
+        for opener in openers
+        if f"{opener}(" in path.read_text()
+    ]
+    assert found == []

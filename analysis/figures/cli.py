@@ -1,15 +1,6 @@
 """``gyrolab-plot KIND FILE [KEY=VALUE ...]``: figures from a stored results file.
 
-    gyrolab-plot nutation results.h5 f=10,50 dt=1e-4       # θ(t) per method, closed-form bounds
-    gyrolab-plot tip results.h5 integrator=seed_next f=50  # tip locus seen from above
-    gyrolab-plot energy results.h5 --quantity Lz           # relative drift of E, Lz or L3
-    gyrolab-plot invariants results.h5                     # E, Lz and L3 together
-    gyrolab-plot work-precision work_precision.h5          # error vs cost, DOP853 as a peer
-    gyrolab-plot stability stability.h5                    # log10 max energy error over dt x f
-    gyrolab-plot animation results.h5 integrator=rk4 f=50  # GIF of the top
-    gyrolab-plot seed multirun/<date>/<time>               # the write-up's figures from a seed_figures multirun
-    gyrolab-plot standard results.h5                       # what the runner writes after a sweep
-    gyrolab-plot energy combined.h5 scene=heavy_top        # one scene of a gyrolab-combine file
+Usage examples: README.md, "Using it"; ``gyrolab-plot KIND --help`` for each kind.
 
 A selection is KEY=VALUE[,VALUE...] with KEY in integrator (``method`` is read
 as integrator, the name of the dim before layout 3), f (Hz), theta0 (deg),
@@ -38,8 +29,6 @@ members before the one that fails are written; the line names that member).
 import argparse
 import sys
 from pathlib import Path
-
-EXIT_BAD_INPUT = 2
 
 
 def _common(p, many=False):
@@ -93,6 +82,8 @@ def build_parser():
 
 
 def _fail(message):
+    from ...results import EXIT_BAD_INPUT  # imported when needed: --help stays free of xarray
+
     sys.stderr.write(f"gyrolab-plot: error: {' '.join(str(message).split())}\n")
     sys.exit(EXIT_BAD_INPUT)
 

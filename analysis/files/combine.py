@@ -1,7 +1,5 @@
 """``gyrolab-combine``: merge the results files of a multirun into one Dataset/file.
-
-    gyrolab-combine multirun/2026-01-01/12-00-00-000000            # -> <dir>/combined.h5
-    gyrolab-combine a/results.h5 b/results.h5 -o both.h5
+Usage examples: README.md, "Using it".
 
 Every input is checked before anything is written: a gyrolab results file
 of a known ``layout_version`` with exactly the layout's variables, dims,
@@ -56,6 +54,7 @@ from ...results.layout import (
     VARIABLES_ATTR,
     held_variables,
     sample_dims,
+    variables_attr,
 )
 from ...results.migrate import file_layout_version
 from ...safe_files import (
@@ -90,8 +89,8 @@ def load(path):
         raise CombineError(f"{path}: {problem}")
     held = held_variables(ds, version)
     ds.attrs["layout_version"] = LAYOUT_VERSION  # today's names and body now, what it holds named below
-    if held != tuple(SAMPLE_VARIABLES):
-        ds.attrs[VARIABLES_ATTR] = " ".join(held)
+    if variables_attr(held) is not None:
+        ds.attrs[VARIABLES_ATTR] = variables_attr(held)
     return ds
 
 

@@ -1,7 +1,5 @@
 """Compare two results files (the layout of gyrolab/results/layout.py) variable by variable: ``gyrolab-compare A B``.
-
-    gyrolab-compare new.h5 stored.h5 --rtol 1e-10 --atol energy=1e-12 --atol 1e-13
-    gyrolab-compare new.h5 stored.h5 --scaled 1e-10      # what the regression tests use
+Usage examples: README.md, "Using it".
 
 One function does the work, ``compare_files(a, b, rtol, atol) -> Report``; the
 command and the regression tests both call it.  Point by point, a value passes
@@ -465,7 +463,7 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
         ignored.update({v: "provenance of the combined files" for v in d.data_vars if "source" in d[v].dims})
     va = [v for v in da.data_vars if v not in ignored and v not in INPUT_VARIABLES]
     vb = [v for v in db.data_vars if v not in ignored and v not in INPUT_VARIABLES]
-    from ...results.layout import SAMPLE_VARIABLES, held_variables
+    from ...results.layout import SAMPLE_VARIABLES, absence_reason, held_variables
     from ...results.migrate import ABSENT_BEFORE, file_layout_version
 
     # A file of an older layout lacks some variables: compare the rest, and say so.
@@ -473,11 +471,12 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
     for v in sorted((set(va) ^ set(vb)) & (older[names[0]] | older[names[1]])):
         dropped.append(f"variable {v} (not in the older layout of one file)")
         va, vb = [x for x in va if x != v], [x for x in vb if x != v]
-    # A file written with output.variables holds only the chosen ones: compare the rest, and say so.
+    # A file written with output.variables holds only the chosen ones, one written before a variable was
+    # added lacks it: compare the rest, and say so.
     unchosen = {name: set(SAMPLE_VARIABLES) - set(held_variables(d)) for name, d in zip(names, (da, db))}
     for v in sorted((set(va) ^ set(vb)) & (unchosen[names[0]] | unchosen[names[1]])):
-        which = names[0] if v in unchosen[names[0]] else names[1]
-        dropped.append(f"variable {v} (not stored in {which}: output.variables)")
+        which, d = (names[0], da) if v in unchosen[names[0]] else (names[1], db)
+        dropped.append(f"variable {v} (not stored in {which}: {absence_reason(d, v)})")
         va, vb = [x for x in va if x != v], [x for x in vb if x != v]
     for v in va:
         if v not in vb:

@@ -1,7 +1,6 @@
 """``gyrolab-verdict FILE...``: measured verdicts from stored results files.
 
-    gyrolab-verdict ladder.h5 long.h5                      # table on stdout
-    gyrolab-verdict multirun/<date>/<time> --json v.json --markdown v.md --stability 10 --figures docs
+Usage examples: README.md, "Using it".
 
 Per (scene, method) it reports, from whatever the files hold:
 
@@ -47,10 +46,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ...results import EXIT_BAD_INPUT
 from ...safe_files import UnsafePathError, check_replaceable, write_text
 from .classify import EPS, classify_drift, fit_order, signed_error
 
-EXIT_BAD_INPUT = 2
 YARDSTICKS = ("lie_poisson4", "split6_exact")
 MIN_DRIFT_SAMPLES = 16
 # What a drift record carries beyond class and rate (classify.Drift): the fitted line, a period,
@@ -72,7 +71,6 @@ DRIFT_DETAILS = (
 )
 MIN_LADDER = 3
 DOP853_TOL = 1e-13
-STATE_CLOSED_FORMS = ("free_symmetric", "euler_poinsot")  # closed forms that give the full state at any time
 RECORD_KEYS = (
     "kind",
     "scene",
@@ -101,7 +99,8 @@ class VerdictError(ValueError):
 
 def load(paths):
     """[(path, Dataset)] of gyrolab results files (layout_version ≥ 1); VerdictError otherwise."""
-    from ...results import ResultsError, find_results, open_members
+    from ...results import ResultsError, find_results
+    from ...results.reader import members_of, open_file
 
     out = []
     try:
@@ -110,10 +109,11 @@ def load(paths):
         raise VerdictError(str(err)) from None
     for path in found:
         try:
-            members = open_members(path)  # a combined file: each scene (or job) on its own
+            whole, version = open_file(path)
+            members = members_of(path, whole, version)  # a combined file: each scene (or job) on its own
         except ResultsError as err:
             raise VerdictError(str(err)) from None
-        if members[0][0] is not None and _inputs_found(members[0][1], path, found):
+        if members[0][0] is not None and _inputs_found(whole, found):
             continue  # gyrolab-combine's <dir>/combined.h5 next to its job files: judge those once
         for label, ds in members:
             name = path if label is None else f"{path} {ds.attrs['combined_member']}"
@@ -125,13 +125,10 @@ def load(paths):
     return out
 
 
-def _inputs_found(member, path, found):
-    """Whether every file the combined file ``path`` was made from (its ``source_path``) is among
-    ``found`` too (a directory searched with it), so its runs are judged there."""
-    import xarray as xr
-
-    with xr.open_dataset(path, engine="h5netcdf") as ds:
-        sources = [str(v) for v in ds["source_path"].values] if "source_path" in ds else []
+def _inputs_found(ds, found):
+    """Whether every file the combined file ``ds`` (opened whole) was made from (its ``source_path``) is
+    among ``found`` too (a directory searched with it), so its runs are judged there."""
+    sources = [str(v) for v in ds["source_path"].values] if "source_path" in ds else []
     mine = {str(Path(p).resolve()) for p in found}
     return bool(sources) and all(s in mine for s in sources)
 

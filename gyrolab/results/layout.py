@@ -23,9 +23,13 @@ Files of older layouts open with every reader through ``current``: layouts 0 to 
 grid dim ``integrator`` ``method``, a keyword of xarray's ``.sel`` (``ds.sel(method="rk4")``
 silently selected every method), and they lack what ``ABSENT_BEFORE`` lists.
 
-Adding a per-sample variable: a field in kernels/driver.py (``FIELDS`` and
-``_record``) if the kernels must compute it, and one entry in
-``SAMPLE_VARIABLES`` here; every writer, reader and size estimate follows.
+Adding a per-sample variable (recipe, also in docs/design.md): a field in kernels/driver.py
+(``FIELDS`` and ``_record``) and its formula in kernels/reference.py (``samples_from_states``) if the
+kernels must compute it, and one entry at the end of
+``SAMPLE_VARIABLES`` here; every writer, reader and size estimate follows.  No layout bump and no
+``ABSENT_BEFORE`` entry: a file that does not name its variables (``VARIABLES_ATTR``) holds
+``UNNAMED_HOLD`` (frozen), so every file written before the new variable reads as one without it,
+and a file written after names what it holds.  Readers that need it say so in one line.
 """
 
 from dataclasses import dataclass
@@ -143,8 +147,13 @@ VARIABLE_ATTRS = {name: {"units": v.units, "long_name": v.long_name} for name, v
 VARIABLE_ATTRS.update({name: attrs for name, (_, attrs) in RUN_VARIABLES.items()})
 VARIABLE_ATTRS.update({name: attrs for name, (_, attrs) in INPUT_VARIABLES.items()})
 # File attr naming the per-sample variables a file holds (space-separated, SAMPLE_VARIABLES order),
-# written only when ``output.variables`` chose a subset; a file without it holds all of its layout's.
+# written whenever they are not ``UNNAMED_HOLD`` (``output.variables`` chose others, or a variable was
+# added since); a file without it holds ``UNNAMED_HOLD`` less what its layout lacks (ABSENT_BEFORE).
 VARIABLES_ATTR = "variables"
+# What a file that does not name its per-sample variables holds: SAMPLE_VARIABLES as they were
+# when every file was written without the attr.  Frozen: never add to it (a variable added to
+# SAMPLE_VARIABLES is then absent, automatically, from every file written before it).
+UNNAMED_HOLD = ("axis", "theta", "phi", "energy", "L", "Lz", "L3", "omega", "gamma")
 
 
 def stored_per_sample(names=None):
@@ -175,7 +184,24 @@ def held_variables(ds, version=None):
     if VARIABLES_ATTR in ds.attrs:
         chosen = set(_text(ds.attrs[VARIABLES_ATTR]).split())
         return tuple(n for n in SAMPLE_VARIABLES if n in chosen and n not in absent)
-    return tuple(n for n in SAMPLE_VARIABLES if n not in absent)
+    return tuple(n for n in SAMPLE_VARIABLES if n in UNNAMED_HOLD and n not in absent)
+
+
+def variables_attr(names):
+    """The ``VARIABLES_ATTR`` value of a file holding the per-sample variables ``names``, or None when
+    the file need not name them (they are ``UNNAMED_HOLD``, as every file without the attr holds)."""
+    names = tuple(n for n in SAMPLE_VARIABLES if n in names)
+    return None if set(names) == set(UNNAMED_HOLD) else " ".join(names)
+
+
+def absence_reason(ds, name):
+    """Why the opened file ``ds`` does not hold per-sample variable ``name``, in a few words."""
+    version = file_layout_version(ds)
+    if name in ABSENT_BEFORE.get(version, ()):
+        return f"its layout_version {version} has no {name}"
+    if VARIABLES_ATTR not in ds.attrs and name not in UNNAMED_HOLD:
+        return f"it was written before gyrolab stored {name}"
+    return "output.variables chose them when it was written"
 
 
 WALL_TIME_NOTE = (

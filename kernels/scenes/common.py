@@ -10,7 +10,7 @@ import numpy as np
 class Scene:
     """A body and its initial state.
 
-    body: a kernels.body.Body (I1, I2, I3 in kg m², M g l in N m), moments
+    body: a kernels.body.Body (its fields and units in kernels/body.py), moments
     about the pivot (about the centre of mass for a free body); omega0: body angular
     velocity (rad/s); q0: orientation quaternion (a, b, c, d), R(q0) maps body
     to lab coordinates.
@@ -20,10 +20,6 @@ class Scene:
     body: tuple
     omega0: tuple
     q0: tuple
-
-    @property
-    def symmetric(self):
-        return self.body[0] == self.body[1]
 
 
 def tilt_quaternion(theta0_deg):
