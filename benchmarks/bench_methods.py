@@ -49,12 +49,14 @@ def main():
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--repeat", type=int, default=7)
     parser.add_argument("--scenes", default="heavy_top,free_asymmetric")
+    parser.add_argument("--paths", default="blocks,runs", help="blocks and/or runs (one by one)")
     args = parser.parse_args()
+    paths = args.paths.split(",")
     print(f"threads {numba.get_num_threads()}; ns/step aggregate, median of {args.repeat}")
     for scene in args.scenes.split(","):
         for method in args.methods.split(","):
-            row = [time_path(method, scene, path, args.runs, args.steps, args.repeat) for path in ("blocks", "runs")]
-            print(f"{scene:16s} {method:13s} blocks {row[0]:7.2f}  runs {row[1]:7.2f}", flush=True)
+            row = {path: time_path(method, scene, path, args.runs, args.steps, args.repeat) for path in paths}
+            print(f"{scene:16s} {method:13s} " + "  ".join(f"{p} {t:7.2f}" for p, t in row.items()), flush=True)
 
 
 if __name__ == "__main__":
