@@ -20,14 +20,16 @@ against a running time), operation for operation, so every stored result keeps i
 
 Both return ``composed(w, q, t, dt, body) -> (w, q)``, a numba function that is not cached by
 itself: it is a chain of small closures made at import time, one per substep, each calling the
-base step (or kick and flow) with its constants and then the next link (numba treats a closure's
+base step (or kick and flow) with its constants and then the next link, each ``forceinline`` so
+that LLVM makes the chain one function body (numba treats a closure's
 free variables as compile-time constants, so ``c * dt`` is the same multiplication by the same
 double as a global ``C * dt``).  The method file wraps it in its cached
 ``step_driven`` (and ``step``), which numba caches with the whole chain compiled in; lanes.py
 follows the chain through the closure cells to recompile it for the block path, where it is
 inlined like any helper.  Measured against the hand-unrolled steps: same bits (tests/
-test_regression.py), the benchmark rows within noise (docs/benchmarks.md), a second process loads
-every kernel from the cache (``NUMBA_DEBUG_CACHE=1``).  Alternatives weighed: a
+test_regression.py, every stored method and config); speed in docs/benchmarks.md; a second process
+loads suzuki4_exact's step, step_driven, run_batch and run_batch_driven from the cache and compiles
+nothing (``NUMBA_DEBUG_CACHE=1``: 4 loaded, 0 saved).  Alternatives weighed: a
 ``numba.literal_unroll`` loop over the table needs the base step as an argument (a dispatcher
 passed as a value is lowered to a raw pointer, which makes the caller uncacheable, driver.py);
 generated source would need ``exec`` again, which static readers cannot follow.
@@ -57,7 +59,7 @@ def compose_kicks(kick_at, flow, weights):
     for k in reversed(range(len(weights))):
         link = _kick_and_flow(kick_at, flow, kicks[k], weights[k], link)
 
-    @njit(error_model="numpy")
+    @njit(error_model="numpy", forceinline=True)
     def composed(w, q, t, dt, body):
         return link(w, q, t, t, dt, body)
 
@@ -77,14 +79,14 @@ def _substep(base, weight, start, rest):
     ``rest`` (None: nothing after)."""
     if start is None and rest is None:
 
-        @njit(error_model="numpy")
+        @njit(error_model="numpy", forceinline=True)
         def only(w, q, t, dt, body):
             return base(w, q, t, weight * dt, body)
 
         return only
     if start is None:
 
-        @njit(error_model="numpy")
+        @njit(error_model="numpy", forceinline=True)
         def first(w, q, t, dt, body):
             w, q = base(w, q, t, weight * dt, body)
             return rest(w, q, t, dt, body)
@@ -92,13 +94,13 @@ def _substep(base, weight, start, rest):
         return first
     if rest is None:
 
-        @njit(error_model="numpy")
+        @njit(error_model="numpy", forceinline=True)
         def last(w, q, t, dt, body):
             return base(w, q, t + start * dt, weight * dt, body)
 
         return last
 
-    @njit(error_model="numpy")
+    @njit(error_model="numpy", forceinline=True)
     def middle(w, q, t, dt, body):
         w, q = base(w, q, t + start * dt, weight * dt, body)
         return rest(w, q, t, dt, body)
@@ -110,7 +112,7 @@ def _kick_and_flow(kick_at, flow, kick, weight, rest):
     """Kick for ``kick * dt`` at time s, flow for ``weight * dt``, then ``rest`` from s + weight dt
     (t is the step's start, for the last kick)."""
 
-    @njit(error_model="numpy")
+    @njit(error_model="numpy", forceinline=True)
     def kick_and_flow(w, q, t, s, dt, body):
         w = kick_at(w, q, kick * dt, s, body)
         w, q = flow(w, q, weight * dt, body)
@@ -123,7 +125,7 @@ def _last_kick(kick_at, kick):
     """The closing kick for ``kick * dt`` at t + dt (t the step's start; the running time s, which
     rounding has carried near t + dt, is not used)."""
 
-    @njit(error_model="numpy")
+    @njit(error_model="numpy", forceinline=True)
     def last_kick(w, q, t, s, dt, body):
         return kick_at(w, q, kick * dt, t + dt, body), q
 

@@ -16,7 +16,7 @@ SYMPLECTIC = True
 PRESERVES = ("L", "L_norm", "Lz", "L3")
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
 def step_driven(w, q, t, dt, body):
     """One step of dt seconds from time t (s): the splitting of the system made autonomous with t
     as a coordinate, the free flow advancing t, the kicks holding it (the first at t, the last at

@@ -21,7 +21,7 @@ WEIGHTS = (W1, W0, W1)
 _composed = compose_steps(strang_driven, WEIGHTS)  # whole Strang steps, substep k from t + (w_0 + … + w_{k−1}) dt
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
 def step_driven(w, q, t, dt, body):
     """One step of dt seconds from time t (s): the composition, each Strang substep from the time the
     previous ones reached (kernels/compose.py)."""

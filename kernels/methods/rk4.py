@@ -56,7 +56,7 @@ def _combine(w, q, dt, k1, k2, k3, k4):
     return w_next, quat_normalize(q_next)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
 def step_driven(w, q, t, dt, body):
     """One step of dt seconds from time t (s): each stage sees the torque at its own time
     (t, t + dt/2, t + dt/2, t + dt), so the drive keeps the fourth order."""

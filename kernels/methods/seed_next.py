@@ -33,7 +33,7 @@ def rk4_frozen_torque(w, tau, dt, body):
     )
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
 def step_driven(w, q, t, dt, body):
     """One step of dt seconds from time t (s): the whole torque, drive included, frozen at t, as
     the write-up freezes gravity's."""

@@ -16,7 +16,7 @@ SYMPLECTIC = False
 PRESERVES = ("L3",)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
 def step_driven(w, q, t, dt, body):
     """One step of dt seconds from time t (s): the whole torque, drive included, frozen at t."""
     w_next = rk4_frozen_torque(w, torque_at(q, t, body), dt, body)

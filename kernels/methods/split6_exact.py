@@ -31,7 +31,7 @@ WEIGHTS = (W3, W2, W1, W0, W1, W2, W3)
 _composed = compose_kicks(kick_at, free_flow_exact, WEIGHTS)  # 8 kicks (6 merged), 7 exact free flows
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
 def step_driven(w, q, t, dt, body):
     """One step of dt seconds from time t (s): each kick at the time the free flows before it reached
     (the partial sums of the weights, then t + dt; kernels/compose.py)."""

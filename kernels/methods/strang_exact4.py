@@ -27,7 +27,7 @@ WEIGHTS = (G1, G0, G1)
 _composed = compose_kicks(kick_at, free_flow_exact, WEIGHTS)  # 4 kicks (2 merged), 3 exact free flows
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
 def step_driven(w, q, t, dt, body):
     """One step of dt seconds from time t (s): each kick at the time the free flows before it reached
     (t, t + γ1 dt, then + γ0 dt, and t + dt; kernels/compose.py)."""

@@ -31,7 +31,7 @@ WEIGHTS = (P, P, 1.0 - 4.0 * P, P, P)
 _composed = compose_kicks(kick_at, free_flow_exact, WEIGHTS)  # 6 kicks (4 merged), 5 exact free flows
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
 def step_driven(w, q, t, dt, body):
     """One step of dt seconds from time t (s): each kick at the time the free flows before it reached
     (the partial sums of the weights, then t + dt; kernels/compose.py)."""
