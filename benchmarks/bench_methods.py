@@ -5,7 +5,8 @@
 Only ``gyrolab.kernels.batch.integrate`` and ``gyrolab.kernels.scenes.build_scene`` are used, so the
 same script times any gyrolab version (run it with each version's interpreter, alternately, and
 compare medians taken under the same load).  Rows: scene x method x path (256 runs in blocks on all
-numba threads; 256 runs one by one); heavy top f = 10 Hz, free asymmetric box f = 10 Hz, θ0 = 45°,
+numba threads; 256 runs one by one); heavy top f = 10 Hz, free asymmetric box f = 10 Hz (``--scenes``:
+any registered scene, e.g. heavy_body, whose centre of mass off e3 takes the general path), θ0 = 45°,
 dt = 1e-4 s, 2000 steps per run, aggregate ns per step over all runs (median of --repeat after a
 warm-up call that compiles or loads the kernels).
 """
@@ -47,12 +48,15 @@ def main():
     parser.add_argument("--runs", type=int, default=256)
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--repeat", type=int, default=7)
+    parser.add_argument("--scenes", default="heavy_top,free_asymmetric")
+    parser.add_argument("--paths", default="blocks,runs", help="blocks and/or runs (one by one)")
     args = parser.parse_args()
+    paths = args.paths.split(",")
     print(f"threads {numba.get_num_threads()}; ns/step aggregate, median of {args.repeat}")
-    for scene in ("heavy_top", "free_asymmetric"):
+    for scene in args.scenes.split(","):
         for method in args.methods.split(","):
-            row = [time_path(method, scene, path, args.runs, args.steps, args.repeat) for path in ("blocks", "runs")]
-            print(f"{scene:16s} {method:13s} blocks {row[0]:7.2f}  runs {row[1]:7.2f}", flush=True)
+            row = {path: time_path(method, scene, path, args.runs, args.steps, args.repeat) for path in paths}
+            print(f"{scene:16s} {method:13s} " + "  ".join(f"{p} {t:7.2f}" for p, t in row.items()), flush=True)
 
 
 if __name__ == "__main__":

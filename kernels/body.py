@@ -99,3 +99,11 @@ def body_lane_symmetric_top(B, j, I1):
 def body_lane_free(B, j):
     """``body_lane(B, j)`` of a free body, with mgl = mgc1 = mgc2 = 0.0 as constants (block.py's FREE pass)."""
     return Body(B[0, j], B[1, j], B[2, j], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@njit(cache=True, error_model="numpy")
+def without_drive(body):
+    """``body`` with the drive's amplitude (tau1, tau2, tau3) as constants 0.0: what ``step`` integrates
+    (methods/README.md).  LLVM then folds rigid_body.torque_at's branch on the drive, so a step made
+    from ``step_driven`` costs an undriven run nothing and never reads t."""
+    return Body(body[0], body[1], body[2], body[3], body[4], body[5], 0.0, 0.0, 0.0, body[9], body[10], body[11])

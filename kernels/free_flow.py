@@ -18,19 +18,24 @@ from .rotation import half_angle, quat_mul, quat_normalize, rotate_body_step
 
 
 @njit(cache=True, error_model="numpy")
+def _kick_by(w, h, tau, body):
+    """ω after the body-frame torque tau (N m) acted for h seconds with the orientation frozen."""
+    return w[0] + h * tau[0] / body[0], w[1] + h * tau[1] / body[1], w[2] + h * tau[2] / body[2]
+
+
+@njit(cache=True, error_model="numpy")
 def kick(w, q, h, body):
-    """ω after the potential's flow for h seconds (q unchanged)."""
-    t1, t2, t3 = gravity_torque(q, body)
-    return w[0] + h * t1 / body[0], w[1] + h * t2 / body[1], w[2] + h * t3 / body[2]
+    """ω after the potential's flow for h seconds (q unchanged); the drive, if any, is left out."""
+    return _kick_by(w, h, gravity_torque(q, body), body)
 
 
 @njit(cache=True, error_model="numpy")
 def kick_at(w, q, h, t, body):
-    """ω after the flow of the torque at time t frozen (q, t unchanged) for h seconds: ``kick`` plus
-    the driving torque (rigid_body.drive_torque).  In a splitting of the driven body, made
-    autonomous with t as a coordinate, the free flow advances t and the kicks hold it."""
-    t1, t2, t3 = torque_at(q, t, body)
-    return w[0] + h * t1 / body[0], w[1] + h * t2 / body[1], w[2] + h * t3 / body[2]
+    """ω after the flow of the torque at time t frozen (q, t unchanged) for h seconds: gravity plus
+    the driving torque (rigid_body.torque_at); on an undriven body ``kick`` bit for bit.  In a
+    splitting of the driven body, made autonomous with t as a coordinate, the free flow advances t
+    and the kicks hold it."""
+    return _kick_by(w, h, torque_at(q, t, body), body)
 
 
 @njit(cache=True, error_model="numpy")

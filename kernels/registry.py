@@ -60,6 +60,7 @@ NAMES = (
     "strang_exact",
     "strang_exact4",
     "split6_exact",
+    "suzuki4_exact",
     # the rotation updates physics engines ship (each file names the engine source it follows)
     "mujoco_euler",
     "mujoco_implicitfast",

@@ -52,8 +52,17 @@ def drive_torque(t, body):
 
 @njit(cache=True, error_model="numpy")
 def torque_at(q, t, body):
-    """Total body-frame torque (N m) at orientation q and time t (s): gravity plus the drive."""
+    """Total body-frame torque (N m) at orientation q and time t (s): gravity plus the drive.
+
+    An undriven body (tau1 = tau2 = tau3 = 0) gets ``gravity_torque``'s values themselves, not
+    gravity + 0.0 (which turns a −0.0 into +0.0): so a time-aware step on an undriven body is, bit
+    for bit, the step that never looks at time (methods/README.md).  Where the kernels pass the
+    drive's amplitude as constants 0.0 (``body.without_drive``, the block path's lanes, the driver's
+    axial loop) LLVM folds this branch and t is never read; elsewhere it is one predictable branch.
+    """
     g1, g2, g3 = gravity_torque(q, body)
+    if body[6] == 0.0 and body[7] == 0.0 and body[8] == 0.0:
+        return g1, g2, g3
     d1, d2, d3 = drive_torque(t, body)
     return g1 + d1, g2 + d2, g3 + d3
 

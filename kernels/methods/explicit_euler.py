@@ -12,7 +12,8 @@ Wanner, *Geometric Numerical Integration* (2006), §I.1.
 
 from numba import njit
 
-from ..rigid_body import euler_rhs, gravity_torque, torque_at
+from ..body import without_drive
+from ..rigid_body import euler_rhs, torque_at
 from ..rotation import quat_mul, quat_normalize
 
 ORDER = 1
@@ -33,12 +34,13 @@ def _update(w, q, tau, dt, body):
     return w_next, quat_normalize(q_next)
 
 
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
+def step_driven(w, q, t, dt, body):
+    """One step of dt seconds from time t (s): the torque at (q, t)."""
+    return _update(w, q, torque_at(q, t, body), dt, body)
+
+
 @njit(cache=True, error_model="numpy")
 def step(w, q, dt, body):
-    return _update(w, q, gravity_torque(q, body), dt, body)
-
-
-@njit(cache=True, error_model="numpy")
-def step_driven(w, q, t, dt, body):
-    """``step`` of a driven body from time t (s): the torque at (q, t)."""
-    return _update(w, q, torque_at(q, t, body), dt, body)
+    """One step of dt seconds of the body without its drive: step_driven from t = 0."""
+    return step_driven(w, q, 0.0, dt, without_drive(body))

@@ -7,7 +7,8 @@ runs backwards in time.  Source: Yoshida (1990), Suzuki (1990).
 
 from numba import njit
 
-from .lie_poisson import step as strang_step
+from ..body import without_drive
+from ..compose import compose_steps
 from .lie_poisson import step_driven as strang_driven
 
 ORDER = 4
@@ -16,19 +17,18 @@ PRESERVES = ("L", "L_norm", "Lz", "L3")
 
 W1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
 W0 = 1.0 - 2.0 * W1
+WEIGHTS = (W1, W0, W1)
+_composed = compose_steps(strang_driven, WEIGHTS)  # whole Strang steps, substep k from t + (w_0 + … + w_{k−1}) dt
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
+def step_driven(w, q, t, dt, body):
+    """One step of dt seconds from time t (s): the composition, each Strang substep from the time the
+    previous ones reached (kernels/compose.py)."""
+    return _composed(w, q, t, dt, body)
 
 
 @njit(cache=True, error_model="numpy")
 def step(w, q, dt, body):
-    w, q = strang_step(w, q, W1 * dt, body)
-    w, q = strang_step(w, q, W0 * dt, body)
-    return strang_step(w, q, W1 * dt, body)
-
-
-@njit(cache=True, error_model="numpy")
-def step_driven(w, q, t, dt, body):
-    """``step`` of a driven body from time t (s): the same composition, each Strang substep from the
-    time the previous one reached (the weights' partial sums)."""
-    w, q = strang_driven(w, q, t, W1 * dt, body)
-    w, q = strang_driven(w, q, t + W1 * dt, W0 * dt, body)
-    return strang_driven(w, q, t + (W1 + W0) * dt, W1 * dt, body)
+    """One step of dt seconds of the body without its drive: step_driven from t = 0."""
+    return step_driven(w, q, 0.0, dt, without_drive(body))

@@ -7,7 +7,8 @@ renormalised after each step (a projection, so not symplectic).
 
 from numba import njit
 
-from ..rigid_body import euler_rhs, gravity_torque, torque_at
+from ..body import without_drive
+from ..rigid_body import euler_rhs, torque_at
 from ..rotation import quat_mul, quat_normalize
 
 ORDER = 4
@@ -21,11 +22,6 @@ def _rates(w, q, tau, body):
     wd = euler_rhs(w, tau, body)
     qd = quat_mul(q, (0.0, w[0], w[1], w[2]))
     return wd, (0.5 * qd[0], 0.5 * qd[1], 0.5 * qd[2], 0.5 * qd[3])
-
-
-@njit(cache=True, error_model="numpy")
-def _rhs(w, q, body):
-    return _rates(w, q, gravity_torque(q, body), body)
 
 
 @njit(cache=True, error_model="numpy")
@@ -60,22 +56,9 @@ def _combine(w, q, dt, k1, k2, k3, k4):
     return w_next, quat_normalize(q_next)
 
 
-@njit(cache=True, error_model="numpy")
-def step(w, q, dt, body):
-    h = 0.5 * dt
-    k1 = _rhs(w, q, body)
-    w2, q2 = _stage(w, q, h, k1)
-    k2 = _rhs(w2, q2, body)
-    w3, q3 = _stage(w, q, h, k2)
-    k3 = _rhs(w3, q3, body)
-    w4, q4 = _stage(w, q, dt, k3)
-    k4 = _rhs(w4, q4, body)
-    return _combine(w, q, dt, k1, k2, k3, k4)
-
-
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
 def step_driven(w, q, t, dt, body):
-    """``step`` of a driven body from time t (s): each stage sees the torque at its own time
+    """One step of dt seconds from time t (s): each stage sees the torque at its own time
     (t, t + dt/2, t + dt/2, t + dt), so the drive keeps the fourth order."""
     h = 0.5 * dt
     k1 = _rhs_at(w, q, t, body)
@@ -86,3 +69,9 @@ def step_driven(w, q, t, dt, body):
     w4, q4 = _stage(w, q, dt, k3)
     k4 = _rhs_at(w4, q4, t + dt, body)
     return _combine(w, q, dt, k1, k2, k3, k4)
+
+
+@njit(cache=True, error_model="numpy")
+def step(w, q, dt, body):
+    """One step of dt seconds of the body without its drive: step_driven from t = 0."""
+    return step_driven(w, q, 0.0, dt, without_drive(body))

@@ -8,7 +8,8 @@ Source: the write-up's eq. (8) and its argument around eq. (9) for using
 
 from numba import njit
 
-from ..rigid_body import euler_rhs, gravity_torque, torque_at
+from ..body import without_drive
+from ..rigid_body import euler_rhs, torque_at
 from ..rotation import rotate_body_step
 
 ORDER = 1
@@ -32,15 +33,15 @@ def rk4_frozen_torque(w, tau, dt, body):
     )
 
 
-@njit(cache=True, error_model="numpy")
-def step(w, q, dt, body):
-    w_next = rk4_frozen_torque(w, gravity_torque(q, body), dt, body)
-    return w_next, rotate_body_step(q, w_next[0] * dt, w_next[1] * dt, w_next[2] * dt)
-
-
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
 def step_driven(w, q, t, dt, body):
-    """``step`` of a driven body from time t (s): the whole torque, drive included, frozen at t, as
+    """One step of dt seconds from time t (s): the whole torque, drive included, frozen at t, as
     the write-up freezes gravity's."""
     w_next = rk4_frozen_torque(w, torque_at(q, t, body), dt, body)
     return w_next, rotate_body_step(q, w_next[0] * dt, w_next[1] * dt, w_next[2] * dt)
+
+
+@njit(cache=True, error_model="numpy")
+def step(w, q, dt, body):
+    """One step of dt seconds of the body without its drive: step_driven from t = 0."""
+    return step_driven(w, q, 0.0, dt, without_drive(body))

@@ -11,8 +11,10 @@ Fassò, Säfström & Zanna, SIAM J. Sci. Comput. 30 (2008) 2084.
 
 from numba import njit
 
+from ..body import without_drive
+from ..compose import compose_kicks
 from ..euler_poinsot import free_flow_exact
-from ..free_flow import kick, kick_at
+from ..free_flow import kick_at
 
 ORDER = 4
 SYMPLECTIC = True
@@ -21,31 +23,18 @@ PRESERVES = ("L", "L_norm", "Lz", "L3")
 
 G1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
 G0 = 1.0 - 2.0 * G1
-K_OUT = 0.5 * G1  # first and last half kick
-K_IN = 0.5 * (G1 + G0)  # merged kicks between substeps
+WEIGHTS = (G1, G0, G1)
+_composed = compose_kicks(kick_at, free_flow_exact, WEIGHTS)  # 4 kicks (2 merged), 3 exact free flows
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
+def step_driven(w, q, t, dt, body):
+    """One step of dt seconds from time t (s): each kick at the time the free flows before it reached
+    (t, t + γ1 dt, then + γ0 dt, and t + dt; kernels/compose.py)."""
+    return _composed(w, q, t, dt, body)
 
 
 @njit(cache=True, error_model="numpy")
 def step(w, q, dt, body):
-    w = kick(w, q, K_OUT * dt, body)
-    w, q = free_flow_exact(w, q, G1 * dt, body)
-    w = kick(w, q, K_IN * dt, body)
-    w, q = free_flow_exact(w, q, G0 * dt, body)
-    w = kick(w, q, K_IN * dt, body)
-    w, q = free_flow_exact(w, q, G1 * dt, body)
-    return kick(w, q, K_OUT * dt, body), q
-
-
-@njit(cache=True, error_model="numpy")
-def step_driven(w, q, t, dt, body):
-    """``step`` of a driven body from time t (s): each kick at the time the free flows before it
-    reached (t, t + G1 dt, t + (G1 + G0) dt, t + dt)."""
-    t1 = t + G1 * dt
-    t2 = t1 + G0 * dt
-    w = kick_at(w, q, K_OUT * dt, t, body)
-    w, q = free_flow_exact(w, q, G1 * dt, body)
-    w = kick_at(w, q, K_IN * dt, t1, body)
-    w, q = free_flow_exact(w, q, G0 * dt, body)
-    w = kick_at(w, q, K_IN * dt, t2, body)
-    w, q = free_flow_exact(w, q, G1 * dt, body)
-    return kick_at(w, q, K_OUT * dt, t + dt, body), q
+    """One step of dt seconds of the body without its drive: step_driven from t = 0."""
+    return step_driven(w, q, 0.0, dt, without_drive(body))
