@@ -42,6 +42,7 @@ import numpy as np
 import xarray as xr
 
 from ...results import ResultsError, find_results, open_file
+from ...results.validate import validate
 from ...results.identity import VOLATILE_ATTRS
 from ...results.layout import (
     COORD_ATTRS,
@@ -88,6 +89,10 @@ def load(path):
     problem = layout_problem(ds, version)
     if problem:
         raise CombineError(f"{path}: {problem}")
+    try:
+        validate(ds)  # what it holds, as the reader checks it for every command (gyrolab/results/validate.py)
+    except ValueError as err:
+        raise CombineError(f"{path}: {err}") from None
     held = held_variables(ds, version)
     ds.attrs["layout_version"] = LAYOUT_VERSION  # today's names and body now, what it holds named below
     if held != tuple(SAMPLE_VARIABLES):
