@@ -42,7 +42,6 @@ import numpy as np
 import xarray as xr
 
 from ...results import ResultsError, find_results, open_file
-from ...results.validate import validate
 from ...results.identity import VOLATILE_ATTRS
 from ...results.layout import (
     COORD_ATTRS,
@@ -59,6 +58,7 @@ from ...results.layout import (
     sample_dims,
 )
 from ...results.migrate import file_layout_version
+from ...results.validate import validate
 from ...safe_files import (
     OutputBusyError,
     OutputLock,
