@@ -13,11 +13,13 @@
 
 import contextlib
 import errno
+import io
 import json
 import os
 import random
 import shutil
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -73,6 +75,123 @@ def _damaged_metadata(path, good):
     Path(path).write_bytes(bytes(data))
 
 
+def _edit(change):
+    """A fault made by ``change(ds) -> ds`` on the good file loaded in memory, written with h5netcdf."""
+
+    def make(path, good):
+        with xr.open_dataset(good, engine="h5netcdf") as ds:
+            ds = change(ds.load())
+        ds.to_netcdf(path, engine="h5netcdf")
+
+    return make
+
+
+def _coord(dim, change):
+    """The coordinate ``dim`` replaced by ``change(values)`` (same length)."""
+
+    def edit(ds):
+        return ds.assign_coords({dim: (dim, change(ds[dim].values.copy()), ds[dim].attrs)})
+
+    return _edit(edit)
+
+
+def _set(values, index, value):
+    values[index] = value
+    return values
+
+
+def _twice(dim):
+    """Every run stored twice along ``dim`` (a duplicate coordinate value)."""
+    return _edit(lambda ds: xr.concat([ds, ds], dim=dim, data_vars="minimal", coords="minimal", compat="override"))
+
+
+def _variable(name, change):
+    return _edit(lambda ds: ds.assign({name: change(ds[name])}))
+
+
+def _attrs(**attrs):
+    return _edit(lambda ds: ds.assign_attrs(attrs))
+
+
+def _body(field, value):
+    def edit(ds):
+        body = ds["body"].copy()
+        body.loc[{"body_param": field}] = value
+        return ds.assign(body=body)
+
+    return _edit(edit)
+
+
+def _time_scaled(path, good):
+    """The time axis stretched to end at 1e308 s (attrs left as they were)."""
+    _coord("time", lambda t: t / t[-1] * 1e308)(path, good)
+
+
+def _huge_time_and_attrs(path, good):
+    """The time axis, t_end and every stretched together to 1e308 s: consistent with each other, not with dt."""
+
+    def edit(ds):
+        last = float(ds["time"].values[-1])  # divided first: 1e308 / last overflows
+        ds = ds.assign_coords(time=("time", ds["time"].values / last * 1e308, ds["time"].attrs))
+        return ds.assign_attrs(
+            t_end=float(ds.attrs["t_end"]) / last * 1e308, every=float(ds.attrs["every"]) / last * 1e308
+        )
+
+    _edit(edit)(path, good)
+
+
+# Faults in the content of a readable file: every command must refuse them (one line, exit 2) or, for
+# VALID_FILES, answer correctly.
+CONTENT_FAULTS = {
+    "zero_runs_f": _edit(lambda ds: ds.isel(f=slice(0, 0))),
+    "zero_runs_integrator": _edit(lambda ds: ds.isel(integrator=slice(0, 0))),
+    "zero_samples": _edit(lambda ds: ds.isel(time=slice(0, 0))),
+    "one_sample": _edit(lambda ds: ds.isel(time=[0])),
+    "duplicate_f": _twice("f"),
+    "duplicate_dt": _twice("dt"),
+    "nan_f": _coord("f", lambda v: v * np.nan),
+    "inf_dt": _coord("dt", lambda v: v * np.inf),
+    "nan_theta0": _coord("theta0", lambda v: v * np.nan),
+    "nan_time": _coord("time", lambda t: _set(t, 5, np.nan)),
+    "inf_time": _coord("time", lambda t: _set(t, -1, np.inf)),
+    "time_not_increasing": _coord("time", lambda t: _set(t, 3, t[1])),
+    "time_reversed": _coord("time", lambda t: t[::-1].copy()),
+    "negative_dt": _coord("dt", lambda v: -v),
+    "zero_dt": _coord("dt", lambda v: v * 0.0),
+    "int_samples": _variable("energy", lambda v: (v * 1000).astype(np.int64)),
+    "float32_samples": _variable("axis", lambda v: v.astype(np.float32)),
+    "float_status": _variable("status", lambda v: v.astype(np.float64) + 0.5),
+    "status_7": _variable("status", lambda v: v * 0 + 7),
+    "status_minus_3": _variable("status", lambda v: v * 0 - 3),
+    "energy_without_time": _variable("energy", lambda v: v.isel(time=0)),
+    "axis_without_xyz": _variable("axis", lambda v: v.isel(xyz=0)),
+    "xyz_relabelled": _coord("xyz", lambda v: np.array(["a", "b", "c"])),
+    "body_param_relabelled": _coord("body_param", lambda v: np.array([f"p{k}" for k in range(v.size)])),
+    "layout_99": _attrs(layout_version=99),
+    "layout_minus_1": _attrs(layout_version=-1),
+    "layout_string": _attrs(layout_version="three"),
+    "layout_fraction": _attrs(layout_version=2.5),
+    "unknown_scene": _attrs(scene="no_such_scene"),
+    "unknown_invariant": _attrs(conserved="energy warp_factor"),
+    "body_nan_moment": _body("I1", np.nan),
+    "body_negative_moment": _body("I2", -1.0),
+    "t_end_inconsistent": _attrs(t_end=5.0),
+    "every_inconsistent": _attrs(every=0.5),
+    "huge_time": _time_scaled,
+    "huge_time_and_attrs": _huge_time_and_attrs,
+}
+
+# Files that are valid: every command answers them correctly (exit 0 and its output) or refuses in one
+# line with exit 2 before writing anything (e.g. ``gyrolab-plot seed`` on a file that is not a
+# seed_figures job, ``work-precision`` without a peer).
+VALID_FILES = {
+    "ordinary": lambda path, good: shutil.copyfile(good, path),
+    # a method this gyrolab does not know (a newer gyrolab's, or renamed): its data are still data
+    "unknown_integrator": _coord("integrator", lambda v: np.array(["no_such_method"] * v.size)),
+}
+# gyrolab-compare's right answer for each valid file against the good one: SAME (0) or DIFFERENT (1)
+VALID_COMPARE = {"ordinary": 0, "unknown_integrator": 1}
+
 BAD_FILES = {
     "empty": lambda path, good: Path(path).write_bytes(b""),
     "garbage": lambda path, good: Path(path).write_bytes(os.urandom(4096)),
@@ -84,6 +203,7 @@ BAD_FILES = {
     "missing_energy": _strip_variable("energy"),
     "missing_status": _strip_variable("status"),
     "directory": lambda path, good: Path(path).mkdir(),
+    **CONTENT_FAULTS,
 }
 
 
@@ -256,3 +376,134 @@ def fill(directory):
     finally:
         os.close(fd)
     return ballast
+
+
+# --------------------------------------------------------------------------- the bad-file matrix
+
+
+def call(main, argv):
+    """Run a console entry point in-process: (status, stderr, exception or None)."""
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            status, raised = main(argv), None
+        except SystemExit as exit_:
+            status, raised = exit_.code, None
+        except Exception as exc:  # a traceback the user would see
+            status, raised = None, exc
+    return status, err.getvalue(), raised
+
+
+def analysis_commands(good):
+    """{name: (main, argv(FILE))} of every analysis command given one results file; ``good``: the
+    valid file gyrolab-compare's other operand is."""
+    from gyrolab.analysis.figures.cli import main as plot_main
+    from gyrolab.analysis.figures.registry import FIGURES
+    from gyrolab.analysis.files.compare import main as compare_main
+    from gyrolab.analysis.verdicts.verdict import main as verdict_main
+
+    commands = {f"plot {kind}": (plot_main, lambda f, kind=kind: [kind, f]) for kind in FIGURES}
+    commands["plot seed"] = (plot_main, lambda f: ["seed", f])
+    commands["plot standard"] = (plot_main, lambda f: ["standard", f])
+    commands["compare A"] = (compare_main, lambda f: [f, str(good)])
+    commands["compare B"] = (compare_main, lambda f: [str(good), f])
+    commands["verdict"] = (verdict_main, lambda f: [f])
+    return commands
+
+
+def command_names():
+    """The names of ``analysis_commands``, without a file to give them."""
+    from gyrolab.analysis.figures.registry import FIGURES
+
+    return [*(f"plot {kind}" for kind in FIGURES), "plot seed", "plot standard", "compare A", "compare B", "verdict"]
+
+
+SEED_PNGS = {"seed_regimes.png", "seed_remark1.png", "seed_next_vs_prev.png"}
+OUTCOMES = ("traceback", "silent", "refused", "answered", "other")
+
+
+def made(fault, good, cache):
+    """The file ``fault`` (BAD_FILES or VALID_FILES) made from ``good`` once in the directory ``cache``."""
+    path = Path(cache) / f"{fault}.h5"
+    if not os.path.lexists(path):
+        (VALID_FILES.get(fault) or BAD_FILES[fault])(path, good)
+    return path
+
+
+def matrix_case(directory, good, fault, command, cache=None):
+    """Run ``command`` (``command_names``) on the file ``fault`` (BAD_FILES or VALID_FILES) made in the empty
+    ``directory``: (outcome, detail).  Outcomes: "traceback" (an exception reached the user), "silent"
+    (a bad file answered: exit 0, or compare's 1), "refused" (one line, exit 2, nothing written),
+    "answered" (a valid file answered correctly), "other" (anything else: several lines, files
+    written before a refusal, a wrong answer to a valid file)."""
+    directory = Path(directory)
+    path = directory / "bad.h5"
+    source = made(fault, good, cache or directory.parent)
+    if source.is_dir():
+        path.mkdir()
+    else:
+        shutil.copyfile(source, path)
+    before = {p.name for p in directory.rglob("*")}
+    main, argv = analysis_commands(good)[command]
+    status, err, raised = call(main, argv(str(path)))
+    written = {p.name for p in directory.rglob("*")} - before
+    lines = err.strip().splitlines()
+    if raised is not None or "Traceback" in err:
+        return "traceback", f"{type(raised).__name__}: {raised}" if raised else err[-300:]
+    if status == 2:
+        ok = len(lines) == 1 and not written
+        return ("refused" if ok else "other"), f"{len(lines)} lines, wrote {sorted(written)}: {err.strip()[:200]}"
+    answered = status in (0, 1) if command.startswith("compare") else status == 0
+    if not answered:
+        return "other", f"exit {status}: {err.strip()[:200]}"
+    if fault not in VALID_FILES:
+        return "silent", f"exit {status}, wrote {sorted(written)}"
+    right = {
+        "plot seed": SEED_PNGS <= written,
+        "compare A": status == VALID_COMPARE[fault],
+        "compare B": status == VALID_COMPARE[fault],
+        "verdict": True,
+    }.get(command, bool(written))  # a figure: written
+    return ("answered" if right else "other"), f"exit {status}, wrote {sorted(written)}"
+
+
+def report(root, faults=None, commands=None, made_dir=None, out=sys.stdout):
+    """Run the matrix (``faults`` x ``commands``, default all) under the directory ``root``, the files
+    made once in ``made_dir`` (default under ``root``; kept there for another run); print each case
+    that is neither refused nor answered, then the counts per outcome.  Returns {outcome: count}."""
+    from helpers import make_file
+
+    root = Path(root)
+    made_dir = Path(made_dir or root / "made")
+    made_dir.mkdir(exist_ok=True)
+    good = made_dir / "good.h5"
+    if not good.exists():
+        make_file(good, "sweep.f=[10]")
+    counts = dict.fromkeys(OUTCOMES, 0)
+    for fault in faults or [*BAD_FILES, *VALID_FILES]:
+        for command in commands or command_names():
+            case = root / f"{fault}--{command.replace(' ', '_')}"
+            case.mkdir()
+            outcome, detail = matrix_case(case, good, fault, command, made_dir)
+            counts[outcome] += 1
+            if outcome not in ("refused", "answered"):
+                print(f"{outcome:9} {fault:24} {command:20} {detail}", file=out, flush=True)
+    cases = sum(counts.values())
+    print(f"cases {cases}: " + ", ".join(f"{k} {v}" for k, v in counts.items()), file=out, flush=True)
+    return counts
+
+
+if __name__ == "__main__":  # python tests/faults.py [FAULT ...]: the bad-file matrix's counts
+    import argparse
+    import tempfile
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    parser = argparse.ArgumentParser(description="the bad-file x analysis-command matrix: counts per outcome")
+    parser.add_argument("faults", nargs="*", help="faults to run (default: all of BAD_FILES and VALID_FILES)")
+    parser.add_argument("--command", action="append", help="commands to run (default: all)")
+    parser.add_argument("--made", help="directory to keep the made files in, for another run (default: a temporary)")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        report(tmp, args.faults or None, args.command, args.made)

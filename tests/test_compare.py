@@ -207,7 +207,10 @@ def test_different_grids_cannot_be_compared(pair):
     report = compare_files(a, fewer, shared_runs=True)
     assert report.ok and report.n_runs == 4
     assert "not compared (only in one file): f [20] only in A, [] only in B" in report.text()
-    shorter = variant(lambda ds: ds.isel(time=slice(0, 6)), "shorter.h5")
+    # a shorter sweep (t_end 0.05 s): its attrs and step counts say so too, else the reader refuses it
+    shorter = variant(
+        lambda ds: ds.isel(time=slice(0, 6)).assign_attrs(t_end=0.05).assign(n_steps=ds["n_steps"] // 2), "shorter.h5"
+    )
     with pytest.raises(CompareError, match="time has 11 samples to 0.1 s in A and 6 samples to 0.05 s in B"):
         compare_files(a, shorter)
     # A file whose writer chose to leave Lz out (output.variables) is compared on what both hold ...

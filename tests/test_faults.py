@@ -7,7 +7,6 @@ damaged-file and journal matrices run in-process.
 """
 
 import contextlib
-import io
 import os
 import random
 import resource
@@ -20,7 +19,6 @@ import pytest
 import xarray as xr
 from hydra import compose, initialize_config_module
 
-from gyrolab.analysis.figures.registry import FIGURES
 from gyrolab.analysis.files.combine import main as combine_main
 from gyrolab.runner.config import ConfigError, config_hash, register_configs
 from gyrolab.runner.execute import run_chunk
@@ -33,10 +31,14 @@ from faults import (
     BAD_FILES,
     CHUNK_FAULTS,
     MANIFEST_FAULTS,
+    VALID_FILES,
     _unlisted,
+    call,
+    command_names,
     damage_chunk,
     fill,
     interrupt,
+    matrix_case,
     small_disk,
     stray_files,
 )
@@ -299,52 +301,20 @@ def good(tmp_path_factory):
     return make_file(tmp_path_factory.mktemp("good") / "good.h5", "sweep.f=[10]")
 
 
-def call(main, argv):
-    """Run a console entry point in-process: (status, stderr); an exception is a failure of the test."""
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        try:
-            status = main(argv)
-        except SystemExit as exit_:
-            status = exit_.code
-    return status, err.getvalue()
+@pytest.fixture(scope="module")
+def made_files(tmp_path_factory):
+    """Each bad file made once for every command (tests/faults.py ``made``)."""
+    return tmp_path_factory.mktemp("made")
 
 
-def analysis_commands():
-    from gyrolab.analysis.figures.cli import main as plot_main
-    from gyrolab.analysis.files.compare import main as compare_main
-
-    commands = {f"plot {kind}": (plot_main, lambda f, kind=kind: [kind, f]) for kind in FIGURES}
-    commands["plot seed"] = (plot_main, lambda f: ["seed", f])
-    commands["plot standard"] = (plot_main, lambda f: ["standard", f])
-    commands["compare A"] = (compare_main, lambda f: [f, GOOD[0]])
-    commands["compare B"] = (compare_main, lambda f: [GOOD[0], f])
-    try:
-        from gyrolab.analysis.verdicts.verdict import main as verdict_main  # being written elsewhere
-
-        commands["verdict"] = (verdict_main, lambda f: [f])
-    except ImportError:
-        pass
-    return commands
-
-
-GOOD = []
-COMMANDS = analysis_commands()
-
-
-@pytest.mark.parametrize("command", list(COMMANDS))
-@pytest.mark.parametrize("bad", list(BAD_FILES))
-def test_bad_file_in_every_analysis_command_is_one_line_and_exit_2(tmp_path, good, bad, command):
-    GOOD[:] = [str(good)]
-    path = tmp_path / "bad.h5"
-    BAD_FILES[bad](path, good)
-    before = sorted(p.name for p in tmp_path.rglob("*"))
-    main, argv = COMMANDS[command]
-    status, err = call(main, argv(str(path)))
-    assert status == 2, (status, err)
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and "Traceback" not in err, err
-    assert sorted(p.name for p in tmp_path.rglob("*")) == before, "nothing written"
+@pytest.mark.parametrize("command", command_names())
+@pytest.mark.parametrize("bad", [*BAD_FILES, *VALID_FILES])
+def test_bad_file_in_every_analysis_command_is_one_line_and_exit_2(tmp_path, good, made_files, bad, command):
+    """Each command on each bad file refuses in one line with exit 2, writing nothing; on a valid file it
+    answers correctly or refuses so (tests/faults.py ``matrix_case``; ``python tests/faults.py`` counts)."""
+    (tmp_path / "case").mkdir()
+    outcome, detail = matrix_case(tmp_path / "case", good, bad, command, made_files)
+    assert outcome in ("refused", "answered"), f"{outcome}: {detail}"
 
 
 # --------------------------------------------------------------------------- combine faults
@@ -418,7 +388,7 @@ def test_each_combine_fault_is_refused_and_touches_no_output(tmp_path, good, cas
     argv, expected = combine_case(tmp_path, good, case)
     out = tmp_path / "out.h5"
     out.write_bytes(b"an earlier result")
-    status, err = call(combine_main, [*argv, "-o", str(out), "--overwrite"])
+    status, err, _ = call(combine_main, [*argv, "-o", str(out), "--overwrite"])
     assert status == 2, err
     assert_one_line(err, "gyrolab-combine: error: ")
     assert expected in err
@@ -430,7 +400,7 @@ def test_identical_overlap_is_accepted_with_the_flag_and_tiles_method_splits(tmp
     a = make_file(tmp_path / "a.h5", "sweep.f=[10,50]")
     b = make_file(tmp_path / "b.h5", "sweep.f=[50]")
     c = make_file(tmp_path / "c.h5", "sweep.f=[10,50]", "sweep.method=[rk4]")
-    status, err = call(
+    status, err, _ = call(
         combine_main, [str(a), str(b), str(c), "-o", str(tmp_path / "o.h5"), "--allow-identical-overlap"]
     )
     assert status == 0, err

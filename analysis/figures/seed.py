@@ -21,7 +21,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ...results import find_results, open_results
-from ..io import DT_STYLES, FLOOR, color, fmt_dt, relative_error, save_figure, scene_options
+from ..io import DT_STYLES, FLOOR, SelectionError, color, fmt_dt, relative_error, save_figure, scene_options
 from .nutation import closed_form_nutation
 
 REGIME_TITLES = {
@@ -54,11 +54,32 @@ def regime_of(ds):
     return ("loop" if phidot0 < 0 else "wave"), f_draw
 
 
+SEED_METHODS = ("seed_next", "seed_prev")  # every figure draws both
+
+
+def check_job(path, ds):
+    """SelectionError (one line naming ``path``) unless ``ds`` is a seed_figures job: the heavy top (its
+    closed-form nutation), one θ0, and both seed methods; an ordinary results file is not one."""
+    from ...results.layout import closed_form
+
+    what = "gyrolab experiment=seed_figures"
+    if closed_form(ds) != "heavy_top_nutation":
+        raise SelectionError(f"FILE={path}: not a seed_figures job ({what}): its scene has no heavy-top nutation")
+    missing = [m for m in SEED_METHODS if m not in ds.integrator.values]
+    if missing:
+        raise SelectionError(f"FILE={path}: not a seed_figures job ({what}): no integrator={','.join(missing)}")
+    th = float(ds.theta0.values[0])
+    if any(closed_form_nutation(ds, float(f), th) is None for f in ds.f.values):
+        raise SelectionError(f"FILE={path}: not a seed_figures job ({what}): no closed-form nutation at θ0={th:g}")
+
+
 def load_jobs(paths):
-    """{regime: (Dataset, f)} of the seed_figures jobs found under ``paths``."""
+    """{regime: (Dataset, f)} of the seed_figures jobs found under ``paths``; SelectionError (one line)
+    for a file that is not one."""
     jobs = {}
     for path in find_results(paths):
         ds = open_results(path)
+        check_job(path, ds)
         name, f = regime_of(ds)
         jobs.setdefault(name, (ds, f))
     return jobs
@@ -260,11 +281,12 @@ def seed_figures(paths, out, formats=("png",)):
     out = Path(out)
     out_dir = out.parent if out.suffix else out
     jobs = load_jobs(paths)
-    written = [save_figure(regimes_figure(jobs), out_dir / "seed_regimes.png", formats)]
+    # every figure drawn before any is written: a failure leaves none of the three behind
+    figures = {"seed_regimes.png": regimes_figure(jobs)}
     if "cusp" in jobs:
-        written.append(save_figure(remark1_figure(jobs["cusp"][0]), out_dir / "seed_remark1.png", formats))
-    written.append(save_figure(next_vs_prev_figure(jobs), out_dir / "seed_next_vs_prev.png", formats))
-    return written
+        figures["seed_remark1.png"] = remark1_figure(jobs["cusp"][0])
+    figures["seed_next_vs_prev.png"] = next_vs_prev_figure(jobs)
+    return [save_figure(fig, out_dir / name, formats) for name, fig in figures.items()]
 
 
 try:

@@ -57,6 +57,7 @@ from ...results.layout import (
     variables_attr,
 )
 from ...results.migrate import file_layout_version
+from ...results.validate import validate
 from ...safe_files import (
     OutputBusyError,
     OutputLock,
@@ -87,6 +88,10 @@ def load(path):
     problem = layout_problem(ds, version)
     if problem:
         raise CombineError(f"{path}: {problem}")
+    try:
+        validate(ds)  # what it holds, as the reader checks it for every command (gyrolab/results/validate.py)
+    except ValueError as err:
+        raise CombineError(f"{path}: {err}") from None
     held = held_variables(ds, version)
     ds.attrs["layout_version"] = LAYOUT_VERSION  # today's names and body now, what it holds named below
     if variables_attr(held) is not None:

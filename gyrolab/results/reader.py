@@ -18,6 +18,7 @@ from ..limits import LimitError, check_file_sizes
 from .layout import GRID_DIMS, LAYOUT_VERSION, required_variables
 from .members import member, member_dim, member_labels
 from .migrate import current, file_layout_version
+from .validate import validate
 
 EXIT_BAD_INPUT = 2  # every gyrolab command's exit status for bad input: a bad file, option or selection
 
@@ -46,13 +47,13 @@ def open_file(path, lazy=False):
     try:
         if lazy:  # memory follows what is read, not the file; a crafted file is still refused
             check_file_sizes(path, budget=float("inf"))
-            ds = xr.open_dataset(path, engine="h5netcdf")
+            ds = xr.open_dataset(path, engine="h5netcdf", phony_dims="access")
             small = [name for name in ds.variables if "time" not in ds[name].dims]
             ds = ds.assign({name: ds[name].load() for name in small if name in ds.data_vars})
             ds = ds.assign_coords({name: ds[name].load() for name in small if name in ds.coords})
         else:
             check_file_sizes(path)  # before loading: a small file declaring gigabytes (gyrolab/limits.py)
-            with xr.open_dataset(path, engine="h5netcdf") as ds:
+            with xr.open_dataset(path, engine="h5netcdf", phony_dims="access") as ds:
                 ds = ds.load()
     except LimitError as err:
         raise ResultsError(f"FILE={err}") from None
@@ -81,6 +82,10 @@ def check(where, ds, version):
             raise ResultsError(f"FILE={where}: not a complete gyrolab results file (no variable {name!r})")
         if ds[name].dims != dims:
             raise ResultsError(f"FILE={where}: variable {name} has dims {ds[name].dims}, expected {dims}")
+    try:
+        validate(ds)  # what the variables hold (gyrolab/results/validate.py)
+    except ValueError as err:
+        raise ResultsError(f"FILE={where}: {err}") from None
     return ds
 
 
