@@ -118,8 +118,9 @@ def bench_figures(kinds, scratch):
 def bench_verdict(scratch, scenes=("heavy_top", "free_asymmetric"), methods=METHODS, stability=10.0):
     from gyrolab.analysis.io import build_run_scene
     from gyrolab.analysis.verdicts.classify import method_stability_threshold
-    from gyrolab.analysis.verdicts.cost import bisection_seconds, verdict_seconds
+    from gyrolab.analysis.verdicts.cost import bisection_seconds, bisection_trials, verdict_seconds
     from gyrolab.analysis.verdicts.verdict import load, verdict, write_outputs
+    from gyrolab.runner.grid import step_rate
 
     root = Path(scratch) / "verdict"
     grids = []
@@ -129,7 +130,7 @@ def bench_verdict(scratch, scenes=("heavy_top", "free_asymmetric"), methods=METH
             d.mkdir(parents=True, exist_ok=True)
             over = [f"scene={scene}", f"+experiment@_global_={part}", f"sweep.method={_list(methods)}"]
             grids.append(write_file(d / f"{part.split('_')[1]}.h5", *over))
-    model = verdict_seconds(grids, stability)
+    model = verdict_seconds(grids, stability, step_rate)
     t = time.process_time()
     records = verdict([root])
     datasets = load([root])
@@ -142,11 +143,17 @@ def bench_verdict(scratch, scenes=("heavy_top", "free_asymmetric"), methods=METH
         for m in methods:
             t = time.process_time()
             method_stability_threshold(m, scene, stability)
-            took = (time.process_time() - t) / 2  # numba's 2 threads: CPU over threads
+            took = time.process_time() - t  # numba's threads: CPU of all of them
             total += took
-            est = bisection_seconds(m, omega, stability)
-            print(f"bisection {scene.name} {m}: {took:.2f} s (CPU / 2 threads), model {est:.2f} s")
-    print(f"bisection total: {total:.2f} s, model {model['bisection']:.2f} s")
+            steps = sum(float(c.sum()) for c in bisection_trials(omega, stability))
+            cpu = steps / step_rate(m, 4, False)  # every step on one core at grid.py's rate
+            wall = bisection_seconds(m, omega, stability, step_rate)
+            print(
+                f"bisection {scene.name} {m}: {took:.2f} s CPU for {steps:.3g} steps "
+                f"({took / steps * 1e9:.0f} ns/step), "
+                f"model {cpu:.2f} s CPU ({1e9 / step_rate(m, 4, False):.0f} ns/step), {wall:.2f} s wall on 2 threads"
+            )
+    print(f"bisection total: {total:.2f} s CPU, model {model['bisection']:.2f} s wall on 2 threads")
     t = time.process_time()
     write_outputs(records, root / "v.json", root / "v.md", None, datasets)
     print(f"writing md and json: {time.process_time() - t:.2f} s CPU, model {model['writing']:.2f} s")

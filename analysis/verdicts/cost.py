@@ -6,8 +6,9 @@ drifts (``verdict`` without ``stability``), bisects (|ω| dt)_crit once per (sce
 order) at the first (f, θ0) of its files (``threshold_records``), and writes verdict.md, verdict.json and
 one figure per scene.  The bisection is counted step by step: ``classify.stability_threshold`` itself is
 replayed with a predicate that knows the threshold (NOMINAL_CRIT), so the trial steps are exactly the
-ones it would try; each trial integrates t_end s at the method's steps per second of runner/grid.py
-(``step_rate``, the one-by-one or driven path: a bisection batch is a handful of runs).  The lowest
+ones it would try; each trial integrates t_end s at the method's steps per second ``rate(method, n_runs,
+driven)``, which the caller passes: runner/grid.py's ``step_rate`` (the analysis does not import the
+runner; a bisection batch is a handful of runs, so the one-by-one or driven path).  The lowest
 trial, |ω| dt = 1e-3, is most of the steps whatever the threshold is, so the nominal threshold costs
 little accuracy.  The other coefficients are fitted by benchmarks/bench_post_steps.py (CPU time of the
 one process, taken as the quiet machine's wall time; the machine was loaded when they were measured).
@@ -45,25 +46,25 @@ def bisection_trials(omega, t_end, crit=NOMINAL_CRIT, rtol=1e-3, batch=4):
     return calls
 
 
-def bisection_seconds(method, omega, t_end, threads=2, driven=False):
+def bisection_seconds(method, omega, t_end, rate, threads=2, driven=False):
     """Estimated wall time (s) of bisecting ``method``'s (|ω| dt)_crit over ``t_end`` s from a state
     rotating at ``omega`` rad/s, on ``threads`` numba threads (a call's runs are shared among them; a
-    call lasts at least its longest run).  Runs above the threshold are counted in full (they stop when
-    they diverge, which near the threshold is late)."""
-    from ...runner.grid import step_rate
-
+    call lasts at least its longest run); ``rate(method, n_runs, driven)``: steps/s per thread.  Runs
+    above the threshold are counted in full (they stop when they diverge, which near the threshold is
+    late)."""
     batch = max(4, 2 * threads)
     total = 0.0
     for steps in bisection_trials(omega, t_end, batch=batch):
-        rate = step_rate(method, len(steps), driven) * BISECTION_RATE_FACTOR
-        total += max(steps.sum() / min(threads, len(steps)), steps.max()) / rate + BISECTION_CALL_SECONDS
+        speed = rate(method, len(steps), driven) * BISECTION_RATE_FACTOR
+        total += max(steps.sum() / min(threads, len(steps)), steps.max()) / speed + BISECTION_CALL_SECONDS
     return total
 
 
-def verdict_seconds(grids, stability, threads=2):
+def verdict_seconds(grids, stability, rate, threads=2):
     """Estimated wall time (s) of the verdict study's post-step over the job grids ``grids`` (each a
     runner/grid.py Grid, one per results file of the multirun): {'reading': ..., 'bisection': ...,
-    'figures': ..., 'writing': ...}.  ``stability``: T (s) of the bisection, None or 0 for none."""
+    'figures': ..., 'writing': ...}.  ``stability``: T (s) of the bisection, None or 0 for none;
+    ``rate``: as for ``bisection_seconds``."""
     from .verdict import declared_order
 
     reading = sum(READ_SECONDS_PER_FILE + g.n_runs * g.n_samples * SECONDS_PER_SAMPLE for g in grids)
@@ -76,7 +77,7 @@ def verdict_seconds(grids, stability, threads=2):
             if (g.scene, m) in done or declared_order(m) is None or omega == 0.0:
                 continue
             done.add((g.scene, m))
-            bisection += bisection_seconds(m, omega, float(stability), threads, g.driven)
+            bisection += bisection_seconds(m, omega, float(stability), rate, threads, g.driven)
     scenes = {g.scene for g in grids}
     return {
         "reading": reading,
