@@ -2,6 +2,7 @@
 
     python benchmarks/bench_post_steps.py figures [--kinds nutation,tip]  # each figure kind on files of a few sizes
     python benchmarks/bench_post_steps.py verdict                         # the verdict callback's parts
+    python benchmarks/bench_post_steps.py estimate -- OVERRIDES...        # the figure step's estimate of a sweep
 
 Times are CPU seconds of this one process (``time.process_time``): the figures are single-threaded and
 the machine these were fitted on was loaded by other work, so the CPU time stands for the wall time on
@@ -36,7 +37,6 @@ SIZES = [
     (5, 3, 1, 3, 1.0, 1e-3),
     (5, 3, 1, 3, 10.0, 1e-3),
     (5, 25, 2, 2, 1.0, 1e-3),
-    (5, 10, 3, 3, 10.0, 1e-3),
 ]
 
 
@@ -131,6 +131,11 @@ def bench_verdict(scratch, scenes=("heavy_top", "free_asymmetric"), methods=METH
             over = [f"scene={scene}", f"+experiment@_global_={part}", f"sweep.method={_list(methods)}"]
             grids.append(write_file(d / f"{part.split('_')[1]}.h5", *over))
     model = verdict_seconds(grids, stability, step_rate)
+    for j, part in enumerate(("ladders", "long runs")):  # what the reading costs: the ladders' references, the series
+        dirs = [root / str(2 * k + j) for k in range(len(scenes))]
+        t = time.process_time()
+        verdict(dirs)
+        print(f"reading and classifying the {part} alone: {time.process_time() - t:.2f} s CPU")
     t = time.process_time()
     records = verdict([root])
     datasets = load([root])
@@ -162,16 +167,36 @@ def bench_verdict(scratch, scenes=("heavy_top", "free_asymmetric"), methods=METH
     print(f"figures ({len(scenes)} scenes): {time.process_time() - t:.2f} s CPU, model {model['figures']:.2f} s")
 
 
+def estimate(overrides):
+    """The figure step's estimate (analysis/figures/cost.py) for ``gyrolab OVERRIDES``'s grid and figures."""
+    from omegaconf import OmegaConf
+
+    from gyrolab.analysis import figure_names, figure_step_seconds
+    from gyrolab.runner.grid import build_grid
+
+    cfg = compose(*overrides)
+    grid = build_grid(cfg)
+    setting = cfg.output.figures
+    names = figure_names(OmegaConf.to_container(setting) if OmegaConf.is_list(setting) else setting)
+    each, total = figure_step_seconds(names, grid.shape, grid.n_samples)
+    words = ", ".join(f"{k}: {v:.2g} s" for k, v in each.items())
+    print(f"figure step: {total:.3g} s ({words}; importing matplotlib and the figures once)")
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("what", choices=("figures", "verdict"))
+    parser.add_argument("what", choices=("figures", "verdict", "estimate"))
+    parser.add_argument("--scenes", default="heavy_top,free_asymmetric", help="verdict: the scenes")
+    parser.add_argument("overrides", nargs="*", help="estimate: the sweep's Hydra overrides")
     parser.add_argument("--kinds", default="", help="comma-separated figure kinds (default: every one)")
     args = parser.parse_args(argv)
+    if args.what == "estimate":
+        return estimate(args.overrides)
     with tempfile.TemporaryDirectory() as scratch:
         if args.what == "figures":
             bench_figures([k for k in args.kinds.split(",") if k], scratch)
         else:
-            bench_verdict(scratch)
+            bench_verdict(scratch, scenes=args.scenes.split(","))
 
 
 if __name__ == "__main__":

@@ -21,10 +21,10 @@ BISECTION_SAMPLES = 65  # method_stability_threshold's n_samples: steps = 64 × 
 # Fitted by benchmarks/bench_post_steps.py (see docs/benchmarks.md "The post-steps' time"):
 BISECTION_RATE_FACTOR = 1.0  # measured steps/s of the bisection over runner/grid.py's step_rate
 BISECTION_CALL_SECONDS = 0.0  # per integrate call of the bisection (dispatch, tiling, status check)
-READ_SECONDS_PER_FILE = 0.0  # opening a results file, its per-run variables
-SECONDS_PER_SAMPLE = 0.0  # reading and classifying one stored sample of one run (orders, drifts)
+READ_SECONDS_PER_FILE = 0.9  # opening a results file, its per-run variables, a ladder's reference (DOP853)
+SECONDS_PER_SAMPLE = 3.4e-5  # reading and classifying one stored sample of one run (the long runs' drifts)
 FIGURE_SECONDS_PER_SCENE = 0.0  # verdict_<scene>.png
-WRITE_SECONDS = 0.0  # verdict.md, verdict.json
+WRITE_SECONDS = 0.05  # verdict.md, verdict.json
 
 
 def bisection_trials(omega, t_end, crit=NOMINAL_CRIT, rtol=1e-3, batch=4):
