@@ -43,7 +43,7 @@ class Cost:
 COSTS = {
     "nutation": Cost(0.95, 0.023, 2.4e-6, max_dt=2, max_panels=6),
     "tip": Cost(0.3, 0.29, 0.0, methods="one", max_dt=1),  # a panel per run: its annulus, its trace
-    "energy": Cost(1.0, 0.024, 0.0),
+    "energy": Cost(0.76, 0.038, 0.0),
     "invariants": Cost(1.48, 0.078, 1.9e-6, max_panels=5, rows_each=3),
     "work-precision": Cost(0.0, 0.0, 0.0, max_dt=None, max_panels=4),
     "sciml": Cost(0.0, 0.0, 0.0, max_dt=None, max_panels=1),
