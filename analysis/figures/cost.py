@@ -10,7 +10,7 @@ take more panels out of MAX_CELLS).  Its time is modelled as
 (base: the figure, its layout and PNG; per_run: a slab read and a curve; per_sample: reading, deriving
 and drawing one sample).  One ``Cost`` per kind of registry.FIGURES, in COSTS.  The coefficients are
 fitted by benchmarks/bench_post_steps.py figures: CPU time of the drawing process (the figures are one
-thread; the machine was loaded, so CPU time stands for a quiet machine's wall time), files of 2 to 300
+thread; the machine was loaded, so CPU time stands for a quiet machine's wall time), files of 2 to 500
 runs and 1001 to 10001 samples (docs/benchmarks.md "The post-steps' time").  IMPORT_SECONDS is paid once
 per figure step: importing the figure modules and matplotlib.
 """
