@@ -31,7 +31,11 @@ class PrecheckCallback(Callback):
 
         loader = GlobalHydra.instance().config_loader()
         parser = OverridesParser.create(config_loader=loader)
-        jobs = BasicSweeper.split_arguments(parser.parse_overrides(list(config.hydra.overrides.task)), None)[0]
+        # as BasicSweeper.sweep: the config's hydra.sweeper.params (experiment=verdict's scene=glob(*)), then
+        # the command line's overrides
+        params = [f"{k}={v}" for k, v in (config.hydra.sweeper.get("params") or {}).items()]
+        arguments = params + list(config.hydra.overrides.task)
+        jobs = BasicSweeper.split_arguments(parser.parse_overrides(arguments), None)[0]
         for overrides in jobs:
             try:
                 cfg = loader.load_configuration(
@@ -42,9 +46,10 @@ class PrecheckCallback(Callback):
             with open_dict(cfg):
                 del cfg["hydra"]
             try:
-                build_grid(cfg)
+                grid = build_grid(cfg)
             except ConfigError as err:
                 fail(f"{err} (in job {' '.join(overrides)})")
+            self.grids = getattr(self, "grids", []) + [grid]
 
     def on_multirun_end(self, config, **kwargs):
         """A dry run leaves nothing behind: Hydra wrote the sweep's multirun.yaml before any job (each
@@ -52,6 +57,9 @@ class PrecheckCallback(Callback):
         Hydra's default ``multirun/<YYYY-MM-DD>`` above it, each once empty)."""
         if not (config.get("runner") or {}).get("dry_run"):
             return
+        verdict = (config.hydra.get("callbacks") or {}).get("verdict")
+        if verdict is not None and getattr(self, "grids", None):
+            print(verdict_estimate(self.grids, verdict.get("stability", 10.0), config.runner.get("threads")))
         sweep = Path(str(config.hydra.sweep.dir))
         (sweep / "multirun.yaml").unlink(missing_ok=True)
         for directory in (sweep, sweep.parent, sweep.parent.parent):
@@ -63,3 +71,15 @@ class PrecheckCallback(Callback):
                 directory.rmdir()  # only an empty directory: anything else there is not ours to remove
             except OSError:
                 break
+
+
+def verdict_estimate(grids, stability, threads=None):
+    """The dry run's line for the verdict study's post-step (analysis/verdicts/study.py) over the jobs'
+    ``grids``: reading the files, the (|w| dt)_crit bisection over ``stability`` s, figures, writing."""
+    from ..analysis import verdict_seconds
+    from .app import resolve_threads
+    from .grid import step_rate
+
+    parts = verdict_seconds(grids, float(stability or 0.0), step_rate, resolve_threads(threads))
+    words = ", ".join(f"{part} {seconds:.3g} s" for part, seconds in parts.items())
+    return f"gyrolab dry run: the verdict after the jobs: estimated {sum(parts.values()):.3g} s ({words})"

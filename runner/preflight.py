@@ -234,7 +234,10 @@ def figure_memory(grid):
 
 def dry_run(grid, out, chunks, backend, peak, state, figures=True):
     """Print the plan of the sweep of ``grid`` into ``out`` on ``backend`` (runner/local_backend.py's
-    interface): sizes, time and memory estimates, what would compile; nothing runs."""
+    interface): sizes, time and memory estimates (the figure step's from analysis/figures/cost.py), what
+    would compile; nothing runs.  ``figures``: the config's output.figures setting."""
+    from ..analysis import figure_names, figure_step_seconds
+
     steps = grid.steps(np.arange(grid.n_runs))
     seconds, where = backend.estimate_seconds(grid, chunks), backend.describe()
     print(f"gyrolab dry run: {describe(grid)}")
@@ -244,15 +247,19 @@ def dry_run(grid, out, chunks, backend, peak, state, figures=True):
     print(
         f"  estimated time: {seconds + writing + loading + compiling:.3g} s to the results file "
         f"({seconds:.3g} s integration, {writing:.3g} s journal and assembly, {loading:.2g} s loading kernels, "
-        f"{compiling:.0f} s compiling; figures extra)"
+        f"{compiling:.0f} s compiling)"
     )
+    each, drawing = figure_step_seconds(figure_names(figures), grid.shape, grid.n_samples)
+    if each:
+        kinds = ", ".join(f"{name} {sec:.2g} s" for name, sec in each.items())
+        print(f"  + {drawing:.2g} s figures ({kinds}; on a quiet 2-core machine)")
     if cold:
         names = ", ".join(f"{m} ({p})" for m, p in cold)
         print(f"  compiling: {len(cold)} kernels not in the numba cache: {names}")
     else:
         print("  compiling: none (every kernel is in the numba cache)")
     print(f"  peak memory: ~{_size(peak)} of samples per chunk (+ ~0.3 GB for Python, numba, xarray)")
-    if figures:
+    if each:
         need, memory = figure_memory(grid), available_memory()
         print(
             f"  figure step: peak memory ~{_size(need)} (the figures read the results file slab by slab: "

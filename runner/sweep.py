@@ -94,7 +94,8 @@ def sweep(cfg, run_dir, stack):
     chunks = backend.plan(grid, np.arange(grid.n_runs), cfg.runner.chunk_seconds)
     peak = check_fits(grid, out, chunks)
     if cfg.runner.dry_run:
-        dry_run(grid, out, chunks, backend, peak, state, figures=bool(cfg.output.figures))
+        figures = cfg.output.figures
+        dry_run(grid, out, chunks, backend, peak, state, OmegaConf.to_container(figures) if OmegaConf.is_list(figures) else figures)
         return None
     if state == "done":
         with OutputLock(out):

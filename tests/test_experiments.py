@@ -102,3 +102,15 @@ def test_pinned_experiment_runs_at_tiny_size(tmp_path, name):
         for figure, file_name in expected_figure_files(ds).items():
             drawn = list((path.parent / "figures").glob(f"{file_name.rsplit('.', 1)[0]}.*"))
             assert drawn, f"{path}: figure {figure} ({file_name}) was not drawn"
+
+
+def test_the_verdict_study_plans_every_job_and_its_post_step(tmp_path):
+    """A multirun's sweeper params (experiment=verdict: scene=glob(*) x ladder, long) are planned job by job,
+    the verdict after them is estimated (analysis/verdicts/cost.py), and nothing reads as a failed step."""
+    scenes = [p for p in (importlib.resources.files("gyrolab.conf") / "scene").iterdir() if p.name.endswith(".yaml")]
+    result = gyrolab("experiment=verdict", "runner.dry_run=true", cwd=tmp_path, timeout=600)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.count("gyrolab dry run: ") == 2 * len(scenes) + 1  # every job, then the verdict
+    assert "gyrolab dry run: the verdict after the jobs: estimated" in result.stdout
+    assert "bisection" in result.stdout and "skipped" not in result.stderr
+    assert list(tmp_path.iterdir()) == []

@@ -110,7 +110,7 @@ def test_dry_run_counts_compiling_from_the_numba_cache(tmp_path):
     assert_ok(result)
     methods = ("seed_next", "seed_prev", "rk4", "lie_poisson", "lie_poisson4")  # the default study: no blocks
     assert f"compiling: 5 kernels not in the numba cache: {', '.join(f'{m} (runs)' for m in methods)}" in result.stdout
-    assert ", 50 s compiling;" in result.stdout
+    assert ", 50 s compiling)" in result.stdout
     assert not list(empty.rglob("*.nbi"))  # estimated, not compiled
 
 

@@ -36,6 +36,9 @@ class VerdictStudyCallback(Callback):
     def on_multirun_end(self, config, **kwargs):
         from .verdict import VerdictError, load, verdict, write_outputs
 
+        if (config.get("runner") or {}).get("dry_run"):  # no files to judge, and nothing failed
+            print("gyrolab: verdict: none (dry run; its estimate follows the jobs' estimates)", flush=True)
+            return
         root = Path(str(config.hydra.sweep.dir))
         start = time.perf_counter()
         print(f"gyrolab: verdict of {root} (stability bisection over {self.stability:g} s) ...", flush=True)
