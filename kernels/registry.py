@@ -74,6 +74,8 @@ NAMES = (
     # the rotation updates of molecular dynamics, spacecraft and geometric-integration codes (issue 24)
     "no_squish",
     "rk4_mrp",
+    "rkmk4",
+    "cg4",
 )
 METHODS = {name: register(name, importlib.import_module(f".methods.{name}", __package__)) for name in NAMES}
 
