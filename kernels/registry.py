@@ -76,6 +76,8 @@ NAMES = (
     "rk4_mrp",
     "rkmk4",
     "cg4",
+    "lgvi",
+    "implicit_midpoint",
 )
 METHODS = {name: register(name, importlib.import_module(f".methods.{name}", __package__)) for name in NAMES}
 

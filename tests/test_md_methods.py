@@ -184,3 +184,69 @@ def test_cg4_tableau_meets_the_classical_order_conditions():
     for name, (value, exact) in conditions.items():
         assert abs(value - exact) <= 1e-15, (name, value - exact)
 
+
+# ---------------------------------------------------------------- lgvi and implicit_midpoint
+
+
+def hat(v):
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def test_lgvi_step_solves_its_discrete_equations():
+    """Independently of the Cayley/Newton form: from 300 random states of a driven heavy body, F = R_kᵀ R_k+1
+    of one lgvi step satisfies F J_d − J_d Fᵀ = (h Π_k + h²/2 M_k)^ and Π_k+1 = Fᵀ(Π_k + h/2 M_k) + h/2 M_k+1
+    (matrices, numpy) to 1e-12 relative (measured 5e-15 and 2e-15)."""
+    from gyrolab.kernels.rigid_body import torque_at
+    from gyrolab.kernels.rotation import ck_matrix
+
+    step = METHODS["lgvi"].step_driven
+    I = np.diag(DRIVEN_BODY[:3])
+    Jd = 0.5 * np.trace(I) * np.eye(3) - I
+    worst_f = worst_p = 0.0
+    for w, q, t, dt in random_states(300, 9):
+        dt *= 0.1  # h |ω| ≲ 0.5: Cayley's F exists
+        w1, q1 = step(w, q, t, dt, DRIVEN_BODY)
+        F = ck_matrix(q).T @ ck_matrix(q1)
+        P0, P1 = I @ np.array(w), I @ np.array(w1)
+        M0, M1 = np.array(torque_at(q, t, DRIVEN_BODY)), np.array(torque_at(q1, t + dt, DRIVEN_BODY))
+        g = dt * P0 + 0.5 * dt * dt * M0
+        worst_f = max(worst_f, np.abs(F @ Jd - Jd @ F.T - hat(g)).max() / np.abs(g).max())
+        expected = F.T @ (P0 + 0.5 * dt * M0) + 0.5 * dt * M1
+        worst_p = max(worst_p, np.abs(P1 - expected).max() / np.abs(P0).max())
+    assert worst_f <= 1e-12 and worst_p <= 1e-12, (worst_f, worst_p)
+
+
+def test_implicit_midpoint_step_is_the_midpoint_rule():
+    """One implicit_midpoint step satisfies y1 = y0 + h f(t + h/2, (y0 + y1)/2) to 1e-13 relative in ω
+    and 1e-14 in q from 300 random states (measured 2e-15, 4e-16), up to the renormalisation of q."""
+    from gyrolab.kernels.rigid_body import euler_rhs, torque_at
+    from gyrolab.kernels.rotation import quat_mul
+
+    step = METHODS["implicit_midpoint"].step_driven
+    worst_w = worst_q = 0.0
+    for w, q, t, dt in random_states(300, 10):
+        dt *= 0.1
+        w1, q1 = step(w, q, t, dt, DRIVEN_BODY)
+        wm = 0.5 * (np.array(w) + w1)
+        qm = 0.5 * (np.array(q) + q1)
+        a = np.array(euler_rhs(tuple(wm), torque_at(tuple(qm), t + 0.5 * dt, DRIVEN_BODY), DRIVEN_BODY))
+        qd = 0.5 * np.array(quat_mul(tuple(qm), (0.0, *wm)))
+        worst_w = max(worst_w, np.abs(np.array(w1) - w - dt * a).max() / np.abs(w1).max())
+        worst_q = max(worst_q, np.abs(np.array(q1) - q - dt * qd).max())
+    assert worst_w <= 1e-13 and worst_q <= 1e-14, (worst_w, worst_q)
+
+
+def test_implicit_methods_that_do_not_converge_end_the_run_as_non_finite():
+    """A step far too coarse for the solver (h |ω| = 3 rad): lgvi's Newton and implicit_midpoint's fixed
+    point do not converge, the step returns NaN and the run's status is non-finite, never a silent
+    wrong step; at h |ω| = 0.3 both run."""
+    from gyrolab.kernels.batch import integrate
+    from gyrolab.kernels.driver import STATUS_NONFINITE, STATUS_OK
+
+    body = np.array([HEAVY_BODY])
+    for name in ("lgvi", "implicit_midpoint"):
+        for dt, expected in ((1e-2, STATUS_NONFINITE), (1e-3, STATUS_OK)):
+            _, status, _ = integrate(
+                name, body, np.array([[20.0, -10.0, 300.0]]), np.array([[1.0, 0.0, 0.0, 0.0]]), dt, 1, 3, 1e9
+            )
+            assert status[0] == expected, (name, dt, status)

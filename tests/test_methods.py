@@ -28,7 +28,7 @@ from gyrolab.kernels.scenes import build_scene
 
 from helpers import (
     CONTROL_FAILURES,
-    NO_SQUISH_FREE_TOP,
+    FREE_DISC_FAILURES,
     NO_SQUISH_ROUNDING,
     final_samples,
     method_params,
@@ -150,7 +150,7 @@ def test_free_closed_form_matches_dop853():
         np.testing.assert_allclose(omega[0], sc.omega0, atol=0)
 
 
-@pytest.mark.parametrize("name", own_methods({**CONTROL_FAILURES, **NO_SQUISH_FREE_TOP}))
+@pytest.mark.parametrize("name", own_methods({**CONTROL_FAILURES, **FREE_DISC_FAILURES}))
 def test_free_top_matches_closed_form(name, run_scene):
     """Free disc, f = 10 Hz, θ0 = 30°, wobble 0.1, 1 s, dt = 1e-3, 5e-4, 2.5e-4: axis and ω/ω3 within
     (ω3 dt)^ORDER + 1e-11 of the exact solution, and the error shrinks by 2^ORDER per halving (30 % slack)
