@@ -72,6 +72,13 @@ NAMES = (
     "jolt_rescale_bare",
     "rapier_rescale",
     "no_gyro",
+    # the rotation updates of molecular dynamics, spacecraft and geometric-integration codes (issue 24)
+    "no_squish",
+    "rk4_mrp",
+    "rkmk4",
+    "cg4",
+    "lgvi",
+    "implicit_midpoint",
 )
 METHODS = {name: register(name, importlib.import_module(f".methods.{name}", __package__)) for name in NAMES}
 

@@ -26,7 +26,14 @@ from gyrolab.kernels.rigid_body import potential_scale
 from gyrolab.kernels.rotation import ck_matrix
 from gyrolab.kernels.scenes import build_scene
 
-from helpers import CONTROL_FAILURES, final_samples, method_params, own_methods
+from helpers import (
+    CONTROL_FAILURES,
+    FREE_DISC_FAILURES,
+    NO_SQUISH_ROUNDING,
+    final_samples,
+    method_params,
+    own_methods,
+)
 
 # Error level below which a run is at its rounding floor, not its truncation error
 # (measured floors: 1e-13 .. 4e-11 over up to 2e5 steps).
@@ -143,7 +150,7 @@ def test_free_closed_form_matches_dop853():
         np.testing.assert_allclose(omega[0], sc.omega0, atol=0)
 
 
-@pytest.mark.parametrize("name", own_methods(CONTROL_FAILURES))
+@pytest.mark.parametrize("name", own_methods({**CONTROL_FAILURES, **FREE_DISC_FAILURES}))
 def test_free_top_matches_closed_form(name, run_scene):
     """Free disc, f = 10 Hz, θ0 = 30°, wobble 0.1, 1 s, dt = 1e-3, 5e-4, 2.5e-4: axis and ω/ω3 within
     (ω3 dt)^ORDER + 1e-11 of the exact solution, and the error shrinks by 2^ORDER per halving (30 % slack)
@@ -167,15 +174,13 @@ def test_free_top_matches_closed_form(name, run_scene):
     "scene, f, options, name",
     [
         pytest.param(scene, f, options, *p.values, marks=p.marks)
-        if scene == "free_asymmetric"
-        else (scene, f, options, m)
-        for scene, f, options in (("free_symmetric", 10.0, {}), ("free_asymmetric", 5.0, {"eps": 0.1}))
-        # explicit Euler keeps L of the symmetric top (ω3 fixed, ω⊥ turning slowly) within the bound,
-        # not that of the asymmetric box
-        for m, p in (
-            (q.values[0] if hasattr(q, "values") else q, q if hasattr(q, "values") else pytest.param(q))
-            for q in own_methods(CONTROL_FAILURES)
+        for scene, f, options, known in (
+            # explicit Euler keeps L of the symmetric top (ω3 fixed, ω⊥ turning slowly) within the bound,
+            # not that of the asymmetric box
+            ("free_symmetric", 10.0, {}, NO_SQUISH_ROUNDING),
+            ("free_asymmetric", 5.0, {"eps": 0.1}, {**CONTROL_FAILURES, **NO_SQUISH_ROUNDING}),
         )
+        for p in (q if hasattr(q, "values") else pytest.param(q) for q in own_methods(known))
     ],
 )
 def test_free_body_conserves_lab_angular_momentum(name, scene, f, options, step_loop):

@@ -1,0 +1,63 @@
+"""implicit_midpoint: the implicit midpoint rule on (ω, q), solved by fixed-point iteration.
+
+y_{n+1} = y_n + h f(t + h/2, (y_n + y_{n+1})/2) for y = (ω, q) ∈ R⁷ with I ω̇ = τ(q, t) − ω × Iω and
+q̇ = ½ q ⊗ (0, ω) (Hairer, Lubich & Wanner, Geometric Numerical Integration, 2nd ed. 2006, Sects.
+II.1 and IV.2; for the rigid body Austin, Krishnaprasad & Wang, J. Comput. Phys. 107 (1993) 105–117).
+It is solved for the midpoint Y = (y_n + y_{n+1})/2 = y_n + h/2 f(t + h/2, Y) by fixed-point
+iteration from Y = y_n (the form DL_POLY's FIQA uses for its quaternion): the map contracts by about
+h |ω| / 2 per sweep.  **Tolerance**: stop when the largest change of Y's components, ω relative to
+|ω|, q absolute, is ≤ 1e-15 (then y_{n+1} = 2Y − y_n); **iteration cap** 60.  A step that has not
+converged (h |ω| too large for the iteration to contract) returns NaN for ω and q, so the run ends
+with the non-finite status instead of continuing from a wrong step.
+
+The midpoint rule keeps every quadratic invariant of the ODE exactly (to the solver's tolerance):
+|q|² (q·q̇ = 0), the energy ½ ω·Iω + M g c·γ(q) (γ is quadratic in q), |Iω|² of a free body, and the
+linear I3 ω3 of the symmetric top.  Its lab angular momentum is cubic (R(q) I ω) and is not kept.
+Second order, symmetric; not a Poisson map of the rigid body's bracket (AKW 1993: "almost Poisson"),
+so SYMPLECTIC is False.  |q| = 1 is one of the kept quadratic invariants, but only to the solver's
+tolerance (6e-14 after 4000 steps of the 50 Hz top), so q is renormalised once per step.
+"""
+
+from numba import njit
+
+from ..rigid_body import euler_rhs, torque_at
+from ..rotation import quat_mul, quat_normalize
+
+ORDER = 2
+SYMPLECTIC = False
+PRESERVES = ("energy", "L_norm", "L3")
+
+MAX_ITERATIONS = 60
+TOLERANCE = 1e-15
+
+
+@njit(cache=True, error_model="numpy")
+def step_driven(w, q, t, dt, body):
+    """One implicit-midpoint step of dt seconds from time t (s); the torque at t + dt/2."""
+    half = 0.5 * dt
+    tm = t + half
+    wm, qm = w, q
+    scale = max(abs(w[0]), abs(w[1]), abs(w[2]))
+    for _ in range(MAX_ITERATIONS):
+        a = euler_rhs(wm, torque_at(qm, tm, body), body)
+        qd = quat_mul(qm, (0.0, wm[0], wm[1], wm[2]))  # 2 q̇
+        w_new = (w[0] + half * a[0], w[1] + half * a[1], w[2] + half * a[2])
+        h4 = 0.5 * half
+        q_new = (q[0] + h4 * qd[0], q[1] + h4 * qd[1], q[2] + h4 * qd[2], q[3] + h4 * qd[3])
+        dw = max(abs(w_new[0] - wm[0]), abs(w_new[1] - wm[1]), abs(w_new[2] - wm[2]))
+        dq = max(abs(q_new[0] - qm[0]), abs(q_new[1] - qm[1]), abs(q_new[2] - qm[2]), abs(q_new[3] - qm[3]))
+        wm, qm = w_new, q_new
+        scale = max(scale, abs(wm[0]), abs(wm[1]), abs(wm[2]))
+        if dw <= TOLERANCE * scale and dq <= TOLERANCE:
+            return (
+                (2.0 * wm[0] - w[0], 2.0 * wm[1] - w[1], 2.0 * wm[2] - w[2]),
+                quat_normalize((2.0 * qm[0] - q[0], 2.0 * qm[1] - q[1], 2.0 * qm[2] - q[2], 2.0 * qm[3] - q[3])),
+            )
+    nan = float("nan")
+    return (nan, nan, nan), (nan, nan, nan, nan)
+
+
+@njit(cache=True, error_model="numpy")
+def step(w, q, dt, body):
+    """One step of dt seconds of an undriven body: step_driven from t = 0."""
+    return step_driven(w, q, 0.0, dt, body)
