@@ -11,9 +11,11 @@ PhysicsServerCommandProcessor.cpp); what decides the update is the body type
   algorithm adds ω × Iω explicitly (``m_useGyroTerm`` true) with the angular
   damping torque −I ω (k + k |ω|), k = m_angularDamping = 0.04 as shipped
   (src/BulletDynamics/Featherstone/btMultiBody.cpp: constructor and
-  ``computeAccelerationsArticulatedBodyAlgorithmMultiDof``), velocities
-  clamped to m_maxCoordinateVelocity = 100 (rad/s per component) where the
-  solver applies velocity changes (btMultiBody.h ``applyDeltaVeeMultiDof``),
+  ``computeAccelerationsArticulatedBodyAlgorithmMultiDof``), every
+  velocity component (the base's ω in lab components) clamped to
+  m_maxCoordinateVelocity = 100 rad/s (btMultiBody.h
+  ``applyDeltaVeeMultiDof``; measured: a body spun at 150 rad/s leaves the
+  first step at 100, tests/test_real_engines.py),
   the quaternion by ``stepPositionsMultiDof``'s exponential map capped at
   π/4 rad per step.  Heavy body: a fixed base and one link on a spherical
   joint at the pivot (joint state: q and the body-frame ω), the joint's
