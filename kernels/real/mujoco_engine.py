@@ -107,6 +107,10 @@ class _Run:
         self.data.qvel[self.o : self.o + 3] = w0
         self.bad = mujoco.mjtWarning.mjWARN_BADQACC
         self.spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        # MuJoCo prints each warning ("Nan, Inf or huge value in QACC ..."); the run's status says it, so a
+        # sweep of diverging runs does not flood the terminal.  Restored when the run closes.
+        self.handler = mujoco.get_mju_user_warning()
+        mujoco.set_mju_user_warning(_silent)
 
     def _warnings(self):
         return self.data.warning[self.bad].number
@@ -130,4 +134,9 @@ class _Run:
         raise RuntimeError("MuJoCo's reset did not recur on replay")  # determinism broken: never seen
 
     def close(self):
+        self.mujoco.set_mju_user_warning(self.handler)
         self.model = self.data = None
+
+
+def _silent(message):
+    """A MuJoCo warning handler that drops the message (the warning counters still count it)."""
