@@ -252,7 +252,7 @@ def test_sweep_with_real_engines_reads_everywhere(tmp_path):
         "scene=free_asymmetric",
         "sweep.f=[1,10]",
         "sweep.dt=[1e-3,1e-4]",
-        "sweep.t_end=1",
+        "sweep.t_end=0.5",
         "output.every=1e-2",
         "output.figures=false",
         f"hydra.run.dir={tmp_path}",
