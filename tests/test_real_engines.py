@@ -288,3 +288,29 @@ def test_sweep_with_real_engines_reads_everywhere(tmp_path):
     )
     assert plot.returncode == 0, plot.stderr
     assert len(list((tmp_path / "figures").glob("*.png"))) >= 3
+
+
+# ---------------------------------------------------------------- the conformance table
+
+
+@needs_mujoco
+@needs_pybullet
+def test_conformance_rows_at_a_short_length():
+    """python -m gyrolab.kernels.real.conformance at 200 steps: the isolated updates agree to 1e-12 on the
+    tumbling box and the top (no amplification that early), PyBullet's default body is not
+    bullet_implicit_body (it differs from step 1), and the table has a row per (case, dt, pair)."""
+    from gyrolab.kernels.real import conformance
+
+    rows = conformance.rows(200)
+    assert len(rows) == len(conformance.cases()) * len(conformance.DTS) * len(conformance.PAIRS)
+    for r in rows:
+        if "note" in r:
+            assert r["engine"].startswith("real_pybullet") and r["case"] != "tumbling box"
+            continue
+        isolated = r["engine"].startswith("real_mujoco") or r["engine"] == "real_pybullet_maximal"
+        if isolated and r["case"] in ("tumbling box", "50 Hz top", "heavy body, c off-axis"):
+            assert r["dw"] < 1e-12 and r["dq"] < 1e-12, r
+        if r["engine"] == "real_pybullet" and r["damping"] is None:
+            assert r["dw"] > 1e-3 and r["first_over"] == 1, r
+    text = conformance.table(rows)
+    assert text.count("\n") == len(rows) + 2

@@ -169,6 +169,28 @@ def table(rows_):
     return "\n".join(lines) + "\n"
 
 
+READING = """
+Reading the table (causes; the numbers are the rows above):
+
+- Where the engine isolates the update (MuJoCo's four integrators on every case; PyBullet's btRigidBody,
+  real_pybullet_maximal, on free bodies) the reproduction agrees to rounding while the motion does not
+  amplify it: ≤ 1e-9, mostly ≤ 1e-12.
+- Where it does not, compare the engine against itself with ω3 one ulp larger: on the tennis racket every
+  flip multiplies a rounding difference (MuJoCo computes in the world frame, gyrolab in the body frame:
+  ~1e-17 a step), so from the first step > 1e-9 on the disagreement is of the engine's own one-ulp
+  spread; the same holds for a run that explodes (Euler at dt = 1e-3) and for the chaotic heavy body.
+  PyBullet loses a one-ulp change of the initial ω (it rounds the lab-frame velocity it is given), so
+  its own spread reads 0 there: the first step > 1e-9 (near MuJoCo's) places the flips' amplification.
+- real_pybullet is PyBullet's default body (btMultiBody), not the btRigidBody that bullet_implicit_body
+  reproduces: its ω × Iω is explicit (bullet_explicit's update; the rows with its angular damping set to
+  0 agree where |ω| stays below 100 rad/s), it damps by −(0.04 + 0.04 |ω|) ω as shipped, and it clamps
+  every lab component of ω to 100 rad/s: the tumbling box (ω3 = 126 rad/s) and the 50 Hz top
+  (314 rad/s) differ from the first step.
+- Not run: PyBullet's rigid body on a pivot (a point-to-point constraint solved by impulses) and a
+  PyBullet heavy body whose centre of mass is off the principal axes (a rotated inertial frame): not built.
+"""
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(prog="python -m gyrolab.kernels.real.conformance", description=__doc__.split("\n")[0])
     ap.add_argument("--steps", type=int, default=10_000, help="steps per run (default 10000)")
@@ -181,7 +203,7 @@ def main(argv=None):
         print(f"{ap.prog}: error: {package_missing(missing[0])}", file=sys.stderr)
         return 2
     engines = engine_versions([n for n in ("real_mujoco_euler", "real_pybullet") if n not in missing])
-    text = f"Reproduction vs real engine, {args.steps} steps ({engines}):\n\n" + table(rows(args.steps))
+    text = f"Reproduction vs real engine, {args.steps} steps ({engines}):\n\n" + table(rows(args.steps)) + READING
     if args.out:
         from ...safe_files import write_text
 
