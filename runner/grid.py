@@ -18,6 +18,7 @@ from ..kernels.batch import MIN_BLOCK_RUNS, sample_schedule
 from ..kernels.body import N_FIELDS as N_BODY
 from ..kernels.body import is_driven
 from ..kernels.real import STEP_RATES as REAL_STEP_RATES
+from ..kernels.real import check_bodies, is_real
 from ..kernels.registry import DRIVEN_REFUSAL, driven_methods, get_method, sees_time, select_methods
 from ..kernels.scenes import SCENES, build_scene
 from ..results.layout import RAW_PER_SAMPLE, SAMPLE_VARIABLES, chosen_variables, stored_per_sample
@@ -192,6 +193,12 @@ def build_grid(cfg):
             f"(|omega0|^2 = {rates[j, k]:.3g} rad^2/s^2: a scene option such as scene.omega1 is too large); "
             "every run would be infinite from t = 0"
         )
+    for m in sweep.method:  # a real engine builds the body in its own terms (kernels/real/): can it?
+        if is_real(m):
+            try:
+                check_bodies(m, bodies)
+            except ValueError as err:
+                raise ConfigError(f"sweep.method={m}: {err} (scene {name})") from None
     if is_driven(bodies):
         blind = [m for m in sweep.method if not sees_time(get_method(m))]
         if blind:

@@ -43,6 +43,17 @@ REPRODUCTION = {
 }
 
 
+def grid_of(*overrides):
+    from hydra import compose, initialize_config_module
+
+    from gyrolab.runner.config import register_configs
+    from gyrolab.runner.grid import build_grid
+
+    register_configs()
+    with initialize_config_module(config_module="gyrolab.conf", version_base=None):
+        return build_grid(compose("config", overrides=list(overrides)))
+
+
 def scene_inputs(name, f=5.0, theta0=30.0, **options):
     sc = build_scene(name, f, theta0, **options)
     return np.array([sc.body]), np.array([sc.omega0]), np.array([sc.q0])
@@ -113,6 +124,17 @@ def test_grid_takes_real_engines_and_the_selector():
     grid = build_grid(cfg)
     assert list(grid.methods) == real.available() + ["rk4"]
     assert warm_up_paths(grid) == [("rk4", "runs")]  # nothing for numba to compile for an engine
+
+
+@needs_pybullet
+def test_grid_check_refuses_a_body_the_engine_does_not_build():
+    """PyBullet's rigid body on a pivot is not built: refused at the grid check in one line, before any work."""
+    from gyrolab.runner.config import ConfigError
+
+    with pytest.raises(ConfigError, match=r"sweep\.method=real_pybullet_maximal: .*free bodies only") as err:
+        grid_of("sweep.method=[rk4,real_pybullet_maximal]", "scene=heavy_top")
+    assert "\n" not in str(err.value)
+    assert grid_of("sweep.method=[real_pybullet]", "scene=heavy_top").methods[0] == "real_pybullet"
 
 
 @needs_mujoco

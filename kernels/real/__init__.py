@@ -98,6 +98,14 @@ def get_backend(name):
     return _LOADED[name]
 
 
+def check_bodies(name, bodies):
+    """ValueError (one line) naming the first body (rows of body.FIELDS) the backend of ``name`` does not
+    build (a pivot on PyBullet's rigid body, ...): the grid check calls it before any work."""
+    backend = get_backend(name)
+    for row in np.unique(np.asarray(bodies, dtype=float).reshape(-1, N_BODY), axis=0):
+        backend.check(Body(*map(float, row)))
+
+
 def engine_version(name):
     """ "<package> <version>" of the engine ``name`` runs (its installed distribution)."""
     package = PACKAGES[name]

@@ -89,6 +89,12 @@ class Backend:
 
         self.name, self.mode, self.mujoco = name, mode, mujoco
 
+    def check(self, body):
+        """ValueError (one line) when this backend does not build ``body``: a heavy body needs a mass that
+        makes a physical inertia about the centre of mass (``heavy_mass_and_com``)."""
+        if not is_free(body):
+            heavy_mass_and_com(body)
+
     def xml(self, body, dt):
         return free_xml(body, dt, self.mode) if is_free(body) else heavy_xml(body, dt, self.mode)
 

@@ -82,14 +82,30 @@ class Backend:
             else "btRigidBody: implicit body-frame gyroscopic impulse, damping 0"
         )
 
-    def start(self, body, w0, q0, dt, angular_damping=None):
-        """A run of ``body`` from ω0 (body, rad/s) and q0 (scalar first) with step dt (s).
-        ``angular_damping`` replaces the shipped damping (conformance runs only; None: as shipped)."""
-        if not is_free(body) and self.mode == "maximal":
+    def check(self, body):
+        """ValueError (one line) when this backend does not build ``body`` (kernels.body.Body)."""
+        if is_free(body):
+            return
+        if self.mode == "maximal":
             raise ValueError(
                 f"method {self.name!r} runs free bodies only (a pivot needs a point-to-point constraint: "
                 "not built); use real_pybullet for a heavy body"
             )
+        from .mujoco_engine import heavy_mass_and_com
+
+        _, com, about_com = heavy_mass_and_com(body, GRAVITY)
+        moments = np.diag(about_com)
+        if np.abs(about_com - np.diag(moments)).max() > 1e-12 * moments.max():
+            # a rotated inertial frame reaches the multibody's joint frame, which this backend does not model
+            raise ValueError(
+                f"method {self.name!r} runs a heavy body whose centre of mass lies on a principal axis "
+                f"(its inertia about the centre of mass diagonal in the body frame); c = {tuple(com)} m is not"
+            )
+
+    def start(self, body, w0, q0, dt, angular_damping=None):
+        """A run of ``body`` from ω0 (body, rad/s) and q0 (scalar first) with step dt (s).
+        ``angular_damping`` replaces the shipped damping (conformance runs only; None: as shipped)."""
+        self.check(body)
         return _Run(self.pb, self.mode, body, np.asarray(w0, float), np.asarray(q0, float), dt, angular_damping)
 
 
@@ -114,13 +130,7 @@ class _Run:
             from .mujoco_engine import heavy_mass_and_com
 
             mass, com, about_com = heavy_mass_and_com(body, GRAVITY)
-            moments = np.diag(about_com)
-            if np.abs(about_com - np.diag(moments)).max() > 1e-12 * moments.max():
-                # a rotated inertial frame reaches the multibody's joint frame, which this backend does not model
-                raise ValueError(
-                    f"method 'real_pybullet' runs a heavy body whose centre of mass lies on a principal axis "
-                    f"(its inertia about the centre of mass diagonal in the body frame); c = {tuple(com)} m is not"
-                )
+            moments = np.diag(about_com)  # diagonal: Backend.check
             pb.setGravity(0, 0, -GRAVITY, physicsClientId=c)
             self.id = pb.createMultiBody(
                 baseMass=0.0,
