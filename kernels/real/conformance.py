@@ -3,7 +3,8 @@
     python -m gyrolab.kernels.real.conformance [--steps 10000] [--out FILE.md]
 
 For each case (the tennis racket, a tumbling asymmetric box, a heavy body with
-its centre of mass off every axis, the write-up's 50 Hz top) and dt (1e-3,
+its centre of mass off every axis, the write-up's 50 Hz top and the same top
+at 10 Hz, below PyBullet's 100 rad/s clamp) and dt (1e-3,
 1e-4 s) it steps a reproduction (kernels/methods/<name>.step) and the engine
 (kernels/real backends, ``advance(1)``) side by side from the same state and
 reports, over the steps both completed while |ω| stayed below 2 |ω0| (past
@@ -46,12 +47,14 @@ def cases():
     free = Body(1e-4, 3e-4, 2e-4, 0.0)  # e3 the intermediate axis
     w3 = 2 * math.pi * 10
     top = build_scene("heavy_top", 50.0, 45.0)
+    slow_top = build_scene("heavy_top", 10.0, 45.0)  # |ω| < 100 rad/s: below PyBullet's multibody clamp
     off_axis = build_scene("heavy_body", 5.0, 30.0, omega1=4.0, omega2=-3.0)
     return {
         "tennis racket": (free, (1e-3 * w3, 0.0, w3), tilt30),
         "tumbling box": (free, (0.5 * 2 * math.pi * 20, 0.3 * 2 * math.pi * 20, w3 * 2), tilt30),
         "heavy body, c off-axis": (Body(*off_axis.body), off_axis.omega0, off_axis.q0),
         "50 Hz top": (Body(*top.body), top.omega0, top.q0),
+        "10 Hz top": (Body(*slow_top.body), slow_top.omega0, slow_top.q0),
     }
 
 
@@ -185,7 +188,10 @@ Reading the table (causes; the numbers are the rows above):
   reproduces: its ω × Iω is explicit (bullet_explicit's update; the rows with its angular damping set to
   0 agree where |ω| stays below 100 rad/s), it damps by −(0.04 + 0.04 |ω|) ω as shipped, and it clamps
   every lab component of ω to 100 rad/s: the tumbling box (ω3 = 126 rad/s) and the 50 Hz top
-  (314 rad/s) differ from the first step.
+  (314 rad/s) differ from the first step.  On a pivot (the 10 Hz top, below the clamp, damping 0) the
+  first step agrees to the bit and the difference then grows by ~dt² a step: PyBullet's spherical joint
+  (Featherstone's articulated-body algorithm with the gravity of the link) is not bullet_explicit's
+  free-body update with the torque added; the cause is not isolated yet.
 - Not run: PyBullet's rigid body on a pivot (a point-to-point constraint solved by impulses) and a
   PyBullet heavy body whose centre of mass is off the principal axes (a rotated inertial frame): not built.
 """
