@@ -104,6 +104,8 @@ def warm_up_methods(methods, inputs, threshold, blocks=False):
     jobs = [(m, path) for m in methods for path in (("runs", "blocks") if blocks else ("runs",))]
     for k, (method, path) in enumerate(jobs, 1):
         what = f"{'block' if path == 'blocks' else 'run'} kernels of {method} ({k}/{len(jobs)})"
+        if is_real(method):  # importing the engine package, compiling the samplers gyrolab calls on its state
+            what = f"the engine package and samplers of {method} ({k}/{len(jobs)})"
         with _compile_notice(what):
             integrate(method, bodies, omega0, q0, dt, np.ones(1, dtype=np.int64), 2, threshold, path=path)
 
