@@ -10,6 +10,7 @@ import importlib
 
 from numba.core.dispatcher import Dispatcher
 
+from . import real
 from .entry import add_entry_points
 from .invariants import check_names
 
@@ -84,7 +85,10 @@ METHODS = {name: register(name, importlib.import_module(f".methods.{name}", __pa
 
 
 def get_method(name):
-    """The method module registered as ``name``; ValueError naming the choices."""
+    """The method module registered as ``name``, or for a real engine (``real_*``, kernels/real/) its
+    backend (no numba step, ``BLOCKS`` False); ValueError naming the choices, or the missing extra."""
+    if real.is_real(name):
+        return real.get_backend(name)
     try:
         return METHODS[name]
     except KeyError:
@@ -125,6 +129,7 @@ SELECTORS = {
     "all_own": "gyrolab's own schemes (every method that does not reproduce an engine)",
     "all_engines": "the reproductions of engines' rotation updates (REPRODUCES)",
     "driven": "the methods that see time (step_driven)",
+    "real": "the real engines whose package imports here (kernels/real/: real_mujoco_*, real_pybullet*)",
 }
 
 
@@ -142,11 +147,17 @@ def select_methods(names, driven_scene=False):
             chosen = [m for m, mod in METHODS.items() if getattr(mod, "REPRODUCES", "")]
         elif name == "driven":
             chosen = driven_methods()
+        elif name == "real":
+            chosen = real.available()
         elif name in METHODS:
+            chosen = [name]
+        elif real.is_real(name):
+            real.check_available(name)  # one line naming the extra when the engine's package is missing
             chosen = [name]
         else:
             raise ValueError(
-                f"unknown method {name!r}; choose from {', '.join(METHODS)} or a selector ({', '.join(SELECTORS)})"
+                f"unknown method {name!r}; choose from {', '.join(METHODS)}, a real engine "
+                f"({', '.join(real.NAMES)}) or a selector ({', '.join(SELECTORS)})"
             )
         out.extend(m for m in chosen if m not in out)
     return out

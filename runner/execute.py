@@ -23,6 +23,7 @@ import time
 import numpy as np
 
 from ..kernels.batch import MIN_BLOCK_RUNS, integrate
+from ..kernels.real import is_real
 from .grid import plan_chunks, runs_in_blocks, step_rate
 
 # Test hook: seconds to sleep after each stored chunk, so a test can kill a sweep mid-way.
@@ -68,6 +69,8 @@ def warm_up_paths(grid):
     blocks = grid.n_runs // len(grid.methods) >= MIN_BLOCK_RUNS and not grid.driven
     out = []
     for method in grid.methods:
+        if is_real(method):  # the engine package itself (kernels/real/): numba compiles nothing for it
+            continue
         out.append((method, "driven" if grid.driven else "runs"))
         if blocks and uses_blocks(get_method(method)):
             out.append((method, "blocks"))
@@ -101,6 +104,8 @@ def warm_up_methods(methods, inputs, threshold, blocks=False):
     jobs = [(m, path) for m in methods for path in (("runs", "blocks") if blocks else ("runs",))]
     for k, (method, path) in enumerate(jobs, 1):
         what = f"{'block' if path == 'blocks' else 'run'} kernels of {method} ({k}/{len(jobs)})"
+        if is_real(method):  # importing the engine package, compiling the samplers gyrolab calls on its state
+            what = f"the engine package and samplers of {method} ({k}/{len(jobs)})"
         with _compile_notice(what):
             integrate(method, bodies, omega0, q0, dt, np.ones(1, dtype=np.int64), 2, threshold, path=path)
 

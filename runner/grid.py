@@ -18,7 +18,9 @@ from omegaconf import OmegaConf
 from ..kernels.batch import MIN_BLOCK_RUNS, sample_schedule
 from ..kernels.body import N_FIELDS as N_BODY
 from ..kernels.body import is_driven
-from ..kernels.registry import DRIVEN_REFUSAL, METHODS, driven_methods, sees_time, select_methods
+from ..kernels.real import STEP_RATES as REAL_STEP_RATES
+from ..kernels.real import check_bodies, is_real
+from ..kernels.registry import DRIVEN_REFUSAL, driven_methods, get_method, sees_time, select_methods
 from ..kernels.scenes import SCENES, build_scene
 from ..results.layout import RAW_PER_SAMPLE, SAMPLE_VARIABLES, chosen_variables, stored_per_sample
 from .config import ConfigError, check_values
@@ -27,6 +29,8 @@ from .config import ConfigError, check_values
 # (heavy top, warm JIT cache); only used to size chunks and for dry-run estimates.
 STEP_RATE = {"seed_next": 1.2e7, "seed_prev": 1.2e7, "rk4": 1.2e7, "lie_poisson": 1.2e7, "lie_poisson4": 5e6}
 DEFAULT_STEP_RATE = 5e6
+# The real engines (kernels/real/: the engine package itself, one run after another): their own rates.
+STEP_RATE.update(REAL_STEP_RATES)
 # Speed of the vectorised block path (kernels/block.py; chunks of >= MIN_BLOCK_RUNS runs) over the
 # one-by-one path, per method: ns/step one by one / in blocks, heavy top, 256 runs, 2 threads, the
 # "after" columns of docs/benchmarks.md's centre-of-mass table (bench_methods.py, quiet machine).
@@ -190,8 +194,14 @@ def build_grid(cfg):
             f"(|omega0|^2 = {rates[j, k]:.3g} rad^2/s^2: a scene option such as scene.omega1 is too large); "
             "every run would be infinite from t = 0"
         )
+    for m in sweep.method:  # a real engine builds the body in its own terms (kernels/real/): can it?
+        if is_real(m):
+            try:
+                check_bodies(m, bodies)
+            except ValueError as err:
+                raise ConfigError(f"sweep.method={m}: {err} (scene {name})") from None
     if is_driven(bodies):
-        blind = [m for m in sweep.method if not sees_time(METHODS[m])]
+        blind = [m for m in sweep.method if not sees_time(get_method(m))]
         if blind:
             raise ConfigError(
                 f"sweep.method={blind[0]}: {DRIVEN_REFUSAL} (scene {name} drives the body); "

@@ -61,8 +61,21 @@ def library_versions():
     return out
 
 
+def engine_versions(config_yaml):
+    """{"engine_versions": "mujoco 4.0.0, pybullet 3.2.7"} when the config's sweep.method names real engines
+    (kernels/real/), else {} (so a file without them has the attrs it always had)."""
+    import yaml
+
+    from ..kernels.real import engine_versions as versions
+
+    methods = ((yaml.safe_load(config_yaml) or {}).get("sweep") or {}).get("method") or []
+    text = versions([str(m) for m in methods])
+    return {"engine_versions": text} if text else {}
+
+
 def provenance(config_yaml, threads):
-    """File attrs: resolved config (YAML text), code and library versions, numba threads, creation time (UTC ISO)."""
+    """File attrs: resolved config (YAML text), code and library versions (and the real engines' when the
+    sweep runs any), numba threads, creation time (UTC ISO)."""
     from ..kernels import SOURCE_HASH
     from ..version import __version__
 
@@ -76,6 +89,7 @@ def provenance(config_yaml, threads):
         "kernel_source_hash": SOURCE_HASH,
         "python_version": ".".join(map(str, sys.version_info[:3])),
         **library_versions(),
+        **engine_versions(config_yaml),
         "threads": int(threads),
         "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
     }

@@ -1,0 +1,223 @@
+"""Conformance of gyrolab's engine reproductions with the real engines, as a markdown table.
+
+    python -m gyrolab.kernels.real.conformance [--steps 10000] [--out FILE.md]
+
+For each case (the tennis racket, a tumbling asymmetric box, a heavy body with
+its centre of mass off every axis, the write-up's 50 Hz top and the same top
+at 10 Hz, below PyBullet's 100 rad/s clamp) and dt (1e-3,
+1e-4 s) it steps a reproduction (kernels/methods/<name>.step) and the engine
+(kernels/real backends, ``advance(1)``) side by side from the same state and
+reports, over the steps both completed while |ω| stayed below 2 |ω0| (past
+that an exploding run amplifies rounding as fast as it grows):
+
+- max |Δω|/|ω| (ω body) and max orientation error, the angle of the rotation between the two (rad);
+- the same for the engine against itself with ω3 one ulp larger (its own
+  sensitivity: where the reproduction's disagreement is of that size, the
+  motion amplifies rounding, as the tennis racket's flips do, and no
+  reproduction that rounds differently can do better);
+- the steps compared and the first step at which |Δω|/|ω| > 1e-9.
+
+Pairs: MuJoCo's four integrators; PyBullet's btRigidBody
+(real_pybullet_maximal, free bodies) against bullet_implicit_body; PyBullet's
+default btMultiBody (real_pybullet) with its angular damping set to 0 against
+bullet_explicit, and as shipped (damping 0.04) against bullet_implicit_body,
+the row that answers whether that reproduction is PyBullet's default.
+Pure Python (the reproductions' steps are called one by one from here).
+"""
+
+import argparse
+import math
+import sys
+
+import numpy as np
+
+from ..body import Body
+from . import engine_versions, get_backend, package_missing
+
+DTS = (1e-3, 1e-4)
+THRESHOLD = 1e-9
+
+
+def cases():
+    """{name: (Body, ω0 body rad/s, q0)}: tests/test_engines.py's free bodies and top, the heavy_body scene."""
+    from ..scenes import build_scene
+
+    h = 0.5 * math.radians(30.0)
+    tilt30 = (math.cos(h), math.sin(h), 0.0, 0.0)
+    free = Body(1e-4, 3e-4, 2e-4, 0.0)  # e3 the intermediate axis
+    w3 = 2 * math.pi * 10
+    top = build_scene("heavy_top", 50.0, 45.0)
+    slow_top = build_scene("heavy_top", 10.0, 45.0)  # |ω| < 100 rad/s: below PyBullet's multibody clamp
+    off_axis = build_scene("heavy_body", 5.0, 30.0, omega1=4.0, omega2=-3.0)
+    return {
+        "tennis racket": (free, (1e-3 * w3, 0.0, w3), tilt30),
+        "tumbling box": (free, (0.5 * 2 * math.pi * 20, 0.3 * 2 * math.pi * 20, w3 * 2), tilt30),
+        "heavy body, c off-axis": (Body(*off_axis.body), off_axis.omega0, off_axis.q0),
+        "50 Hz top": (Body(*top.body), top.omega0, top.q0),
+        "10 Hz top": (Body(*slow_top.body), slow_top.omega0, slow_top.q0),
+    }
+
+
+# (reproduction, real engine, engine option: angular damping replaced, or None for as shipped)
+PAIRS = (
+    ("mujoco_euler", "real_mujoco_euler", None),
+    ("mujoco_implicitfast", "real_mujoco_implicitfast", None),
+    ("mujoco_implicit", "real_mujoco_implicit", None),
+    ("mujoco_rk4", "real_mujoco_rk4", None),
+    ("bullet_implicit_body", "real_pybullet_maximal", None),
+    ("bullet_explicit", "real_pybullet", 0.0),
+    ("bullet_implicit_body", "real_pybullet", None),
+)
+
+
+def engine_trajectory(name, body, w0, q0, dt, n, damping):
+    """(W (k, 3), Q (k, 4)) after each of the k ≤ n steps the engine completed (k < n: it reset the state)."""
+    backend = get_backend(name)
+    run = backend.start(body, np.asarray(w0, float), np.asarray(q0, float), dt, **_damping(damping))
+    W, Q = np.empty((n, 3)), np.empty((n, 4))
+    try:
+        for i in range(n):
+            _, w, q = run.advance(1)
+            if w is None:
+                return W[:i], Q[:i]
+            W[i], Q[i] = w, q
+    finally:
+        run.close()
+    return W, Q
+
+
+def _damping(damping):
+    return {} if damping is None else {"angular_damping": damping}
+
+
+def reproduction_trajectory(method, body, w0, q0, dt, n):
+    """The reproduction's states after each of n steps (its numba ``step`` called from Python)."""
+    from ..registry import METHODS
+
+    step = METHODS[method].step
+    W, Q = np.empty((n, 3)), np.empty((n, 4))
+    w, q = tuple(map(float, w0)), tuple(map(float, q0))
+    for i in range(n):
+        w, q = step(w, q, dt, body)
+        W[i], Q[i] = w, q
+    return W, Q
+
+
+def disagreement(W, Q, W2, Q2, w0):
+    """(|Δω|/|ω| per step, orientation angle per step (rad), steps compared): over the steps both have and
+    while |ω| ≤ 2 |ω0| in both."""
+    k = min(len(W), len(W2))
+    limit = 2 * np.linalg.norm(w0)
+    sane = (np.linalg.norm(W[:k], axis=1) <= limit) & (np.linalg.norm(W2[:k], axis=1) <= limit)
+    k = int(np.argmin(sane)) if not sane.all() else k
+    dw = np.linalg.norm(W[:k] - W2[:k], axis=1) / np.linalg.norm(W[:k], axis=1)
+    # the angle of the rotation between them, 4 atan2(|q − s q'|, |q + s q'|) with s the sign of q·q' (q and
+    # −q are one rotation): accurate to rounding where 2 acos|q·q'| bottoms out at ~1e-8 rad
+    s = np.where(np.sum(Q[:k] * Q2[:k], axis=1) < 0, -1.0, 1.0)[:, None]
+    angle = 4 * np.arctan2(np.linalg.norm(Q[:k] - s * Q2[:k], axis=1), np.linalg.norm(Q[:k] + s * Q2[:k], axis=1))
+    return dw, angle, k
+
+
+def rows(n_steps):
+    """One dict per (case, dt, pair) the installed engines can run."""
+    out = []
+    for case, (body, w0, q0) in cases().items():
+        for dt in DTS:
+            for method, engine, damping in PAIRS:
+                row = {"case": case, "dt": dt, "reproduction": method, "engine": engine, "damping": damping}
+                if package_missing(engine) is not None:
+                    continue
+                try:
+                    W, Q = engine_trajectory(engine, body, w0, q0, dt, n_steps, damping)
+                except ValueError as err:  # a body this backend does not build
+                    row["note"] = str(err).split(";")[0].split(" (")[0]
+                    out.append(row)
+                    continue
+                Wr, Qr = reproduction_trajectory(method, body, w0, q0, dt, n_steps)
+                w_ulp = (w0[0], w0[1], float(np.nextafter(w0[2], math.inf)))
+                W1, Q1 = engine_trajectory(engine, body, w_ulp, q0, dt, n_steps, damping)
+                dw, dq, k = disagreement(W, Q, Wr, Qr, w0)
+                sw, sq, _ = disagreement(W, Q, W1, Q1, w0)
+                over = np.nonzero(dw > THRESHOLD)[0]
+                row.update(
+                    engine_steps=len(W),
+                    compared=k,
+                    dw=float(dw.max()) if k else math.nan,
+                    dq=float(dq.max()) if k else math.nan,
+                    self_dw=float(sw[:k].max()) if k else math.nan,
+                    self_dq=float(sq[:k].max()) if k else math.nan,
+                    first_over=int(over[0]) + 1 if over.size else None,
+                )
+                out.append(row)
+    return out
+
+
+def table(rows_):
+    """Markdown table of ``rows``."""
+    lines = [
+        "| case | dt (s) | reproduction | engine | steps compared (engine ran) | max abs(dw)/abs(w) | max angle (rad) "
+        "| engine vs itself, w3 + 1 ulp: dw / angle | first step > 1e-9 |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows_:
+        engine = r["engine"] + (f" (angular damping {r['damping']:g})" if r["damping"] is not None else "")
+        if "note" in r:
+            lines.append(f"| {r['case']} | {r['dt']:g} | {r['reproduction']} | {engine} | not run: {r['note']} ||||")
+            continue
+        first = "never" if r["first_over"] is None else str(r["first_over"])
+        lines.append(
+            f"| {r['case']} | {r['dt']:g} | {r['reproduction']} | {engine} | {r['compared']} ({r['engine_steps']}) "
+            f"| {r['dw']:.2g} | {r['dq']:.2g} | {r['self_dw']:.2g} / {r['self_dq']:.2g} | {first} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+READING = """
+Reading the table (causes; the numbers are the rows above):
+
+- Where the engine isolates the update (MuJoCo's four integrators on every case; PyBullet's btRigidBody,
+  real_pybullet_maximal, on free bodies) the reproduction agrees to rounding while the motion does not
+  amplify it: ≤ 1e-9, mostly ≤ 1e-12.
+- Where it does not, compare the engine against itself with ω3 one ulp larger: on the tennis racket every
+  flip multiplies a rounding difference (MuJoCo computes in the world frame, gyrolab in the body frame:
+  ~1e-17 a step), so from the first step > 1e-9 on the disagreement is of the engine's own one-ulp
+  spread; the same holds for a run that explodes (Euler at dt = 1e-3) and for the chaotic heavy body.
+  PyBullet loses a one-ulp change of the initial ω (it rounds the lab-frame velocity it is given), so
+  its own spread reads 0 there: the first step > 1e-9 (near MuJoCo's) places the flips' amplification.
+- real_pybullet is PyBullet's default body (btMultiBody), not the btRigidBody that bullet_implicit_body
+  reproduces: its ω × Iω is explicit (bullet_explicit's update; the rows with its angular damping set to
+  0 agree where |ω| stays below 100 rad/s), it damps by −(0.04 + 0.04 |ω|) ω as shipped, and it clamps
+  every lab component of ω to 100 rad/s: the tumbling box (ω3 = 126 rad/s) and the 50 Hz top
+  (314 rad/s) differ from the first step.  On a pivot (the 10 Hz top, below the clamp, damping 0) the
+  first step agrees to the bit and the difference then grows by ~dt² a step: PyBullet's spherical joint
+  (Featherstone's articulated-body algorithm with the gravity of the link) is not bullet_explicit's
+  free-body update with the torque added; the cause is not isolated yet.
+- Not run: PyBullet's rigid body on a pivot (a point-to-point constraint solved by impulses) and a
+  PyBullet heavy body whose centre of mass is off the principal axes (a rotated inertial frame): not built.
+"""
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog="python -m gyrolab.kernels.real.conformance", description=__doc__.split("\n")[0])
+    ap.add_argument("--steps", type=int, default=10_000, help="steps per run (default 10000)")
+    ap.add_argument("--out", help="write the table to this markdown file (else stdout)")
+    args = ap.parse_args(argv)
+    if args.steps < 1:
+        ap.error(f"--steps={args.steps}: must be >= 1")
+    missing = [n for n in ("real_mujoco_euler", "real_pybullet") if package_missing(n) is not None]
+    if len(missing) == 2:
+        print(f"{ap.prog}: error: {package_missing(missing[0])}", file=sys.stderr)
+        return 2
+    engines = engine_versions([n for n in ("real_mujoco_euler", "real_pybullet") if n not in missing])
+    text = f"Reproduction vs real engine, {args.steps} steps ({engines}):\n\n" + table(rows(args.steps)) + READING
+    if args.out:
+        from ...safe_files import write_text
+
+        write_text(args.out, text)
+    else:
+        sys.stdout.write(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
