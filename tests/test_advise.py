@@ -164,7 +164,8 @@ def test_predicted_error_on_held_out_bodies(metric):
         g = M.probe(m, I[k], w[k], T)[metric]
         c = constants[m]
         measured[k] = err[:, 0]
-        predicted[k] = M.predicted_error(c["kappa"][metric], g, c["order"], h[k], wn[k] * T)
+        rounding = M.rounding_floor(M.load_constants(), metric)
+        predicted[k] = M.predicted_error(c["kappa"][metric], g, c["order"], h[k], wn[k] * T, rounding)
     use = (measured > 1e-12) & (measured < M.SATURATED)
     ratio = predicted[use] / measured[use]
     within = np.mean((ratio >= 0.5) & (ratio <= 2.0))

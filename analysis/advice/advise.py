@@ -53,6 +53,8 @@ class MethodRow:
     cost_s: float = math.inf  # predicted wall time (s) of the horizon at dt_largest
     meets: bool = False  # predicted to meet the tolerance within the user's dt bounds
     measured_over_s: float = math.nan  # the measured runs' horizon (s; < T when T needs > MAX_STEPS steps)
+    growth: float = 0.0  # κ g: the predicted error over T at Ω dt = model.H_PROBE, before rounding
+    free_exact: bool = False  # the method's step is the exact free flow (error: rounding)
 
 
 @dataclass
@@ -91,6 +93,7 @@ class Advice:
     recommended_dt: float = math.nan
     recommended_predicted: float = math.nan
     recommended_measured: float = math.nan
+    rounding_per_step: float = 0.0  # the rounding floor's error per step in the metric
     seconds_predict: float = 0.0
     seconds_measure: float = 0.0
 
@@ -140,7 +143,7 @@ def check_inputs(inertia, omega0, mgc, T, dt_bounds, budget, metric, tol, method
     for m in methods:
         if m not in METHODS:
             raise AdviceError(f"method {m!r}: unknown; calibrated: {', '.join(constants)}")
-        if m not in constants or metric not in constants[m]["kappa"]:
+        if m not in constants or not (metric in constants[m]["kappa"] or constants[m].get("free_exact")):
             raise AdviceError(f"method {m!r}: no error constants for {metric!r}; calibrated: {', '.join(constants)}")
     for m in engines:
         if m not in KINDS:
@@ -277,19 +280,27 @@ def advise(
     Om = _omega_scale(body, omega0)
     tau = Om * T
     eps, rho = (float(v[0]) for v in model.shape(body[None, :3], omega0[None]))
-    constants = model.load_constants()["methods"]
-    rows, growth = [], {}
+    constants = model.load_constants()
+    rounding = model.rounding_floor(constants, metric)
+    constants = constants["methods"]
+    rows = []
     for m in methods:
         c = constants[m]
         ns = float(c["ns_per_step"])
-        kappa, p = c["kappa"][metric], c["order"]
-        growth[m] = g = float(model.probe(m, body[None, :3], omega0[None], np.array([T]))[metric][0])
+        p = c["order"]
+        if c.get("free_exact"):
+            if not free:
+                continue  # its constants are for free bodies, where it is exact
+            kappa, g = 1.0, 0.0  # the exact flow: rounding only
+        else:
+            kappa = c["kappa"][metric]
+            g = float(model.probe(m, body[None, :3], omega0[None], np.array([T]))[metric][0])
         if budget is not None:
             lo, hi = T * ns * 1e-9 / budget, MAX_H / Om
         else:
             lo, hi = dt_bounds
         dt_user = hi if budget is None else lo
-        h_max = model.largest_h(kappa, g, p, tol, tau)
+        h_max = model.largest_h(kappa, g, p, tol, tau, rounding)
         dt_largest = min(h_max / Om, hi, MAX_H / Om)
         row = MethodRow(
             method=m,
@@ -297,11 +308,13 @@ def advise(
             symplectic=c["symplectic"],
             ns_per_step=ns,
             dt_user=dt_user,
-            predicted_at_user=float(model.predicted_error(kappa, g, p, Om * dt_user, tau)),
+            predicted_at_user=float(model.predicted_error(kappa, g, p, Om * dt_user, tau, rounding)),
+            growth=kappa * g,
+            free_exact=bool(c.get("free_exact")),
         )
         if dt_largest >= lo and dt_largest > 0:
             row.dt_largest = dt_largest
-            row.predicted_at_largest = float(model.predicted_error(kappa, g, p, Om * dt_largest, tau))
+            row.predicted_at_largest = float(model.predicted_error(kappa, g, p, Om * dt_largest, tau, rounding))
             row.cost_s = T / dt_largest * ns * 1e-9
             row.meets = True
         rows.append(row)
@@ -323,6 +336,7 @@ def advise(
         prediction_note="" if free else "heavy body: free-body constants with Ω = |ω0| + √(|M g c|/I_min)",
     )
     advice.rows = rows
+    advice.rounding_per_step = rounding
     if best is not None:
         advice.recommended, advice.recommended_dt = best.method, best.dt_largest
         advice.recommended_predicted = best.predicted_at_largest
@@ -348,11 +362,17 @@ def advise(
             r.measured_at_largest = errs[-1]
         if horizon[-1] < T * (1 - 1e-9):  # measured over the start: the prediction over the same span
             c = constants[r.method]
-            g = float(model.probe(r.method, body[None, :3], omega0[None], np.array([horizon[0]]))[metric][0])
-            kappa, p = c["kappa"][metric], c["order"]
-            r.predicted_at_user = float(model.predicted_error(kappa, g, p, Om * r.dt_user, Om * horizon[0]))
+            if c.get("free_exact"):
+                kappa, g = 1.0, 0.0
+            else:
+                kappa = c["kappa"][metric]
+                g = float(model.probe(r.method, body[None, :3], omega0[None], np.array([horizon[0]]))[metric][0])
+            p = c["order"]
+            r.predicted_at_user = float(model.predicted_error(kappa, g, p, Om * r.dt_user, Om * horizon[0], rounding))
             if r.meets:
-                r.predicted_at_largest = float(model.predicted_error(kappa, g, p, Om * r.dt_largest, Om * horizon[-1]))
+                r.predicted_at_largest = float(
+                    model.predicted_error(kappa, g, p, Om * r.dt_largest, Om * horizon[-1], rounding)
+                )
     if best is not None:
         advice.recommended_measured = best.measured_at_largest
         advice.recommended_predicted = best.predicted_at_largest

@@ -57,6 +57,9 @@ def table(a):
             f" {_g(r.predicted_at_largest):>10} {_g(r.measured_at_largest):>10} {_g(r.cost_s, '.3g'):>9}"
             f" {('yes' if r.meets else 'no'):>6}{mark}"
         )
+    exact = [r.method for r in a.rows if r.free_exact]
+    if exact:
+        out.append(f"({', '.join(exact)}: the exact free flow in each step, so the error is rounding at any dt)")
     short = [r for r in a.rows if math.isfinite(r.measured_over_s) and r.measured_over_s < a.T * (1 - 1e-9)]
     if short:
         out.append(
@@ -107,19 +110,13 @@ def figure(a, path):
     from ...safe_files import atomic_replace
     from . import model
 
-    constants = model.load_constants()["methods"]
     Om = a.h / a.dt_bounds[1]
     fig, ax = plt.subplots(figsize=(8, 5.5), layout="constrained")
     for k, r in enumerate(a.rows):
         colour = f"C{k}"
-        c = constants[r.method]
-        # the prediction's curve: the growth g from the error predicted at the user's dt
         h_user = Om * r.dt_user
-        g = (r.predicted_at_user - model.ROUNDING * math.sqrt(a.tau / h_user)) / (
-            c["kappa"][a.metric] * (h_user / model.H_PROBE) ** r.order
-        )
         h = np.geomspace(min(h_user, Om * r.dt_largest if r.meets else h_user) / 30, 0.5, 80)
-        err = model.predicted_error(c["kappa"][a.metric], max(g, 0.0), r.order, h, a.tau)
+        err = model.predicted_error(1.0, r.growth, r.order, h, a.tau, a.rounding_per_step)
         cost = a.T / (h / Om) * r.ns_per_step * 1e-9
         ax.loglog(cost, err, "-", color=colour, lw=1.2, label=f"{r.method} (order {r.order}) predicted")
         pts = [(r.dt_user, r.measured_at_user)] + ([(r.dt_largest, r.measured_at_largest)] if r.meets else [])

@@ -37,7 +37,7 @@ CONSTANTS_FILE = "error_constants.json"
 EPS_FLOOR = 1e-9  # ε below this is a spin about a principal axis to rounding
 RHO_RANGE = (1e-3, 1e6)
 SATURATED = 0.1  # errors above this are outside the asymptotic regime (the model is for small errors)
-ROUNDING = 1e-16  # per √step, the floor float64 rounding sets
+ROUNDING = 1e-16  # per step: the rounding floor when the constants do not give one
 
 
 def shape(I, omega0):
@@ -59,22 +59,32 @@ def load_constants():
     return json.loads(text)
 
 
-def predicted_error(kappa, growth, order, h, tau):
+def rounding_floor(constants, metric):
+    """The exact flow's measured error per step in ``metric`` (calibrate.py, on the FREE_EXACT method),
+    ROUNDING if not calibrated."""
+    for entry in constants["methods"].values():
+        if metric in entry.get("rounding_per_step", {}):
+            return float(entry["rounding_per_step"][metric])
+    return ROUNDING
+
+
+def predicted_error(kappa, growth, order, h, tau, rounding=ROUNDING):
     """Predicted error (errors.py's metric) at h = Ω dt over τ = Ω T from the calibrated factor κ and the
     probe's growth at H_PROBE over the same T: κ g (h / H_PROBE)^p (every term of the growth is a
-    defect ∝ h^(p+1) times a step count ∝ 1/h), plus the rounding floor 1e-16 √(T/dt)."""
+    defect ∝ h^(p+1) times a step count ∝ 1/h), plus the rounding floor ``rounding`` × T/dt (the
+    exact flow's error per step, calibrate.py)."""
     h = np.asarray(h, float)
-    return kappa * growth * (h / H_PROBE) ** order + ROUNDING * np.sqrt(np.asarray(tau, float) / h)
+    return kappa * growth * (h / H_PROBE) ** order + rounding * np.asarray(tau, float) / h
 
 
-def largest_h(kappa, growth, order, tol, tau):
+def largest_h(kappa, growth, order, tol, tau, rounding=ROUNDING):
     """The largest h = Ω dt whose predicted error is ≤ tol (0 if the rounding floor alone exceeds it)."""
     if not kappa * growth > 0:
         h = MAX_H_SEARCH
     else:
         h = min(H_PROBE * (tol / (kappa * growth)) ** (1.0 / order), MAX_H_SEARCH)
     for _ in range(200):  # the rounding floor grows as h shrinks
-        if float(predicted_error(kappa, growth, order, h, tau)) <= tol:
+        if float(predicted_error(kappa, growth, order, h, tau, rounding)) <= tol:
             return h
         h *= 0.9
     return 0.0
@@ -127,21 +137,18 @@ def probe(method, I, omega0, T, n=N_ORBIT):
     q0 = np.tile(E.Q0, (B * n, 1))
     out, _, _ = integrate(method, bodies, wu, q0, np.ones(B * n), 1, 2, threshold=1e300, path="blocks")
     num = out[:, 1]
-    w_ex, q_ex = np.empty((B * n, 3)), np.empty((B * n, 4))
-    for k in range(B * n):  # free_body shares its times across a batch: one row at a time
-        we, qe = free_body(Ir[k], wu[k], E.Q0, np.array([1.0]))
-        w_ex[k], q_ex[k] = we[0], qe[0]
+    w_ex, q_ex = free_body(Ir, wu, q0, np.array([1.0]))  # every row's step is 1 in these units
+    w_ex, q_ex = w_ex[:, 0], q_ex[:, 0]
     R_num = E.attitude_from_samples(num, Ir)
     R_ex = E.rotation_matrices(q_ex)
-    r = _rotvec(np.swapaxes(R_ex, -1, -2) @ R_num)  # lab-frame small rotation: R_num = R_ex exp([r])
-    r_body = np.einsum("kji,kj->ki", R_ex, r)  # the same rotation vector in the body frame
+    r = _rotvec(np.swapaxes(R_ex, -1, -2) @ R_num)  # R_num = R_ex exp([r]): r in the body frame
     m_ex = Ir * w_ex
     m_hat = m_ex / np.linalg.norm(m_ex, axis=1)[:, None]
     f = np.cross(m_ex, w_ex) / Ir  # ω̇ (units 1/dt²)
     d = num[:, 3:6] - w_ex
     ff = np.sum(f * f, axis=1)
     s = np.where(ff > 1e-30 * np.sum(w_ex**2, axis=1) ** 2, np.sum(d * f, axis=1) / np.maximum(ff, 1e-300), 0.0)
-    a = np.sum(r_body * m_hat, axis=1)
+    a = np.sum(r * m_hat, axis=1)
     dE = 0.5 * np.sum(Ir * num[:, 3:6] ** 2, axis=1) - 0.5 * np.sum(Ir * w_ex**2, axis=1)
     dL = np.linalg.norm(Ir * num[:, 3:6], axis=1) - np.linalg.norm(m_ex, axis=1)
     N = np.asarray(T, float) / dt  # steps over the horizon
@@ -154,13 +161,18 @@ def probe(method, I, omega0, T, n=N_ORBIT):
         return np.abs(N * mean) + (run.max(axis=1) - run.min(axis=1)) * per_point
 
     S = growth(s)  # time shift, in steps
-    A = growth(a)  # rad
-    wmax = np.linalg.norm(w, axis=2).max(axis=1) * dt  # |ω| in units of 1/dt: rad per step
+    # attitude: a body ahead by s steps is turned by ω s (body frame); the drift about L adds a m̂.
+    # Secular: N |mean(a) m̂(t) + mean(s) ω(t)| at its largest over the orbit; periodic: as above
+    w_step = wu.reshape(B, n, 3)  # rad per step
+    a_mean, s_mean = a.reshape(B, n).mean(axis=1), s.reshape(B, n).mean(axis=1)
+    secular = np.linalg.norm(a_mean[:, None, None] * m_hat.reshape(B, n, 3) + s_mean[:, None, None] * w_step, axis=2)
+    A = N * secular.max(axis=1) + (growth(a) - np.abs(N * a_mean))
+    A += np.linalg.norm(w_step, axis=2).max(axis=1) * (S - np.abs(N * s_mean))
     fmax = np.sqrt(ff.reshape(B, n).max(axis=1))  # |ω̇| in units 1/dt²
     E0 = 0.5 * np.sum(I * w0 * w0, axis=1) * dt**2
     L0 = np.linalg.norm(I * w0, axis=1) * dt
     return {
-        "orientation": A + wmax * S,
+        "orientation": A,
         "omega": fmax * S / (Om * dt),
         "energy": growth(dE) / E0,
         "L_norm": growth(dL) / L0,
