@@ -36,8 +36,8 @@ def table(a):
         f"body I = ({I}) kg m^2" + (f", M g c = {tuple(a.mgc)} N m" if any(a.mgc) else "") + f"; omega0 = ({w}) rad/s"
     )
     out.append(
-        f"|omega| dt = {a.h:.3g} at dt = {a.dt_bounds[1]:.3g} s; |omega| T = {a.tau:.3g} rad over T = {a.T:g} s; "
-        f"shape: sin(omega, L) = {a.shape['eps']:.3g}, spin turns per omega period = {a.shape['rho']:.3g}"
+        f"|omega| dt = {a.h:.3g} at dt = {a.dt_bounds[1]:.3g} s, |omega| T = {a.tau:.3g} over T = {a.T:g} s; "
+        f"sin(omega, L) = {a.shape['eps']:.3g}, spins per omega period = {a.shape['rho']:.3g}"
     )
     out.append(
         f"must be right: {a.metric} <= {a.tol:g}; reference: {a.reference}"
@@ -72,6 +72,12 @@ def table(a):
             f"advice: {a.recommended} at dt = {a.recommended_dt:.4g} s: {a.metric} error predicted "
             f"{a.recommended_predicted:.2e}, measured {_g(a.recommended_measured)} (measured/predicted {ratio:.2f})"
         )
+        if a.measured_advice and (a.measured_advice != a.recommended or a.measured_advice_dt != a.recommended_dt):
+            out.append(
+                f"measured advice: {a.measured_advice} at dt = {a.measured_advice_dt:.4g} s "
+                f"(measured {a.measured_advice_error:.2e}: the advised dt missed, so it was cut by the measured "
+                "error and the order)"
+            )
     else:
         best = min(a.rows, key=lambda r: r.predicted_at_user)
         out.append(
@@ -123,6 +129,8 @@ def figure(a, path):
         for dt, e in pts:
             if math.isfinite(e) and e > 0:
                 ax.loglog(a.T / dt * r.ns_per_step * 1e-9, e, "o", color=colour, ms=6, mfc="white", mew=1.5)
+        if math.isfinite(r.measured_at_corrected):
+            ax.loglog(r.cost_s, r.measured_at_corrected, "s", color=colour, ms=6, mfc="white", mew=1.5)
         if r.method == a.recommended and math.isfinite(a.recommended_measured):
             ax.loglog(
                 r.cost_s,
@@ -135,7 +143,9 @@ def figure(a, path):
             )
     ax.axhline(a.tol, color="k", ls="--", lw=1)
     ax.text(ax.get_xlim()[0], a.tol, f"  tolerance {a.tol:g}", va="bottom", ha="left")
-    ax.plot([], [], "o", color="gray", mfc="white", label="measured (open circles)")
+    ax.plot([], [], "o", color="gray", mfc="white", label="measured at the user's and the advised dt")
+    if any(math.isfinite(r.measured_at_corrected) for r in a.rows):
+        ax.plot([], [], "s", color="gray", mfc="white", label="measured again at a dt cut by the measured error")
     ax.set_xlabel(f"cost: wall time of the {a.T:g} s horizon (s, from ns/step measured in calibration)")
     unit = " (rad)" if a.metric == "orientation" else " (relative)"
     ax.set_ylabel(f"largest {a.metric} error over T{unit}")

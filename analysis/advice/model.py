@@ -31,7 +31,7 @@ from importlib import resources
 
 import numpy as np
 
-from .predict import N_ORBIT, orbit_points, orbit_state
+from .predict import N_ORBIT, _delta, orbit_points, orbit_state
 
 CONSTANTS_FILE = "error_constants.json"
 EPS_FLOOR = 1e-9  # ε below this is a spin about a principal axis to rounding
@@ -78,16 +78,30 @@ def predicted_error(kappa, growth, order, h, tau, rounding=ROUNDING):
 
 
 def largest_h(kappa, growth, order, tol, tau, rounding=ROUNDING):
-    """The largest h = Ω dt whose predicted error is ≤ tol (0 if the rounding floor alone exceeds it)."""
-    if not kappa * growth > 0:
-        h = MAX_H_SEARCH
+    """The largest h = Ω dt whose predicted error is ≤ tol (0 if the rounding floor alone exceeds it):
+    the truncation term's root, then bisection in log h when the rounding floor pushes it over."""
+
+    def ok(h):
+        return float(predicted_error(kappa, growth, order, h, tau, rounding)) <= tol
+
+    hi = (
+        MAX_H_SEARCH
+        if not kappa * growth > 0
+        else min(H_PROBE * (tol / (kappa * growth)) ** (1.0 / order), MAX_H_SEARCH)
+    )
+    if ok(hi):
+        return hi
+    lo = hi
+    for _ in range(200):  # down until the floor allows it
+        lo *= 0.5
+        if ok(lo):
+            break
     else:
-        h = min(H_PROBE * (tol / (kappa * growth)) ** (1.0 / order), MAX_H_SEARCH)
-    for _ in range(200):  # the rounding floor grows as h shrinks
-        if float(predicted_error(kappa, growth, order, h, tau, rounding)) <= tol:
-            return h
-        h *= 0.9
-    return 0.0
+        return 0.0
+    for _ in range(60):
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    return lo
 
 
 MAX_H_SEARCH = 10.0
@@ -152,6 +166,20 @@ def probe(method, I, omega0, T, n=N_ORBIT):
     dE = 0.5 * np.sum(Ir * num[:, 3:6] ** 2, axis=1) - 0.5 * np.sum(Ir * w_ex**2, axis=1)
     dL = np.linalg.norm(Ir * num[:, 3:6], axis=1) - np.linalg.norm(m_ex, axis=1)
     N = np.asarray(T, float) / dt  # steps over the horizon
+    # A drift of the orbit's invariants (G² = |L|², δ; a non-symplectic method's energy) changes the
+    # period P step by step, so the time shift grows as ½ N² dlnP/step: the lag after N steps is
+    # N s_eff with s_eff = mean(s) − ½ N dlnP/step (in steps)
+    m_num_s = np.take_along_axis(Ir * num[:, 3:6], np.repeat(perm, n, axis=0), 1).reshape(B, n, 3)
+    m_ex_s = np.take_along_axis(m_ex, np.repeat(perm, n, axis=0), 1).reshape(B, n, 3)
+    dlnG2 = (np.sum(m_num_s**2, axis=2) / np.sum(m_ex_s**2, axis=2) - 1).mean(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dlnd = np.nan_to_num((_delta(Is, m_num_s, pole) / _delta(Is, m_ex_s, pole) - 1).mean(axis=1))
+        # elasticities of the period (closed form, finite differences; dt units cancel in them)
+        eta = 1e-6
+        _, P_G = orbit_points(Is, G2 * (1 + eta), delta, pole, sign, 1)
+        _, P_d = orbit_points(Is, G2, delta * (1 + eta), pole, sign, 1)
+        dlnP = np.log(P_G / period) / eta * dlnG2 + np.log(P_d / period) / eta * dlnd
+    dlnP = np.where(np.isfinite(dlnP), dlnP, 0.0)
     per_point = np.minimum(np.where(np.isfinite(period), period, np.inf), np.asarray(T, float)) / (n * dt)
 
     def growth(x):
@@ -160,11 +188,15 @@ def probe(method, I, omega0, T, n=N_ORBIT):
         run = np.cumsum(x - mean[:, None], axis=1)
         return np.abs(N * mean) + (run.max(axis=1) - run.min(axis=1)) * per_point
 
-    S = growth(s)  # time shift, in steps
+    S = (
+        growth(s)
+        - np.abs(N * s.reshape(B, n).mean(axis=1))
+        + np.abs(N * (s.reshape(B, n).mean(axis=1) - 0.5 * N * dlnP))
+    )
     # attitude: a body ahead by s steps is turned by ω s (body frame); the drift about L adds a m̂.
     # Secular: N |mean(a) m̂(t) + mean(s) ω(t)| at its largest over the orbit; periodic: as above
     w_step = wu.reshape(B, n, 3)  # rad per step
-    a_mean, s_mean = a.reshape(B, n).mean(axis=1), s.reshape(B, n).mean(axis=1)
+    a_mean, s_mean = a.reshape(B, n).mean(axis=1), s.reshape(B, n).mean(axis=1) - 0.5 * N * dlnP
     secular = np.linalg.norm(a_mean[:, None, None] * m_hat.reshape(B, n, 3) + s_mean[:, None, None] * w_step, axis=2)
     A = N * secular.max(axis=1) + (growth(a) - np.abs(N * a_mean))
     A += np.linalg.norm(w_step, axis=2).max(axis=1) * (S - np.abs(N * s_mean))
