@@ -120,9 +120,11 @@ BODIES = {
 }
 
 
-# measured / predicted error of the advice, as measured once (machine loaded): the satellite's 1 h
-# horizon (3240 rad) is where the model misses (its rk4 error 4.9x the prediction; see the README)
-WITHIN_2X = {"drone": True, "satellite": False, "molecule": True}
+# Whether the advice's measured error is within 2x of its prediction, as measured once (not tuned):
+# the molecule 0.66; the drone 0.40 (rk4 on an axisymmetric body: the model's bound on the attitude
+# error is 2.5x too high); the satellite 4.9 (a 1 h horizon, 3240 rad: the period's drift of a
+# non-symplectic method over so many turns is underestimated).  See the README.
+WITHIN_2X = {"drone": False, "satellite": False, "molecule": True}
 
 
 @pytest.mark.slow

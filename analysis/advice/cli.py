@@ -39,10 +39,9 @@ def table(a):
         f"|omega| dt = {a.h:.3g} at dt = {a.dt_bounds[1]:.3g} s, |omega| T = {a.tau:.3g} over T = {a.T:g} s; "
         f"sin(omega, L) = {a.shape['eps']:.3g}, spins per omega period = {a.shape['rho']:.3g}"
     )
-    out.append(
-        f"must be right: {a.metric} <= {a.tol:g}; reference: {a.reference}"
-        + (f"; {a.prediction_note}" if a.prediction_note else "")
-    )
+    out.append(f"must be right: {a.metric} <= {a.tol:g}; reference: {a.reference}")
+    if a.prediction_note:
+        out.append(f"({a.prediction_note})")
     out.append("")
     head = (
         f"{'method':<14}{'p':>2} {'ns/step':>8} {'dt (s)':>9} {'predicted':>10} {'measured':>10}"
@@ -50,7 +49,7 @@ def table(a):
     )
     out.append(head)
     for r in a.rows:
-        mark = "  <- cheapest" if r.method == a.recommended else ""
+        mark = " <- advice" if r.method == a.recommended else ""
         out.append(
             f"{r.method:<14}{r.order:>2} {r.ns_per_step:>8.0f} {r.dt_user:>9.3g} {_g(r.predicted_at_user):>10}"
             f" {_g(r.measured_at_user):>10} {(f'{r.dt_largest:.3g}' if r.meets else 'none'):>11}"
