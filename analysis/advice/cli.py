@@ -130,15 +130,15 @@ def figure(a, path):
                 ax.loglog(a.T / dt * r.ns_per_step * 1e-9, e, "o", color=colour, ms=6, mfc="white", mew=1.5)
         if math.isfinite(r.measured_at_corrected):
             ax.loglog(r.cost_s, r.measured_at_corrected, "s", color=colour, ms=6, mfc="white", mew=1.5)
-        if r.method == a.recommended and math.isfinite(a.recommended_measured):
+        if r.method == a.measured_advice and math.isfinite(a.measured_advice_error):
             ax.loglog(
-                r.cost_s,
-                a.recommended_measured,
+                a.T / a.measured_advice_dt * r.ns_per_step * 1e-9,
+                a.measured_advice_error,
                 "*",
                 color=colour,
                 ms=16,
                 mec="k",
-                label=f"advice: {r.method}, dt = {a.recommended_dt:.3g} s",
+                label=f"advice after measuring: {r.method}, dt = {a.measured_advice_dt:.3g} s",
             )
     ax.axhline(a.tol, color="k", ls="--", lw=1)
     ax.text(ax.get_xlim()[0], a.tol, f"  tolerance {a.tol:g}", va="bottom", ha="left")
