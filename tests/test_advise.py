@@ -1,4 +1,4 @@
-"""gyrolab-advise (analysis/advice/advise.py, cli.py, model.py, errors.py): bad input, the error
+"""gyrolab-advise (analysis/advice/advisor.py, cli.py, model.py, errors.py): bad input, the error
 metrics against closed forms, the advice on three bodies that are not pinned scenes, and the error
 model on held-out random bodies the calibration never saw (calibrate.py draws seed 1; these seed 2025)."""
 
@@ -8,11 +8,10 @@ import math
 import numpy as np
 import pytest
 
+from gyrolab.analysis.advice import advise, cli
 from gyrolab.analysis.advice import calibrate as C
-from gyrolab.analysis.advice import cli
 from gyrolab.analysis.advice import errors as E
 from gyrolab.analysis.advice import model as M
-from gyrolab.analysis.advice.advise import advise
 from gyrolab.kernels.euler_poinsot import free_body
 
 HELD_OUT_SEED = 2025

@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from .advise import ENGINES, AdviceError, advise
+from .advisor import ENGINES, AdviceError, advise
 from .calibrate import DEFAULT_METHODS
 
 WIDTH = 120
