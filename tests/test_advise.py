@@ -185,6 +185,20 @@ def test_predicted_error_on_held_out_bodies(metric):
 HELD_OUT_FLOOR = {"orientation": 0.70, "energy": 0.70}
 
 
+def test_a_budget_gives_each_method_the_dt_it_affords(tmp_path):
+    """--budget: each method's smallest dt is the one its ns/step affords over T; the advice fits the
+    budget; the figure is written (predicted curves only: no measurement here)."""
+    I, w, T, budget = (1.0, 2.0, 3.0), (0.3, 1.0, -0.4), 100.0, 2e-3
+    a = advise(I, w, T, budget=budget, tol=1e-6, measure=False, engines=())
+    for r in a.rows:
+        assert r.dt_user == pytest.approx(T * r.ns_per_step * 1e-9 / budget)
+    assert a.recommended
+    best = next(r for r in a.rows if r.method == a.recommended)
+    assert best.cost_s <= budget * (1 + 1e-9) and best.predicted_at_largest <= a.tol
+    cli.figure(a, tmp_path / "advice.png")
+    assert (tmp_path / "advice.png").stat().st_size > 10_000
+
+
 def test_constants_file_names_how_it_was_measured():
     data = M.load_constants()
     assert "calibrate" in data["how"]

@@ -211,7 +211,8 @@ def _flips(pred, I, dt, T):
     return float(np.trapezoid(np.interp(grid, t, rate), grid)) if stop > 0 else 0.0
 
 
-def _engine_rows(body, omega0, dt, T, measure, progress):
+def _engine_rows(engines, body, omega0, dt, T, measure, progress):
+    """EngineRow per engine update (predict.py), measured blow-up when ``measure``."""
     from ...kernels.euler_poinsot import flip_period
     from .predict import measure_blow_up, predict
 
@@ -220,9 +221,9 @@ def _engine_rows(body, omega0, dt, T, measure, progress):
     fp = float(flip_period(I, omega0))
     exact = T / fp if math.isfinite(fp) and fp > 0 else 0.0
     rows = []
-    for k, m in enumerate(ENGINES_SELECTED):
+    for k, m in enumerate(engines):
         if progress:
-            progress(f"engine {m} ({k + 1}/{len(ENGINES_SELECTED)})")
+            progress(f"engine {m} ({k + 1}/{len(engines)})")
         p = predict(m, I, omega0, dt, n_max=max(steps, 1.0))
         blown = math.nan
         if measure:
@@ -234,9 +235,6 @@ def _engine_rows(body, omega0, dt, T, measure, progress):
         lost = exact - flips if exact >= 1 else 0.0
         rows.append(EngineRow(m, p.kind, p.blow_up_step, blown, p.energy_rate_relative, relax, exact, lost))
     return rows
-
-
-ENGINES_SELECTED = ENGINES
 
 
 def advise(
@@ -263,7 +261,6 @@ def advise(
     Exactly one of ``dt`` (s), ``dt_range`` (lo, hi) s or ``budget`` (wall-clock s for the horizon)
     bounds the step.  ``measure=False`` returns the prediction only.  ``progress(str)`` is called
     before each run.  AdviceError (one line) on bad input, before any work.  Returns ``Advice``."""
-    global ENGINES_SELECTED
     given = [x is not None for x in (dt, dt_range, budget)]
     if sum(given) != 1:
         raise AdviceError("give exactly one of dt, dt_range, budget")
@@ -346,9 +343,11 @@ def advise(
         advice.recommended, advice.recommended_dt = best.method, best.dt_largest
         advice.recommended_predicted = best.predicted_at_largest
     advice.seconds_predict = time.perf_counter() - t_start
-    ENGINES_SELECTED = engines if free else []
+    engines = engines if free else []  # predict.py is for free bodies
     if not measure:
-        advice.engines = _engine_rows(body, omega0, dt_bounds[1] if budget is None else hi_all / 10, T, False, None)
+        advice.engines = _engine_rows(
+            engines, body, omega0, dt_bounds[1] if budget is None else hi_all / 10, T, False, None
+        )
         return advice
     t_meas = time.perf_counter()
     for k, r in enumerate(rows):
@@ -405,6 +404,6 @@ def advise(
             final.measured_at_corrected if math.isfinite(final.dt_corrected) else final.measured_at_largest
         )
     dt_engine = dt_bounds[1] if budget is None else (best.dt_largest if best else hi_all / 10)
-    advice.engines = _engine_rows(body, omega0, dt_engine, T, True, progress)
+    advice.engines = _engine_rows(engines, body, omega0, dt_engine, T, True, progress)
     advice.seconds_measure = time.perf_counter() - t_meas
     return advice
