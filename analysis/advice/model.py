@@ -16,10 +16,13 @@ in time, the Euler–Poinsot closed form) and compares it with the exact flow.  
 secular part (its orbit mean, which adds up over the N steps) and a periodic part (its running sum
 over an orbit, which comes and goes: the bounded energy error of a symplectic method).  Their
 growth over T is turned into each metric: the time shift along the orbit (the body ahead of or
-behind the exact one) and the attitude drift about L give orientation and ω, the per-step energy
-and |L| changes give energy and L_norm.  Then error(h) = κ g (h / H_PROBE)^p, κ the calibrated
-constant of the (method, metric), plus a rounding floor of 1e-16 √N.  Bodies the model misses
-(the measurement says so) are why the advisor measures after predicting.
+behind the exact one; with a drift of the orbit's invariants G² and δ, as a non-symplectic method
+has, the period drifts too and the shift grows as N²) and the attitude drift about L give
+orientation and ω, the per-step energy and |L| changes give energy and L_norm.  Then
+error(h) = κ g (h / H_PROBE)^p, κ the calibrated constant of the (method, metric), plus a rounding
+floor: the exact-flow method's measured error per step times T/dt.  What the model reaches, measured
+on held-out bodies and on three users' bodies, is in the README (tests/test_advise.py); the bodies
+it misses are why the advisor measures after predicting.
 
 ``shape`` gives two descriptive groups the advisor reports: ε = |ω × Iω| / (|ω| |Iω|), the sine of
 the angle between ω and L, and ρ = Ω P / 2π, spin turns per period P of ω(t) in the body.
