@@ -7,9 +7,10 @@ Dimensionless groups (Ω = |ω0|, the body's spin rate): h = Ω dt, the angle tu
 after N = T/dt steps its secular (phase) part is ∝ N h^(p+1) = h^p τ.  How large the constant is
 depends on the body's shape and on where on its orbit it is (a spin about a principal axis has
 nothing to get wrong but its kinematics, and a splitting method is then exact; near the separatrix
-a small error of the period moves the body far).  No single constant per method covers that (on
-the calibration bodies a constant fitted in h^p τ and two shape groups put only 35–64 % of the
-errors within 2×), so the shape enters through the method itself:
+a small error of the period moves the body far).  No single constant per method covers that (nor
+one fitted with shape groups such as ``shape``'s: tried while building this, it missed the
+calibration bodies' errors by more than 2× about half the time), so the shape enters through the
+method itself:
 
 ``probe`` takes one step of the method at h = H_PROBE from 32 points of the body's orbit (uniform
 in time, the Euler–Poinsot closed form) and compares it with the exact flow.  Each defect has a
