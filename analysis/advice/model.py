@@ -1,0 +1,221 @@
+"""The advisor's error model: a method's error on a free body, from its declared order, a one-step
+probe on the body's own orbit and one constant per (method, metric) measured once (calibrate.py,
+error_constants.json).
+
+Dimensionless groups (Ω = |ω0|, the body's spin rate): h = Ω dt, the angle turned per step, and
+τ = Ω T, the angle turned over the horizon.  A p-th order method's local error is ∝ h^(p+1), so
+after N = T/dt steps its secular (phase) part is ∝ N h^(p+1) = h^p τ.  How large the constant is
+depends on the body's shape and on where on its orbit it is (a spin about a principal axis has
+nothing to get wrong but its kinematics, and a splitting method is then exact; near the separatrix
+a small error of the period moves the body far).  No single constant per method covers that (nor
+one fitted with shape groups such as ``shape``'s: tried while building this, it missed the
+calibration bodies' errors by more than 2× about half the time), so the shape enters through the
+method itself:
+
+``probe`` takes one step of the method at h = H_PROBE from 32 points of the body's orbit (uniform
+in time, the Euler–Poinsot closed form) and compares it with the exact flow.  Each defect has a
+secular part (its orbit mean, which adds up over the N steps) and a periodic part (its running sum
+over an orbit, which comes and goes: the bounded energy error of a symplectic method).  Their
+growth over T is turned into each metric: the time shift along the orbit (the body ahead of or
+behind the exact one; with a drift of the orbit's invariants G² and δ, as a non-symplectic method
+has, the period drifts too and the shift grows as N²) and the attitude drift about L give
+orientation and ω, the per-step energy and |L| changes give energy and L_norm.  Then
+error(h) = κ g (h / H_PROBE)^p, κ the calibrated constant of the (method, metric), plus a rounding
+floor: the exact-flow method's measured error per step times T/dt.  What the model reaches, measured
+on held-out bodies and on three users' bodies, is in the README (tests/test_advise.py); the bodies
+it misses are why the advisor measures after predicting.
+
+``shape`` gives two descriptive groups the advisor reports: ε = |ω × Iω| / (|ω| |Iω|), the sine of
+the angle between ω and L, and ρ = Ω P / 2π, spin turns per period P of ω(t) in the body.
+"""
+
+import json
+import math
+from importlib import resources
+
+import numpy as np
+
+from .predict import N_ORBIT, _delta, orbit_points, orbit_state
+
+CONSTANTS_FILE = "error_constants.json"
+EPS_FLOOR = 1e-9  # ε below this is a spin about a principal axis to rounding
+RHO_RANGE = (1e-3, 1e6)
+SATURATED = 0.1  # errors above this are outside the asymptotic regime (the model is for small errors)
+ROUNDING = 1e-16  # per step: the rounding floor when the constants do not give one
+
+
+def shape(I, omega0):
+    """(ε, ρ) of bodies I (B, 3) kg m² from body rates ω0 (B, 3) rad/s (see the module docstring)."""
+    I = np.atleast_2d(np.asarray(I, float))
+    w = np.atleast_2d(np.asarray(omega0, float))
+    m = I * w
+    wn = np.linalg.norm(w, axis=1)
+    eps = np.linalg.norm(np.cross(w, m), axis=1) / (wn * np.linalg.norm(m, axis=1))
+    Is, _, G2, delta, pole, sign = orbit_state(I, w)
+    _, period = orbit_points(Is, G2, delta, pole, sign, n=1)
+    rho = wn * period / (2 * math.pi)
+    return np.maximum(eps, EPS_FLOOR), np.clip(np.nan_to_num(rho, nan=RHO_RANGE[1], posinf=RHO_RANGE[1]), *RHO_RANGE)
+
+
+def load_constants():
+    """The stored constants: {"methods": {name: {"order", "ns_per_step", "kappa": {metric: κ}, ...}}, "how": ...}."""
+    text = resources.files(__package__).joinpath(CONSTANTS_FILE).read_text()
+    return json.loads(text)
+
+
+def rounding_floor(constants, metric):
+    """The exact flow's measured error per step in ``metric`` (calibrate.py, on the FREE_EXACT method),
+    ROUNDING if not calibrated."""
+    for entry in constants["methods"].values():
+        if metric in entry.get("rounding_per_step", {}):
+            return float(entry["rounding_per_step"][metric])
+    return ROUNDING
+
+
+def predicted_error(kappa, growth, order, h, tau, rounding=ROUNDING):
+    """Predicted error (errors.py's metric) at h = Ω dt over τ = Ω T from the calibrated factor κ and the
+    probe's growth at H_PROBE over the same T: κ g (h / H_PROBE)^p (every term of the growth is a
+    defect ∝ h^(p+1) times a step count ∝ 1/h), plus the rounding floor ``rounding`` × T/dt (the
+    exact flow's error per step, calibrate.py)."""
+    h = np.asarray(h, float)
+    return kappa * growth * (h / H_PROBE) ** order + rounding * np.asarray(tau, float) / h
+
+
+def largest_h(kappa, growth, order, tol, tau, rounding=ROUNDING):
+    """The largest h = Ω dt whose predicted error is ≤ tol (0 if the rounding floor alone exceeds it):
+    the truncation term's root, then bisection in log h when the rounding floor pushes it over."""
+
+    def ok(h):
+        return float(predicted_error(kappa, growth, order, h, tau, rounding)) <= tol
+
+    hi = (
+        MAX_H_SEARCH
+        if not kappa * growth > 0
+        else min(H_PROBE * (tol / (kappa * growth)) ** (1.0 / order), MAX_H_SEARCH)
+    )
+    if ok(hi):
+        return hi
+    lo = hi
+    for _ in range(200):  # down until the floor allows it
+        lo *= 0.5
+        if ok(lo):
+            break
+    else:
+        return 0.0
+    for _ in range(60):
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    return lo
+
+
+MAX_H_SEARCH = 10.0
+H_PROBE = 0.1  # Ω dt of the probe step (asymptotic for every calibrated method, far above rounding)
+
+
+def _rotvec(R):
+    """Rotation vectors (..., 3) of rotation matrices R (..., 3, 3) (small angles: the skew part)."""
+    from scipy.spatial.transform import Rotation
+
+    shape = R.shape[:-2]
+    return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec().reshape(shape + (3,))
+
+
+def probe(method, I, omega0, T, n=N_ORBIT):
+    """Error growth terms of ``method`` on free bodies I (B, 3) from ω0 (B, 3) over T (B,) s, at
+    h = H_PROBE (dimensionless, per errors.py metric, before the calibrated factor).
+
+    One step of the method from n points of the orbit through ω0 (uniform in time, predict.py's
+    closed form), against the exact flow over the same step: the defects, in units where the step
+    is 1 (the free body's equations are homogeneous: ω(t) from ω0 is c ω(ct) from c ω0).  A defect
+    has a secular part (its orbit mean, which adds up over N = T/dt steps) and a periodic part (its
+    running sum over one orbit, which comes and goes: a symplectic method's bounded energy error).
+    Growth of each, after N steps: |N mean| + peak-to-peak of the running sum × (steps per point).
+    The terms:
+    - time shift s along the orbit (d_ω · ω̇ / |ω̇|²): the body ahead of or behind the exact one,
+    - attitude drift a about L (the rotation R_exᵀ R_num's component along Iω/|Iω|),
+    - energy and |L| changes per step.
+    Returns {metric: growth (B,)} at h = H_PROBE."""
+    from ...kernels.batch import integrate
+    from ...kernels.body import N_FIELDS as N_BODY
+    from ...kernels.euler_poinsot import free_body
+    from . import errors as E
+
+    I = np.atleast_2d(np.asarray(I, float))
+    w0 = np.atleast_2d(np.asarray(omega0, float))
+    B = I.shape[0]
+    Om = np.linalg.norm(w0, axis=1)
+    dt = H_PROBE / Om
+    Is, perm, G2, delta, pole, sign = orbit_state(I, w0)
+    m, period = orbit_points(Is, G2, delta, pole, sign, n)
+    w = _unsort(m / Is[:, None, :], perm)  # (B, n, 3) rad/s, the body's own axes
+    wu = (w * dt[:, None, None]).reshape(B * n, 3)  # rates in units of 1/dt: one step of length 1
+    Ir = np.repeat(I, n, axis=0)
+    bodies = np.zeros((B * n, N_BODY))
+    bodies[:, :3] = Ir
+    q0 = np.tile(E.Q0, (B * n, 1))
+    out, _, _ = integrate(method, bodies, wu, q0, np.ones(B * n), 1, 2, threshold=1e300, path="blocks")
+    num = out[:, 1]
+    w_ex, q_ex = free_body(Ir, wu, q0, np.array([1.0]))  # every row's step is 1 in these units
+    w_ex, q_ex = w_ex[:, 0], q_ex[:, 0]
+    R_num = E.attitude_from_samples(num, Ir)
+    R_ex = E.rotation_matrices(q_ex)
+    r = _rotvec(np.swapaxes(R_ex, -1, -2) @ R_num)  # R_num = R_ex exp([r]): r in the body frame
+    m_ex = Ir * w_ex
+    m_hat = m_ex / np.linalg.norm(m_ex, axis=1)[:, None]
+    f = np.cross(m_ex, w_ex) / Ir  # ω̇ (units 1/dt²)
+    d = num[:, 3:6] - w_ex
+    ff = np.sum(f * f, axis=1)
+    s = np.where(ff > 1e-30 * np.sum(w_ex**2, axis=1) ** 2, np.sum(d * f, axis=1) / np.maximum(ff, 1e-300), 0.0)
+    a = np.sum(r * m_hat, axis=1)
+    dE = 0.5 * np.sum(Ir * num[:, 3:6] ** 2, axis=1) - 0.5 * np.sum(Ir * w_ex**2, axis=1)
+    dL = np.linalg.norm(Ir * num[:, 3:6], axis=1) - np.linalg.norm(m_ex, axis=1)
+    N = np.asarray(T, float) / dt  # steps over the horizon
+    # A drift of the orbit's invariants (G² = |L|², δ; a non-symplectic method's energy) changes the
+    # period P step by step, so the time shift grows as ½ N² dlnP/step: the lag after N steps is
+    # N s_eff with s_eff = mean(s) − ½ N dlnP/step (in steps)
+    m_num_s = np.take_along_axis(Ir * num[:, 3:6], np.repeat(perm, n, axis=0), 1).reshape(B, n, 3)
+    m_ex_s = np.take_along_axis(m_ex, np.repeat(perm, n, axis=0), 1).reshape(B, n, 3)
+    dlnG2 = (np.sum(m_num_s**2, axis=2) / np.sum(m_ex_s**2, axis=2) - 1).mean(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dlnd = np.nan_to_num((_delta(Is, m_num_s, pole) / _delta(Is, m_ex_s, pole) - 1).mean(axis=1))
+        # elasticities of the period (closed form, finite differences; dt units cancel in them)
+        eta = 1e-6
+        _, P_G = orbit_points(Is, G2 * (1 + eta), delta, pole, sign, 1)
+        _, P_d = orbit_points(Is, G2, delta * (1 + eta), pole, sign, 1)
+        dlnP = np.log(P_G / period) / eta * dlnG2 + np.log(P_d / period) / eta * dlnd
+    dlnP = np.where(np.isfinite(dlnP), dlnP, 0.0)
+    per_point = np.minimum(np.where(np.isfinite(period), period, np.inf), np.asarray(T, float)) / (n * dt)
+
+    def growth(x):
+        x = x.reshape(B, n)
+        mean = x.mean(axis=1)
+        run = np.cumsum(x - mean[:, None], axis=1)
+        return np.abs(N * mean) + (run.max(axis=1) - run.min(axis=1)) * per_point
+
+    S = (
+        growth(s)
+        - np.abs(N * s.reshape(B, n).mean(axis=1))
+        + np.abs(N * (s.reshape(B, n).mean(axis=1) - 0.5 * N * dlnP))
+    )
+    # attitude: a body ahead by s steps is turned by ω s (body frame); the drift about L adds a m̂.
+    # Secular: N |mean(a) m̂(t) + mean(s) ω(t)| at its largest over the orbit; periodic: as above
+    w_step = wu.reshape(B, n, 3)  # rad per step
+    a_mean, s_mean = a.reshape(B, n).mean(axis=1), s.reshape(B, n).mean(axis=1) - 0.5 * N * dlnP
+    secular = np.linalg.norm(a_mean[:, None, None] * m_hat.reshape(B, n, 3) + s_mean[:, None, None] * w_step, axis=2)
+    A = N * secular.max(axis=1) + (growth(a) - np.abs(N * a_mean))
+    A += np.linalg.norm(w_step, axis=2).max(axis=1) * (S - np.abs(N * s_mean))
+    fmax = np.sqrt(ff.reshape(B, n).max(axis=1))  # |ω̇| in units 1/dt²
+    E0 = 0.5 * np.sum(I * w0 * w0, axis=1) * dt**2
+    L0 = np.linalg.norm(I * w0, axis=1) * dt
+    return {
+        "orientation": A,
+        "omega": fmax * S / (Om * dt),
+        "energy": growth(dE) / E0,
+        "L_norm": growth(dL) / L0,
+    }
+
+
+def _unsort(v, perm):
+    out = np.empty_like(v)
+    np.put_along_axis(out, np.broadcast_to(perm[:, None, :], v.shape), v, -1)
+    return out
