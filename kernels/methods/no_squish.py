@@ -36,6 +36,7 @@ import math
 
 from numba import njit
 
+from ..body import without_drive
 from ..rigid_body import torque_at
 from ..rotation import quat_normalize
 
@@ -97,7 +98,7 @@ def _rotate(k, p, q, inertia, h):
     )
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
 def step_driven(w, q, t, dt, body):
     """One NO_SQUISH step of dt seconds from time t (s): the kicks see the torque at t and t + dt (the
     splitting made autonomous with t as a coordinate, the rotor advancing t)."""
@@ -122,5 +123,5 @@ def step_driven(w, q, t, dt, body):
 
 @njit(cache=True, error_model="numpy")
 def step(w, q, dt, body):
-    """One step of dt seconds of an undriven body: step_driven from t = 0."""
-    return step_driven(w, q, 0.0, dt, body)
+    """One step of dt seconds of an undriven body: step_driven from t = 0, its drive folded away."""
+    return step_driven(w, q, 0.0, dt, without_drive(body))

@@ -21,6 +21,7 @@ at every stage), so L3 is kept.
 
 from numba import njit
 
+from ..body import without_drive
 from ..rigid_body import euler_rhs, torque_at
 
 ORDER = 4
@@ -83,7 +84,7 @@ def _combine(x, s, a, b, c, d):
     )
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
 def step_driven(w, q, t, dt, body):
     """One RK4 step of dt seconds on (σ, ω) from time t (s), then Basilisk's shadow-set switch."""
     sigma = mrp_from_quat(q)
@@ -107,5 +108,5 @@ def step_driven(w, q, t, dt, body):
 
 @njit(cache=True, error_model="numpy")
 def step(w, q, dt, body):
-    """One step of dt seconds of an undriven body: step_driven from t = 0."""
-    return step_driven(w, q, 0.0, dt, body)
+    """One step of dt seconds of an undriven body: step_driven from t = 0, its drive folded away."""
+    return step_driven(w, q, 0.0, dt, without_drive(body))
