@@ -52,11 +52,11 @@ def compose(*overrides):
 
 def write_file(path, *overrides):
     """The results file of ``overrides`` through the runner's grid, chunks (one per method) and store."""
-    from gyrolab.runner.app import file_attrs
     from gyrolab.runner.config import config_hash
     from gyrolab.runner.execute import run_chunk
     from gyrolab.runner.grid import build_grid
     from gyrolab.runner.store import write_results
+    from gyrolab.runner.sweep import file_attrs
 
     cfg = compose(*overrides)
     grid = build_grid(cfg)

@@ -89,11 +89,22 @@ def kernel_cached(method, path):
         return False
 
 
+# (method, path) kernels a dry run in this process has already counted as compiling.  The jobs of a
+# multirun run one after the other in one process, so the first job that needs a cold kernel compiles
+# it and the later ones load it: a multirun's dry run counts each cold kernel once over its jobs.
+_COUNTED = set()
+
+
 def compile_estimate(grid):
-    """(seconds, [(method, path)] cold): the CPU seconds of compiling the kernels of ``grid`` that
-    numba's cache does not hold (COMPILE_SECONDS each), and which they are."""
+    """(seconds, [(method, path)] cold, [(method, path)] counted before): the CPU seconds of compiling
+    the kernels of ``grid`` that numba's cache does not hold (COMPILE_SECONDS each) and that no earlier
+    dry run of this process (an earlier job of the same multirun) has counted; which they are; and the
+    cold ones an earlier job compiles first."""
     cold = [(m, p) for m, p in warm_up_paths(grid) if not kernel_cached(m, p)]
-    return sum(COMPILE_SECONDS[p] for _, p in cold), cold
+    before = [kernel for kernel in cold if kernel in _COUNTED]
+    cold = [kernel for kernel in cold if kernel not in _COUNTED]
+    _COUNTED.update(cold)
+    return sum(COMPILE_SECONDS[p] for _, p in cold), cold, before
 
 
 def warm_up_methods(methods, inputs, threshold, blocks=False):

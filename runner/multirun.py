@@ -77,8 +77,8 @@ def verdict_estimate(grids, stability, threads=None):
     """The dry run's line for the verdict study's post-step (analysis/verdicts/study.py) over the jobs'
     ``grids``: reading the files, the (|w| dt)_crit bisection over ``stability`` s, figures, writing."""
     from ..analysis import verdict_seconds
-    from .app import resolve_threads
     from .grid import step_rate
+    from .preflight import resolve_threads
 
     parts = verdict_seconds(grids, float(stability or 0.0), step_rate, resolve_threads(threads))
     words = ", ".join(f"{part} {seconds:.3g} s" for part, seconds in parts.items())

@@ -243,7 +243,7 @@ def dry_run(grid, out, chunks, backend, peak, state, figures=True):
     print(f"gyrolab dry run: {describe(grid)}")
     print(f"  steps per run: {steps.min():.3g} to {steps.max():.3g}; {len(chunks)} chunks on {where}")
     writing, loading = estimate_writing_seconds(grid), LOAD_SECONDS * len(grid.methods)
-    compiling, cold = compile_estimate(grid)  # from numba's cache as it is now, per method and path
+    compiling, cold, before = compile_estimate(grid)  # from numba's cache as it is now, per method and path
     print(
         f"  estimated time: {seconds + writing + loading + compiling:.3g} s to the results file "
         f"({seconds:.3g} s integration, {writing:.3g} s journal and assembly, {loading:.2g} s loading kernels, "
@@ -256,8 +256,10 @@ def dry_run(grid, out, chunks, backend, peak, state, figures=True):
     if cold:
         names = ", ".join(f"{m} ({p})" for m, p in cold)
         print(f"  compiling: {len(cold)} kernels not in the numba cache: {names}")
-    else:
+    elif not before:
         print("  compiling: none (every kernel is in the numba cache)")
+    if before:
+        print(f"  compiling: {len(before)} more not in the cache, compiled by an earlier job of this multirun")
     print(f"  peak memory: ~{_size(peak)} of samples per chunk (+ ~0.3 GB for Python, numba, xarray)")
     if each:
         need, memory = figure_memory(grid), available_memory()

@@ -95,7 +95,15 @@ def sweep(cfg, run_dir, stack):
     peak = check_fits(grid, out, chunks)
     if cfg.runner.dry_run:
         figures = cfg.output.figures
-        dry_run(grid, out, chunks, backend, peak, state, OmegaConf.to_container(figures) if OmegaConf.is_list(figures) else figures)
+        dry_run(
+            grid,
+            out,
+            chunks,
+            backend,
+            peak,
+            state,
+            OmegaConf.to_container(figures) if OmegaConf.is_list(figures) else figures,
+        )
         return None
     if state == "done":
         with OutputLock(out):

@@ -9,10 +9,11 @@ user's first run (lightning-hydra-template's test_sweeps does the same).
 """
 
 import importlib.resources
+import re
 
 import pytest
 
-from helpers import gyrolab
+from helpers import environment, gyrolab
 
 EXPERIMENTS = sorted(
     p.name.removesuffix(".yaml")
@@ -33,8 +34,6 @@ def test_pinned_experiment_plans_without_error(tmp_path, name):
     assert "Traceback" not in result.stderr + result.stdout
     assert not list(tmp_path.rglob("*.h5")), "a dry run wrote a results file"
     if name == "verdict":  # every registered method on every scene (that it can integrate), none typed in conf/
-        import re
-
         import numpy as np
 
         from gyrolab.kernels.body import is_driven
@@ -108,9 +107,20 @@ def test_the_verdict_study_plans_every_job_and_its_post_step(tmp_path):
     """A multirun's sweeper params (experiment=verdict: scene=glob(*) x ladder, long) are planned job by job,
     the verdict after them is estimated (analysis/verdicts/cost.py), and nothing reads as a failed step."""
     scenes = [p for p in (importlib.resources.files("gyrolab.conf") / "scene").iterdir() if p.name.endswith(".yaml")]
-    result = gyrolab("experiment=verdict", "runner.dry_run=true", cwd=tmp_path, timeout=600)
+    cache = tmp_path.parent / f"{tmp_path.name}-cache"  # empty: every kernel cold
+    run = tmp_path / "run"
+    run.mkdir()
+    result = gyrolab(
+        "experiment=verdict", "runner.dry_run=true", cwd=run, env=environment(NUMBA_CACHE_DIR=cache), timeout=600
+    )
     assert result.returncode == 0, result.stderr
     assert result.stdout.count("gyrolab dry run: ") == 2 * len(scenes) + 1  # every job, then the verdict
+    # the jobs run in one process: a kernel cold for several jobs is compiled (and counted) by the first only
+    named = re.findall(r"compiling: \d+ kernels not in the numba cache: (.*)", result.stdout)
+    kernels = [kernel for line in named for kernel in line.split(", ")]
+    assert kernels and len(kernels) == len(set(kernels)), kernels
+    assert "compiled by an earlier job of this multirun" in result.stdout
+    assert not list(cache.rglob("*.nbi"))  # estimated, not compiled
     assert "gyrolab dry run: the verdict after the jobs: estimated" in result.stdout
     assert "bisection" in result.stdout and "skipped" not in result.stderr
-    assert list(tmp_path.iterdir()) == []
+    assert list(run.iterdir()) == []
