@@ -86,7 +86,7 @@ def render(readme_text, records):
 
 
 def main(argv=None):
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]  # the checkout: analysis/reports/ is two levels down
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--readme", default=str(root / "README.md"))
     parser.add_argument("--verdicts", default=str(root / "docs" / "verdict.json"))

@@ -158,11 +158,12 @@ def scene_figure(scene, records, datasets):
     orders = [r for r in records if r["kind"] == "order" and r["scene"] == scene]
     thresholds = [r for r in records if r["kind"] == "threshold" and r["scene"] == scene]
     summ = [r for r in records if r["kind"] == "summary" and r["scene"] == scene]
-    quantities = list(dict.fromkeys(r["quantity"] for r in summ))
+    quantities = [q for q in dict.fromkeys(r["quantity"] for r in summ) if q is not None]  # None: declares none
     methods = list(dict.fromkeys(r["method"] for r in summ))
     ncol = max(3, len(quantities))
-    fig = plt.figure(figsize=(4.2 * ncol, 10.5))
-    grid = fig.add_gridspec(2, ncol, height_ratios=[1.1, 1.0])
+    rows = 2 if quantities else 1  # no conserved quantity (forced_body): no drift row
+    fig = plt.figure(figsize=(4.2 * ncol, 10.5 if quantities else 5.8))
+    grid = fig.add_gridspec(rows, ncol, height_ratios=[1.1, 1.0][:rows])
     half = ncol // 2 + ncol % 2
     _order_panel(fig.add_subplot(grid[0, :half]), orders, methods)
     _threshold_panel(fig.add_subplot(grid[0, half:]), thresholds)
@@ -173,7 +174,8 @@ def scene_figure(scene, records, datasets):
     fig.legend(
         handles, methods, loc="lower center", ncol=min(10, len(methods)), fontsize=7.5, bbox_to_anchor=(0.5, -0.045)
     )
-    fig.suptitle(f"Verdicts measured on {scene}: order, stability threshold, long-time invariant errors", fontsize=12)
+    measured = ", long-time invariant errors" if quantities else " (the scene declares no conserved quantity)"
+    fig.suptitle(f"Verdicts measured on {scene}: order, stability threshold{measured}", fontsize=12)
     fig.tight_layout()
     return fig
 

@@ -239,6 +239,17 @@ class References:
         return axis, omega, f"DOP853 (rtol = atol = {DOP853_TOL:g}; its error ≤ {own:.1e})", None, own
 
 
+def drive_window(ds, f, th):
+    """[on, off] (s) of the time-dependent torque of the body at (f, θ0) (kernels/body.py's drive), or
+    None when its amplitude is zero or the file stores no body."""
+    if "body" not in ds:
+        return None
+    body = ds["body"].sel(f=f, theta0=th).to_series()
+    if not any(body.get(k, 0.0) for k in ("tau1", "tau2", "tau3")):
+        return None
+    return [float(body["drive_on"]), float(body["drive_off"])]
+
+
 def order_records(ds, refs):
     """Order records of every (method, f, θ0) of ``ds`` with ≥ MIN_LADDER step sizes."""
     from ..io import scene_name
@@ -285,6 +296,7 @@ def order_records(ds, refs):
                         ladder_err=errs,
                         ladder_used=fit.used,
                         ladder_excluded=fit.excluded,
+                        drive_window=drive_window(ds, f, th),
                     )
                 )
     return out
@@ -456,9 +468,11 @@ def summaries(datasets, orders, runs, thresholds):
 
 
 def _group_summaries(scene, m, f, th, order, group_runs, thr, quantities):
-    """Summary records of one (scene, method, f, θ0): one per declared invariant."""
+    """Summary records of one (scene, method, f, θ0): one per declared invariant; a scene that declares
+    none (forced_body: the drive does work) still has its order and threshold, in one record with
+    quantity None."""
     out = []
-    for q in quantities:
+    for q in quantities or [None]:
         mine = [r for r in group_runs if r["quantity"] == q]
         run = max(mine, key=lambda r: (r["n_steps"], r["t_end"], -r["dt"])) if mine else None
         rec = _blank(
@@ -693,7 +707,7 @@ def markdown(records, title="Verdicts measured by gyrolab"):
     ]
     for scene in dict.fromkeys(r["scene"] for r in summ):
         rows = [r for r in summ if r["scene"] == scene]
-        quantities = list(dict.fromkeys(r["quantity"] for r in rows))
+        quantities = [q for q in dict.fromkeys(r["quantity"] for r in rows) if q is not None]
         info = scene_table().get(scene, {})
         lines += [f"## {scene}", "", f"{info.get('doc', '')}", ""]
         conds = _conditions(records, scene)
@@ -744,9 +758,14 @@ def _conditions(records, scene):
     for key in dict.fromkeys((o["f"], o["theta0"], o["t_end"], o["reference"]) for o in orders):
         o = next(x for x in orders if (x["f"], x["theta0"], x["t_end"], x["reference"]) == key)
         dts = o["ladder_dt"]
+        drive = o.get("drive_window")
+        if drive and drive[0] >= o["t_end"]:  # the drive never acted on these runs: say so
+            drive = f"; the drive acts on [{drive[0]:.4g}, {drive[1]:.4g}] s, after t = {o['t_end']:g} s: undriven here"
+        elif drive:
+            drive = f"; the drive acts on [{drive[0]:.4g}, {drive[1]:.4g}] s"
         out.append(
             f"order: f = {o['f']:g} Hz, θ0 = {o['theta0']:g}°, final state at t = {o['t_end']:g} s, "
-            f"dt = {max(dts):.3g} … {min(dts):.3g} s ({ladder_words(dts)}); reference: {o['reference']}"
+            f"dt = {max(dts):.3g} … {min(dts):.3g} s ({ladder_words(dts)}); reference: {o['reference']}{drive or ''}"
         )
     runs = [r for r in records if r["kind"] == "summary" and r["scene"] == scene and r.get("drift_class")]
     for key in dict.fromkeys(
@@ -807,7 +826,7 @@ def table(records, width=TABLE_WIDTH):
             shown.add(r["method"])
             cells = [
                 _cell(r["method"] if new_method else "", cols[0]),
-                _cell(r["quantity"], cols[1]),
+                _cell(r["quantity"] or "—", cols[1]),
                 _cell(fmt_order(r, short=True) if new_method else "", cols[2]),
                 _cell(fmt_drift(r, short=True), drift_w),
                 _cell(fmt_threshold(r) if new_method else "", crit_w),
