@@ -1,6 +1,7 @@
 """Conformance of gyrolab's engine reproductions with the real engines, as a markdown table.
 
-    python -m gyrolab.kernels.real.conformance [--steps 10000] [--out FILE.md]
+    python -m gyrolab.kernels.real.conformance [--steps 10000] [--out FILE.md] [--json FILE.json]
+    python -m gyrolab.kernels.real.conformance --out docs/engines/conformance.md   # + conformance.json beside it
 
 For each case (the tennis racket, a tumbling asymmetric box, a heavy body with
 its centre of mass off every axis, the write-up's 50 Hz top and the same top
@@ -22,17 +23,23 @@ Pairs: MuJoCo's four integrators; PyBullet's btRigidBody
 default btMultiBody (real_pybullet) with its angular damping set to 0 against
 bullet_explicit, and as shipped (damping 0.04) against bullet_implicit_body,
 the row that answers whether that reproduction is PyBullet's default.
+The same rows go to JSON (``--json``; with ``--out`` by default FILE.json beside
+the table) with the engine versions, for the per-method cards
+(analysis/reports/engine_cards.py).
 Pure Python (the reproductions' steps are called one by one from here).
 """
 
 import argparse
+import json
 import math
 import sys
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
 
 import numpy as np
 
 from ..body import Body
-from . import engine_versions, get_backend, package_missing
+from . import PACKAGES, engine_versions, get_backend, package_missing
 
 DTS = (1e-3, 1e-4)
 THRESHOLD = 1e-9
@@ -172,6 +179,27 @@ def table(rows_):
     return "\n".join(lines) + "\n"
 
 
+def as_json(rows_, n_steps):
+    """The rows as a JSON document: steps, threshold, the engine versions, the pairs and the rows (NaN → null)."""
+    engines = {}
+    for name in dict.fromkeys(engine for _, engine, _ in PAIRS):
+        package = PACKAGES[name]
+        try:
+            engines[package] = version(package) if package_missing(name) is None else None
+        except PackageNotFoundError:  # importable but not an installed distribution: no version to state
+            engines[package] = None
+    clean = [{k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in row.items()} for row in rows_]
+    doc = {
+        "generated_by": "python -m gyrolab.kernels.real.conformance",
+        "steps": n_steps,
+        "threshold": THRESHOLD,
+        "engines": engines,  # package: installed version, or null when it does not import (its rows are absent)
+        "pairs": [{"reproduction": m, "engine": e, "damping": d} for m, e, d in PAIRS],
+        "rows": clean,
+    }
+    return json.dumps(doc, indent=1, ensure_ascii=False, allow_nan=False) + "\n"
+
+
 READING = """
 Reading the table (causes; the numbers are the rows above):
 
@@ -201,6 +229,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(prog="python -m gyrolab.kernels.real.conformance", description=__doc__.split("\n")[0])
     ap.add_argument("--steps", type=int, default=10_000, help="steps per run (default 10000)")
     ap.add_argument("--out", help="write the table to this markdown file (else stdout)")
+    ap.add_argument("--json", help="write the rows as JSON to this file (default with --out: FILE.json beside it)")
     args = ap.parse_args(argv)
     if args.steps < 1:
         ap.error(f"--steps={args.steps}: must be >= 1")
@@ -209,13 +238,17 @@ def main(argv=None):
         print(f"{ap.prog}: error: {package_missing(missing[0])}", file=sys.stderr)
         return 2
     engines = engine_versions([n for n in ("real_mujoco_euler", "real_pybullet") if n not in missing])
-    text = f"Reproduction vs real engine, {args.steps} steps ({engines}):\n\n" + table(rows(args.steps)) + READING
-    if args.out:
-        from ...safe_files import write_text
+    found = rows(args.steps)
+    text = f"Reproduction vs real engine, {args.steps} steps ({engines}):\n\n" + table(found) + READING
+    json_path = args.json or (str(Path(args.out).with_suffix(".json")) if args.out else None)
+    from ...safe_files import write_text
 
+    if args.out:
         write_text(args.out, text)
     else:
         sys.stdout.write(text)
+    if json_path:
+        write_text(json_path, as_json(found, args.steps))
     return 0
 
 
