@@ -126,9 +126,16 @@ BODIES = {
 WITHIN_2X = {"drone": False, "satellite": False, "molecule": True}
 
 
+@pytest.fixture(scope="module")
+def compiled():
+    """The advisor's kernels compiled (a short advice on the molecule), so that the prediction's time
+    below is the prediction's, not numba's first compile (75 s on a cold cache)."""
+    advise(**{**BODIES["molecule"], "T": 1e-12}, engines=())
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(BODIES))
-def test_advice_on_three_bodies(name):
+def test_advice_on_three_bodies(name, compiled):
     """The advice for each body: a method is recommended; the measured error of the recommendation (at
     the dt it advises) is within 2x of its prediction where the model holds (WITHIN_2X), and the
     advice after measuring meets the tolerance by measurement."""

@@ -4,6 +4,7 @@ cannot choose where a figure goes."""
 
 import os
 import subprocess
+import sys
 
 import h5py
 import numpy as np
@@ -206,7 +207,7 @@ def test_plot_labels_cannot_write_outside(evil, kind):
     top = evil.parent.parent.parent
     before = files_under(top)
     result = subprocess.run(
-        ["python", "-m", "gyrolab.analysis.figures.cli", kind, str(evil)], capture_output=True, text=True, cwd=top
+        [sys.executable, "-m", "gyrolab.analysis.figures.cli", kind, str(evil)], capture_output=True, text=True, cwd=top
     )
     assert "Traceback" not in result.stderr, result.stderr
     new = sorted(set(files_under(top)) - set(before))
@@ -478,7 +479,7 @@ def test_another_local_process_cannot_submit_work_to_the_embedded_cluster(tmp_pa
         assert listening and set(listening) == {"127.0.0.1"}, listening  # the dashboard too
         assert all(w.startswith("tls://127.0.0.1:") for w in cluster.workers)
         intruder = subprocess.run(
-            ["python", "-c", INTRUDER, scheduler.address], capture_output=True, text=True, timeout=120
+            [sys.executable, "-c", INTRUDER, scheduler.address], capture_output=True, text=True, timeout=120
         )
         assert "ran" not in intruder.stdout and intruder.stdout.count("refused") == 2, intruder
         assert cluster.client.submit(lambda: 42).result(timeout=30) == 42  # gyrolab itself can
