@@ -22,6 +22,25 @@ def pytest_configure(config):
     os.environ.setdefault("MPLBACKEND", "Agg")
 
 
+def pytest_collection_finish(session):
+    """Before the first test: the kernels of the methods the selected tests are parametrised with, where
+    numba's cache lacks them, compile in parallel worker processes (runner/compile.py), one per core.
+    The tests then load them from the cache: compiling 27 methods in the test process took one core
+    and grew it to 8.7 GB.  GYROLAB_TEST_PRECOMPILE=0 leaves compiling to the tests."""
+    if session.config.option.collectonly or os.environ.get("GYROLAB_TEST_PRECOMPILE", "1") == "0":
+        return
+    from gyrolab.runner.compile import compile_methods
+
+    names = {
+        value
+        for item in session.items
+        for value in getattr(getattr(item, "callspec", None), "params", {}).values()
+        if isinstance(value, str) and value in METHODS
+    }
+    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+    compile_methods(sorted(names), report=lambda line: reporter.write_line(line) if reporter else print(line))
+
+
 def _run_scene(method, scene, dt, t_end, every, threshold=1e9):
     """Raw samples (n_samples, driver.N_FIELDS) of one run through the batch engine; asserts status ok.
 

@@ -1,0 +1,109 @@
+"""``gyrolab-compile [METHOD ...] [--jobs N]``: fill numba's cache with methods' kernels, in parallel.
+
+numba compiles on one thread, and a method's kernels (its run kernel, its block kernel of five lane
+passes, its driven kernel if it sees time) take 10-270 s of CPU cold.  A sweep or a test session that
+compiles them one after another in its own process uses one core and keeps every compiler's memory
+(the suite's process grew to 8.7 GB compiling 27 methods; loading the same kernels from the cache
+takes 0.43 GB).  Here each method compiles in a worker process of its own (``spawn``; a fresh worker
+per method, so its memory goes back when it ends), ``--jobs`` at a time, into the same keyed cache
+directories (kernels/__init__.py) the sweep and the tests load from.  Only kernels the cache does not
+hold compile (runner/execute.py ``kernel_cached``); the real engines (kernels/real/) compile nothing.
+``tests/conftest.py`` calls ``compile_methods`` for the methods a test session selects.
+"""
+
+import argparse
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from multiprocessing import get_context
+
+PATHS = ("runs", "blocks", "driven")
+
+
+def cold_kernels(names):
+    """{method: [path, ...]} of the kernels of ``names`` (method names) that numba's cache lacks."""
+    from ..kernels.real import is_real
+    from ..kernels.registry import get_method, sees_time, uses_blocks
+    from .execute import kernel_cached
+
+    out = {}
+    for name in names:
+        if is_real(name):
+            continue
+        module = get_method(name)
+        paths = ["runs"] + (["blocks"] if uses_blocks(module) else []) + (["driven"] if sees_time(module) else [])
+        cold = [path for path in paths if not kernel_cached(name, path)]
+        if cold:
+            out[name] = cold
+    return out
+
+
+def compile_one(name, paths):
+    """(name, seconds): compile (or load) ``name``'s kernels of ``paths`` by integrating two steps of
+    tiny runs through kernels.batch.integrate, with the argument types a sweep passes."""
+    import numpy as np
+
+    from ..kernels.batch import MIN_BLOCK_RUNS, integrate
+    from ..kernels.scenes import build_scene
+
+    start = time.perf_counter()
+    for path in paths:
+        scene = build_scene("forced_body" if path == "driven" else "heavy_top", 50.0, 45.0)
+        n = MIN_BLOCK_RUNS if path == "blocks" else 1
+        rows = [np.tile(np.asarray(x, dtype=float), (n, 1)) for x in (scene.body, scene.omega0, scene.q0)]
+        ones = np.ones(n, dtype=np.int64)
+        integrate(name, *rows, np.full(n, 1e-3), ones, 2, path="runs" if path == "driven" else path)
+    return name, time.perf_counter() - start
+
+
+def compile_methods(names, jobs=None, report=print):
+    """Compile the cold kernels of ``names`` in ``jobs`` worker processes (default: the CPU count);
+    ``report`` gets one line per method.  Returns {method: seconds}; a worker that fails is reported
+    and skipped (whoever runs the method compiles it then)."""
+    todo = cold_kernels(names)
+    if not todo:
+        return {}
+    jobs = max(1, min(jobs or os.cpu_count() or 1, len(todo)))
+    report(f"gyrolab-compile: {sum(map(len, todo.values()))} kernels of {len(todo)} methods, {jobs} at a time")
+    done = {}
+    context = get_context("spawn")  # a fresh interpreter: no numba state or memory inherited
+    fresh = {"max_tasks_per_child": 1} if sys.version_info >= (3, 11) else {}  # 3.10: workers are reused
+    with ProcessPoolExecutor(jobs, mp_context=context, **fresh) as pool:
+        futures = {pool.submit(compile_one, name, paths): name for name, paths in todo.items()}
+        for future in as_completed(futures):
+            name = futures[future]
+            try:
+                done[name] = future.result()[1]
+            except Exception as err:  # noqa: BLE001 - one method's failure must not stop the others
+                report(f"gyrolab-compile: {name}: failed ({type(err).__name__}: {err})")
+                continue
+            report(f"gyrolab-compile: {name} ({', '.join(todo[name])}) in {done[name]:.0f} s")
+    return done
+
+
+def main(argv=None):
+    from ..kernels.registry import METHODS, select_methods
+    from ..results import EXIT_BAD_INPUT
+
+    parser = argparse.ArgumentParser(prog="gyrolab-compile", description=__doc__.splitlines()[0])
+    parser.add_argument("methods", nargs="*", help="method names or selectors (default: all)")
+    parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: the CPU count)")
+    args = parser.parse_args(argv)
+    try:
+        names = select_methods(args.methods) if args.methods else list(METHODS)
+    except ValueError as err:
+        print(f"gyrolab-compile: {err}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.jobs is not None and args.jobs < 1:
+        print(f"gyrolab-compile: --jobs={args.jobs}: must be >= 1", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    start = time.perf_counter()
+    done = compile_methods(names, args.jobs)
+    seconds = time.perf_counter() - start
+    print(f"gyrolab-compile: {len(done)} methods in {seconds:.0f} s" if done else "gyrolab-compile: all cached")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
