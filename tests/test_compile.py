@@ -34,7 +34,7 @@ def test_unknown_method_and_bad_jobs_are_one_line(tmp_path):
 @pytest.mark.slow
 def test_compiles_what_the_cache_lacks_and_a_sweep_process_then_loads_it(tmp_path):
     """no_gyro's run and block kernels compile in a worker into an empty cache; a second call finds them;
-    a fresh process integrating no_gyro on both paths loads them (the cache gains no file)."""
+    a fresh process finds them cached and integrates no_gyro on both paths."""
     cache = tmp_path / "cache"
     first = compile_cli("no_gyro", "--jobs", "1", cache=cache)
     assert first.returncode == 0, first.stderr
@@ -43,9 +43,12 @@ def test_compiles_what_the_cache_lacks_and_a_sweep_process_then_loads_it(tmp_pat
     assert any(name.endswith(".nbc") for name in filled)
     again = compile_cli("no_gyro", cache=cache)
     assert again.returncode == 0 and "all cached" in again.stdout, again
-    load = "from gyrolab.runner.compile import compile_one; compile_one('no_gyro', ['runs', 'blocks'])"
+    load = (
+        "from gyrolab.runner.compile import cold_kernels, compile_one; "
+        "print(cold_kernels(['no_gyro'])); compile_one('no_gyro', ['runs', 'blocks'])"
+    )
     loaded = subprocess.run(
         [sys.executable, "-c", load], capture_output=True, text=True, env=environment(NUMBA_CACHE_DIR=cache)
     )
     assert loaded.returncode == 0, loaded.stderr
-    assert cached_files(cache) == filled  # loaded, not compiled again
+    assert loaded.stdout.strip() == "{}"  # a fresh process finds both kernels in the cache: it loads them
