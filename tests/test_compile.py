@@ -10,8 +10,12 @@ from helpers import command, environment
 
 
 def compile_cli(*args, cache):
+    # cwd is the cache's parent, not the checkout: from the checkout root, ``python -m``/``-c`` would import the
+    # checkout's sources (gyrolab/__init__.py joins them) while the console script imports the installed package,
+    # and numba keys its cache by source path, so the two would never share kernels under a non-editable install
     return subprocess.run(
         command("gyrolab-compile", "gyrolab.runner.compile") + list(args),
+        cwd=cache.parent,
         capture_output=True,
         text=True,
         env=environment(NUMBA_CACHE_DIR=cache),
@@ -48,7 +52,11 @@ def test_compiles_what_the_cache_lacks_and_a_sweep_process_then_loads_it(tmp_pat
         "print(cold_kernels(['no_gyro'])); compile_one('no_gyro', ['runs', 'blocks'])"
     )
     loaded = subprocess.run(
-        [sys.executable, "-c", load], capture_output=True, text=True, env=environment(NUMBA_CACHE_DIR=cache)
+        [sys.executable, "-c", load],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        env=environment(NUMBA_CACHE_DIR=cache),
     )
     assert loaded.returncode == 0, loaded.stderr
     assert loaded.stdout.strip() == "{}"  # a fresh process finds both kernels in the cache: it loads them
