@@ -75,6 +75,7 @@ NAMES = (
     "no_gyro",
     # the engines' presets with their hidden defaults (issue 23): PhysX's, Newton's, MuJoCo 3.7-3.10's midpoint
     "physx_default",
+    "newton_semi",
     # the rotation updates of molecular dynamics, spacecraft and geometric-integration codes (issue 24)
     "no_squish",
     "rk4_mrp",

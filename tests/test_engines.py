@@ -599,8 +599,10 @@ def reference_final(w0, q0, body, t_end, damping=0.0, gyro=True):
 ORDER_CASES = {name: (50.0, {}) for name in ENGINE_METHODS}
 ORDER_CASES["no_gyro"] = (50.0, {"gyro": False})
 ORDER_CASES["jolt_rescale"] = (5.0, {"damping": 0.05})
-# physx_default: on the 5 Hz top (31 rad/s, below its 100 rad/s cap), against its own equation (damped, no ω × Iω)
+# physx_default: on the 5 Hz top (31 rad/s, below its 100 rad/s cap), against its own equation (damped, no ω × Iω);
+# newton_semi: against the top with its 0.05/s damping (no cap).
 ORDER_CASES["physx_default"] = (5.0, {"damping": 0.05, "gyro": False})
+ORDER_CASES["newton_semi"] = (50.0, {"damping": 0.05})
 
 
 @pytest.mark.slow
