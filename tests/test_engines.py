@@ -616,7 +616,9 @@ def test_measured_order_matches_declared(name):
     mujoco_implicitfast 1.003, mujoco_implicit 0.997, mujoco_rk4 3.990 (dt = 3.1e-4 .. 3.9e-5),
     bullet_explicit 1.003, bullet_implicit_body 0.988, jolt_rescale (5 Hz, below its clamp, damping in
     the reference) 1.000, jolt_rescale_bare 1.005, rapier_rescale 1.005, no_gyro (against its own
-    equation, without ω × Iω) 1.000."""
+    equation, without ω × Iω) 1.000, physx_default (5 Hz, below its cap, against its own damped equation
+    without ω × Iω) 1.000, newton_semi (damping in the reference) 1.006, midpoint_free (its torque held
+    over the step) 1.000."""
     f, options = ORDER_CASES[name]
     w0, q0 = top_state(f)
     t_end = 1.0
