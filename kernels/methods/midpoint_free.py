@@ -24,7 +24,10 @@ Newton (``midpointNewton``): at most MAX_NEWTON_ITERATIONS iterations; stop when
 |f| < NEWTON_TOLERANCE (1 + (2/h)|Iω_m|); J = (2/h) I + ∂(ω × Iω)/∂ω, solved by
 ``mju_solve3`` (Gauss–Jordan, no pivoting); backtracking line search, at most
 MAX_LINE_SEARCH halvings, a step taken only if it lowers |f| (none: ω_m stays).
-The products are written in MuJoCo's order (``mji_cross``, ``mju_norm3``).
+The products are written in MuJoCo's order (``mji_cross``, ``mju_norm3``).  The
+tolerance's absolute part (1e-13 N m) dominates for gyrolab's 1e-4 kg m² bodies
+at large h: ω' is then off the exact midpoint solution by up to ~3e-13
+relative (tests/test_presets.py), which bounds how well |Iω| is kept.
 
 MuJoCo applies it only to a free joint of a childless body that is awake and in
 no constraint; gyrolab's gravity torque enters here as that body's applied
@@ -38,7 +41,8 @@ the Newton tolerance; with a torque held at its start value the energy is
 not kept.  The orientation step is the exponential, not the Cayley map that
 would match the midpoint ω update, so the lab L drifts.  Not a Poisson map
 (see implicit_midpoint).  Order 2 on a free body, 1 with a torque that
-depends on q (held over the step).
+depends on q (held over the step).  No conformance run: the mujoco wheel here
+(4.0) no longer has the scheme.
 """
 
 import math
@@ -61,7 +65,7 @@ PRESERVES = ("L_norm", "L3")
 
 MAX_NEWTON_ITERATIONS = 100  # midpointNewton: for (niter=0; niter < 100; niter++)
 MAX_LINE_SEARCH = 20  # backtracking halvings per Newton step, midpointNewton: for (ls=0; ls < 20; ls++)
-NEWTON_TOLERANCE = 1e-13  # relative residual, midpointNewton: tol = 1e-13 (double build; 1e-6 with mjUSESINGLE)
+NEWTON_TOLERANCE = 1e-13  # N m, midpointNewton: stop at |f| < tol (1 + (2/h)|Iω_m|) (1e-6 with mjUSESINGLE)
 
 
 @njit(cache=True, error_model="numpy")

@@ -1,28 +1,27 @@
 """physx_default: PhysX 5's default rigid dynamic: no gyroscopic term, angular damping 0.05/s, |ω| capped at 100 rad/s.
 
 Followed: NVIDIA-Omniverse/PhysX at commit a3d8a641de4c (PhysX 5.6.1,
-physx/version.txt 5.6.1.51c1f783, tag ovphysx-0.4.13-2-g, 24 Jun 2026), CPU
-pipeline with the default PGS solver (PxSceneDesc::solverType = ePGS):
-
-- physx/source/simulationcontroller/src/ScBodyCore.cpp ``Sc::BodyCore::BodyCore``:
-  a PxRigidDynamic starts with angular damping 0.05 and maxAngularVelocitySq =
-  100² (the API docs, physx/include/PxRigidBody.h ``setAngularDamping`` and
-  ``setMaxAngularVelocity``, say the same); its flags are empty, so
-  PxRigidBodyFlag::eENABLE_GYROSCOPIC_FORCES is off;
-- physx/source/simulationcontroller/src/ScBodySim.cpp ``BodySim::updateForces``
-  (run by ScPipeline.cpp's ``ScBeforeSolverTask``): a torque given with
-  PxRigidDynamic::addTorque (PxForceMode::eFORCE) becomes ω += I_lab⁻¹ τ h;
-- physx/source/lowleveldynamics/src/DyBodyCoreIntegrator.h
-  ``bodyCoreComputeUnconstrainedVelocity`` (called by DyDynamics.cpp's
-  pre-integration): ω *= fsel(1 − c h, 1 − c h, 0), then ω *= sqrt(max² / |ω|²)
-  when |ω|² > max²;
-- physx/source/lowleveldynamics/src/DyRigidBodyToSolverBody.cpp
-  ``copyToSolverBodyData``: the gyroscopic update (an |L|-rescaled explicit
-  step, as Jolt's) only when the flag is set, so skipped by default;
-- DyBodyCoreIntegrator.h ``integrateCore`` ("closed form quaternion
-  integrator"): with θ = |ω|, q ← normalise((ω sin(θh/2)/θ, 0) ⊗ q + q cos(θh/2)),
-  the exact rotation by θh about the lab ω (skipped when ω = 0; |ω| capped
-  again at 1e7 rad/s there, never reached after the 100 rad/s cap).
+physx/version.txt 5.6.1.51c1f783, 24 Jun 2026), CPU pipeline with the default
+PGS solver (PxSceneDesc::solverType = ePGS).  Defaults:
+physx/source/simulationcontroller/src/ScBodyCore.cpp ``Sc::BodyCore::BodyCore``
+gives a PxRigidDynamic angular damping 0.05 and maxAngularVelocitySq = 100²
+(physx/include/PxRigidBody.h ``setAngularDamping`` and ``setMaxAngularVelocity``
+document the same) and no flags, so PxRigidBodyFlag::eENABLE_GYROSCOPIC_FORCES is
+off.  Torque: physx/source/simulationcontroller/src/ScBodySim.cpp
+``BodySim::updateForces`` (run by ScPipeline.cpp's ``ScBeforeSolverTask``) turns
+a PxRigidDynamic::addTorque (PxForceMode::eFORCE) into ω += I_lab⁻¹ τ h.
+Damping and cap: physx/source/lowleveldynamics/src/DyBodyCoreIntegrator.h
+``bodyCoreComputeUnconstrainedVelocity`` (DyDynamics.cpp's pre-integration):
+ω *= fsel(1 − c h, 1 − c h, 0), then ω *= sqrt(max² / |ω|²) when |ω|² > max².
+Gyroscopic term: physx/source/lowleveldynamics/src/DyRigidBodyToSolverBody.cpp
+``copyToSolverBodyData`` applies it (an |L|-rescaled explicit step, as Jolt's)
+only when the flag is set, so not by default.  Rotation:
+physx/source/lowleveldynamics/src/DyBodyCoreIntegrator.h ``integrateCore``
+(called by DyDynamics.cpp's ``integrate``; "closed form quaternion
+integrator"), with θ = |ω|,
+q ← normalise((ω sin(θh/2)/θ, 0) ⊗ q + q cos(θh/2)): the exact rotation by θh
+about the lab ω, skipped when ω = 0 (|ω| is capped again at 1e7 rad/s there,
+never reached after the 100 rad/s cap).
 
 Per step, written in the body frame (a rotation about ω leaves ω's body
 components unchanged, so this is the same map as PhysX's lab-frame one; see
