@@ -1,4 +1,5 @@
-"""The engine schemes (kernels/methods/mujoco_*, bullet_*, jolt_*, rapier_rescale, no_gyro).
+"""The engine schemes (kernels/methods/mujoco_*, bullet_*, jolt_*, rapier_rescale, no_gyro, and the presets
+physx_default, newton_semi, midpoint_free; their own checks are in test_presets.py).
 
 Three kinds of test:
 
