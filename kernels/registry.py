@@ -73,6 +73,10 @@ NAMES = (
     "jolt_rescale_bare",
     "rapier_rescale",
     "no_gyro",
+    # the engines' presets with their hidden defaults (issue 23): PhysX's, Newton's, MuJoCo 3.7-3.10's midpoint
+    "physx_default",
+    "newton_semi",
+    "midpoint_free",
     # the rotation updates of molecular dynamics, spacecraft and geometric-integration codes (issue 24)
     "no_squish",
     "rk4_mrp",

@@ -1,4 +1,5 @@
-"""The engine schemes (kernels/methods/mujoco_*, bullet_*, jolt_*, rapier_rescale, no_gyro).
+"""The engine schemes (kernels/methods/mujoco_*, bullet_*, jolt_*, rapier_rescale, no_gyro, and the presets
+physx_default, newton_semi, midpoint_free; their own checks are in test_presets.py).
 
 Three kinds of test:
 
@@ -139,7 +140,7 @@ def test_method_contract(name):
     mod = MODULES[name]
     doc = mod.__doc__.strip()
     assert doc.startswith(f"{name}: ")
-    assert ("commit" in doc or "Source" in doc) and (".c" in doc or ".cpp" in doc or ".rs" in doc or ".inl" in doc)
+    assert ("commit" in doc or "Source" in doc) and any(ext in doc for ext in (".c", ".cpp", ".rs", ".inl", ".py"))
     assert isinstance(mod.ORDER, int) and mod.ORDER >= 1
     assert isinstance(mod.SYMPLECTIC, bool)
     assert isinstance(mod.PRESERVES, tuple) and set(mod.PRESERVES) <= set(INVARIANT_NAMES)
@@ -599,6 +600,10 @@ def reference_final(w0, q0, body, t_end, damping=0.0, gyro=True):
 ORDER_CASES = {name: (50.0, {}) for name in ENGINE_METHODS}
 ORDER_CASES["no_gyro"] = (50.0, {"gyro": False})
 ORDER_CASES["jolt_rescale"] = (5.0, {"damping": 0.05})
+# physx_default: on the 5 Hz top (31 rad/s, below its 100 rad/s cap), against its own equation (damped, no ω × Iω);
+# newton_semi: against the top with its 0.05/s damping (no cap).
+ORDER_CASES["physx_default"] = (5.0, {"damping": 0.05, "gyro": False})
+ORDER_CASES["newton_semi"] = (50.0, {"damping": 0.05})
 
 
 @pytest.mark.slow
@@ -612,7 +617,9 @@ def test_measured_order_matches_declared(name):
     mujoco_implicitfast 1.003, mujoco_implicit 0.997, mujoco_rk4 3.990 (dt = 3.1e-4 .. 3.9e-5),
     bullet_explicit 1.003, bullet_implicit_body 0.988, jolt_rescale (5 Hz, below its clamp, damping in
     the reference) 1.000, jolt_rescale_bare 1.005, rapier_rescale 1.005, no_gyro (against its own
-    equation, without ω × Iω) 1.000."""
+    equation, without ω × Iω) 1.000, physx_default (5 Hz, below its cap, against its own damped equation
+    without ω × Iω) 1.000, newton_semi (damping in the reference) 1.006, midpoint_free (its torque held
+    over the step) 1.000."""
     f, options = ORDER_CASES[name]
     w0, q0 = top_state(f)
     t_end = 1.0

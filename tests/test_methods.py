@@ -232,6 +232,9 @@ NOT_CONVERGENT = {
     "no_gyro": "no_gyro drops ω × Iω: it converges to another equation, not to the rigid body",
     "jolt_rescale": "Jolt's shipped 47 rad/s cap clips the 50 Hz top and the 5 Hz box's rates (~31-47 rad/s "
     "and above) and its angular damping changes the equation; jolt_rescale_bare is the scheme",
+    "physx_default": "PhysX's default drops ω × Iω, damps ω by 0.05/s and caps it at 100 rad/s (the 50 Hz top's 314): "
+    "it converges to another equation, not to the rigid body",
+    "newton_semi": "Newton's default angular damping (0.05/s) changes the equation: 5 % of ω in the 1 s run",
 }
 
 

@@ -14,12 +14,12 @@ gyroscopic term) and ``GodotBody3D::integrate_velocities`` (exact rotation
 Basis(ω̂, |ω| h) · basis, orthonormalised); Godot issue #80703 reports the
 consequence tested in tests/test_engines.py: a torque-free body spun off its
 principal axes keeps a constant ω.  PhysX: the gyroscopic term is behind
-PxRigidBodyFlag::eENABLE_GYROSCOPIC_FORCES, off by default (PhysX 5 docs; its
-source was not fetched, so not checked line by line).  The bare scheme: no
-damping.  The engines' defaults would damp (Godot's project setting
-physics/3d/default_angular_damp = 0.1 /s, combined with the body's; PhysX's
-default angular damping, 0.05 per its docs, unchecked); set ANGULAR_DAMPING
-to reproduce one.  It cannot show the precession of a free asymmetric body
+PxRigidBodyFlag::eENABLE_GYROSCOPIC_FORCES, off by default (read in PhysX
+5.6.1's source for physx_default, which is this update with PhysX's shipped
+damping and cap).  The bare scheme: no damping.  The engines' defaults would
+damp (Godot's project setting physics/3d/default_angular_damp = 0.1 /s,
+combined with the body's; PhysX's 0.05 /s, with |ω| capped at 100 rad/s:
+physx_default); set ANGULAR_DAMPING to reproduce one.  It cannot show the precession of a free asymmetric body
 or the tennis-racket flip; with gravity it is first order for a different
 equation (I ω̇ = τ) unless I1 = I2 = I3.  No velocity caps.  Order 1 (for
 that equation).
