@@ -258,3 +258,19 @@ def make_file(path, *overrides):
     grid = build_grid(cfg)
     write_results(path, grid, [run_chunk(grid, np.arange(grid.n_runs), 1)], file_attrs(cfg, grid, 1, config_hash(cfg)))
     return path
+
+
+def experiment_scene(name):
+    """The Scene the pinned experiment ``name`` runs (its single f and theta0, its scene options)."""
+    from hydra import compose, initialize_config_module
+    from omegaconf import OmegaConf
+
+    from gyrolab.runner.config import register_configs
+
+    register_configs()
+    with initialize_config_module(config_module="gyrolab.conf", version_base=None):
+        cfg = compose("config", overrides=[f"experiment={name}"])
+    options = OmegaConf.to_container(cfg.scene, resolve=True)
+    scene = options.pop("name")
+    (f,), (theta0,) = cfg.sweep.f, cfg.sweep.theta0
+    return build_scene(scene, float(f), float(theta0), **options)

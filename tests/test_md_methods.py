@@ -12,6 +12,8 @@ from gyrolab.kernels.body import Body
 from gyrolab.kernels.free_flow import _axis_rotation, kick_at
 from gyrolab.kernels.registry import METHODS
 
+from helpers import experiment_scene
+
 EPS = np.finfo(float).eps
 
 # a heavy asymmetric body with its centre of mass off every axis and a drive: every torque path
@@ -76,23 +78,6 @@ def test_no_squish_is_the_3_2_1_2_3_axis_splitting_to_a_few_ulp():
 
 # Basilisk test_spacecraft.py, SCTransAndRotation: sigma_BN at T = 10 s, as published (9 digits)
 BASILISK_SIGMA_10 = np.array([3.73034285e-01, -2.39564413e-03, 2.08570797e-01])
-
-
-def experiment_scene(name):
-    """The Scene the pinned experiment ``name`` runs (its single f and theta0)."""
-    from hydra import compose, initialize_config_module
-    from omegaconf import OmegaConf
-
-    from gyrolab.kernels.scenes import build_scene
-    from gyrolab.runner.config import register_configs
-
-    register_configs()
-    with initialize_config_module(config_module="gyrolab.conf", version_base=None):
-        cfg = compose("config", overrides=[f"experiment={name}"])
-    options = OmegaConf.to_container(cfg.scene, resolve=True)
-    scene = options.pop("name")
-    (f,), (theta0,) = cfg.sweep.f, cfg.sweep.theta0
-    return build_scene(scene, float(f), float(theta0), **options)
 
 
 def test_mrp_and_quaternion_are_inverse_and_the_switch_is_the_shadow_set():

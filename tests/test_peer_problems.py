@@ -11,25 +11,15 @@ import math
 import numpy as np
 import pytest
 from hydra import compose, initialize_config_module
-from omegaconf import OmegaConf
 
 from gyrolab.kernels.driver import FIELDS
 from gyrolab.kernels.reference import dop853, rhs
 from gyrolab.kernels.rotation import ck_matrix
-from gyrolab.kernels.scenes import build_scene
 from gyrolab.runner.config import register_configs
 
+from helpers import experiment_scene
+
 register_configs()
-
-
-def experiment_scene(name):
-    """The Scene the pinned experiment ``name`` runs (its single f and theta0)."""
-    with initialize_config_module(config_module="gyrolab.conf", version_base=None):
-        cfg = compose("config", overrides=[f"experiment={name}"])
-    options = OmegaConf.to_container(cfg.scene, resolve=True)
-    scene = options.pop("name")
-    (f,), (theta0,) = cfg.sweep.f, cfg.sweep.theta0
-    return build_scene(scene, float(f), float(theta0), **options)
 
 
 def test_hlw_free_body_is_their_body_and_initial_momentum():
