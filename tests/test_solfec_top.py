@@ -30,7 +30,8 @@ SOLFEC_H = 1269.975  # H as published (three decimals)
 def test_solfec_heavy_top_is_their_top():
     """The experiment's scene is Solfec's top: moments (5, 5, 1), M g l = 20 on e3, no drive,
     W(0) = (0, 0, 50) and Λ(0) = exp(skew(0.05, 0, 0)) to rounding, H(0) = 1269.975 to the published
-    digits (computed 1269.9750052078994) and Λ33(0) ≈ 0.99875; the grid is Solfec's three h over 10 s;
+    digits (computed 1269.9750052078994) and Λ33(0) ≈ 0.99875; the grid is Solfec's
+    three h over 9.999 s (1111 steps of 9e-3: t_end must be a multiple of the 9e-3 s samples);
     and analysis/reports/solfec_top.py's scene is the same one."""
     sc = experiment_scene("solfec_heavy_top")
     assert tuple(sc.body[:3]) == (5.0, 5.0, 1.0)
@@ -50,12 +51,12 @@ def test_solfec_heavy_top_is_their_top():
 
     with initialize_config_module(config_module="gyrolab.conf", version_base=None):
         cfg = compose("config", overrides=["experiment=solfec_heavy_top"])
-    assert list(cfg.sweep.dt) == [1e-3, 3e-3, 9e-3] and cfg.sweep.t_end == 10.0
+    assert list(cfg.sweep.dt) == [1e-3, 3e-3, 9e-3] and cfg.sweep.t_end == solfec_top.T_END == 9.999
     assert "simo_wong" in cfg.sweep.method
 
 
 def test_simo_wong_keeps_solfec_energy_bound():
-    """simo_wong's max |ΔH|/H over 10 s is below Solfec's 0.1 % at every h, and second order in h
+    """simo_wong's max |ΔH|/H over 9.999 s is below Solfec's 0.1 % at every h, and second order in h
     (measured 7.8e-10, 7.1e-9, 6.6e-8 at h = 1e-3, 3e-3, 9e-3: ×9.0 and ×9.4 per ×3 of h)."""
     errors = [solfec_top.max_energy_error("simo_wong", dt) for dt in solfec_top.DTS]
     assert max(errors) < 1e-3, errors
@@ -70,7 +71,7 @@ def test_energy_table_of_every_method():
     table = solfec_top.energy_table()
     assert list(table) == list(METHODS)
     text = solfec_top.markdown(table)
-    print("\nSolfec heavy top, max |H - H(0)| / H(0) over 10 s (H(0) = 1269.975):\n" + text)
+    print(f"\nSolfec heavy top, max |H - H(0)| / H(0) over {solfec_top.T_END} s (H(0) = 1269.975):\n" + text)
     assert text.count("\n") == len(METHODS) + 1 and "| `simo_wong` |" in text
     assert all(e < 1e-3 for e in table["simo_wong"])
     assert solfec_top.markdown({"x": [math.inf]}, dts=(1e-3,)).endswith("| `x` | diverged |")
