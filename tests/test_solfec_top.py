@@ -164,3 +164,24 @@ def test_simo_wong_that_does_not_converge_ends_the_run_as_non_finite():
         assert status[0] == expected, (dt, status)
     w, q = METHODS["simo_wong"].step((200.0, -150.0, 300.0), (1.0, 0.0, 0.0, 0.0), 1e-2, DRIVEN_BODY)
     assert all(math.isnan(x) for x in (*w, *q))
+
+
+@pytest.mark.parametrize("scene", ["heavy_top", "heavy_body", "free_symmetric", "free_asymmetric", "kovalevskaya"])
+def test_simo_wong_keeps_what_it_declares_on_every_scene_that_conserves_it(scene):
+    """Each of PRESERVES (L, |L|, L_z) that the scene declares conserved stays within 1e-12 of its start,
+    relative to |L(0)|, over 2000 steps of 5e-4 s at f = 10 Hz, θ0 = 30° (defaults otherwise; measured
+    ≤ 1.7e-14, kovalevskaya's L_z).  The energy, which every scene here declares, is kept on the free
+    bodies (1.4e-15, 2.2e-14) but not under gravity (heavy_top 4.1e-5): why PRESERVES omits it.
+    forced_body conserves nothing (CONSERVED is empty)."""
+    from gyrolab.kernels.scenes import build_scene, get_scene
+
+    sc = build_scene(scene, 10.0, 30.0)
+    kept = set(METHODS["simo_wong"].PRESERVES) & set(get_scene(scene).CONSERVED)
+    assert "Lz" in kept
+    W, Q = run("simo_wong", sc.omega0, sc.q0, 5e-4, sc.body, 2000)
+    L = np.array([lab_momentum(tuple(w), tuple(q), sc.body) for w, q in zip(W, Q)])
+    scale = np.linalg.norm(L[0])
+    values = {"L": L, "L_norm": np.linalg.norm(L, axis=1), "Lz": L[:, 2]}
+    for name in kept:
+        drift = np.abs(values[name] - values[name][0]).max() / scale
+        assert drift <= 1e-12, (name, drift)
