@@ -84,6 +84,7 @@ NAMES = (
     "cg4",
     "lgvi",
     "implicit_midpoint",
+    "lammps_richardson",
 )
 METHODS = {name: register(name, importlib.import_module(f".methods.{name}", __package__)) for name in NAMES}
 
