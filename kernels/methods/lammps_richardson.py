@@ -20,7 +20,10 @@ columns ex, ey, ez (``q_to_exyz``).  One step of dt, with dtf = dtq = dt/2 (``in
 
 Between steps gyrolab carries the body ω, so the step builds m = I ω on the axes of q
 (``omega_to_angmom``'s sum with the body ω, mbody = I ω) and returns the body ω that
-``angmom_to_omega`` forms on its way (wbody_k = m · e_k / I_k); the body torque τ_b (``torque_at``)
+``angmom_to_omega`` forms on its way (wbody_k = m · e_k / I_k), both divided by |q|² (the columns
+of ``q_to_exyz`` are |q|² times unit vectors: without it the ω ↔ m round trip, which LAMMPS never
+makes, scales ω by (1 + 4δ) for |q| = 1 + δ each step, and the rounding of ``qnormalize`` drifted
+the 50 Hz top's axis by 2e-9 over 6.5e6 steps, a floor in the order measurement); the body torque τ_b (``torque_at``)
 enters LAMMPS's space-frame kicks as ex τ1 + ey τ2 + ez τ3 (``matvec`` on the columns), the frame
 LAMMPS sums its atoms' torques in.  In exact arithmetic the conversions are inverse to each other, so
 a run differs from LAMMPS's (which carries m) by rounding only (tests/test_md_lammps_dlpoly.py checks
@@ -164,7 +167,8 @@ def step_driven(w, q, t, dt, body):
     """One fix-rigid step of dt seconds from time t (s): kicks with the torque at t and at t + dt."""
     dtf = 0.5 * dt
     ex, ey, ez = _q_to_exyz(q)
-    m = _on_axes(ex, ey, ez, (body[0] * w[0], body[1] * w[1], body[2] * w[2]))
+    s = 1.0 / (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])  # R(q) = |q|² · rotation
+    m = _on_axes(ex, ey, ez, (s * body[0] * w[0], s * body[1] * w[1], s * body[2] * w[2]))
     tau = _on_axes(ex, ey, ez, torque_at(q, t, body))
     m = (m[0] + dtf * tau[0], m[1] + dtf * tau[1], m[2] + dtf * tau[2])
     ws = _on_axes(ex, ey, ez, _wbody(m, ex, ey, ez, body))  # angmom_to_omega
@@ -172,7 +176,9 @@ def step_driven(w, q, t, dt, body):
     ex, ey, ez = _q_to_exyz(q)
     tau = _on_axes(ex, ey, ez, torque_at(q, t + dt, body))
     m = (m[0] + dtf * tau[0], m[1] + dtf * tau[1], m[2] + dtf * tau[2])
-    return _wbody(m, ex, ey, ez, body), q
+    wb = _wbody(m, ex, ey, ez, body)
+    s = 1.0 / (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return (s * wb[0], s * wb[1], s * wb[2]), q
 
 
 @njit(cache=True, error_model="numpy")
