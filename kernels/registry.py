@@ -85,6 +85,7 @@ NAMES = (
     "lgvi",
     "implicit_midpoint",
     "lammps_richardson",
+    "dlpoly_fiqa",
 )
 METHODS = {name: register(name, importlib.import_module(f".methods.{name}", __package__)) for name in NAMES}
 
