@@ -140,7 +140,8 @@ def test_method_contract(name):
     mod = MODULES[name]
     doc = mod.__doc__.strip()
     assert doc.startswith(f"{name}: ")
-    assert ("commit" in doc or "Source" in doc) and any(ext in doc for ext in (".c", ".cpp", ".rs", ".inl", ".py"))
+    sources = (".c", ".cpp", ".rs", ".inl", ".py", ".f90")
+    assert ("commit" in doc or "Source" in doc) and any(ext in doc for ext in sources)
     assert isinstance(mod.ORDER, int) and mod.ORDER >= 1
     assert isinstance(mod.SYMPLECTIC, bool)
     assert isinstance(mod.PRESERVES, tuple) and set(mod.PRESERVES) <= set(INVARIANT_NAMES)
