@@ -239,3 +239,13 @@ def test_norm_drift_over_many_steps(name):
         w, q = step(w, q, 1e-3, body)
         drift = max(drift, abs(math.sqrt(sum(x * x for x in q)) - 1.0))
     assert drift < (1e-13 if name == "chrono_euler" else 2e-15), drift
+
+
+def test_no_damping_no_speed_limit_by_default():
+    """ChBody's limit_speed is off (SetLimitSpeed(true) would clamp |ω| to max_wvel = 2π rad/s) and a
+    ChBody has no damping: 1000 rad/s about a principal axis of a free body is carried exactly, and q
+    turns by h|ω| about it."""
+    w0 = (0.0, 0.0, 1000.0)
+    w, q = CHRONO.step(w0, (1.0, 0.0, 0.0, 0.0), 1e-3, body_of((1.0, 2.0, 3.0)))
+    assert w == w0
+    assert q == pytest.approx((math.cos(0.5), 0.0, 0.0, math.sin(0.5)), abs=2e-16)
