@@ -88,6 +88,8 @@ NAMES = (
     "simo_wong",
     "lammps_richardson",
     "dlpoly_fiqa",
+    # Project Chrono's default timestepper for a rigid body (issue 24)
+    "chrono_euler",
 )
 METHODS = {name: register(name, importlib.import_module(f".methods.{name}", __package__)) for name in NAMES}
 
