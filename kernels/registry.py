@@ -86,8 +86,9 @@ NAMES = (
     "implicit_midpoint",
     # Simo & Wong's energy-momentum update (issue 24; the Solfec heavy top, conf/experiment/solfec_heavy_top.yaml)
     "simo_wong",
-    # Solfec's implicit rigid rotation update RIG_IMP (NEW3; issue 24, the Solfec heavy top)
+    # Solfec's rigid rotation updates RIG_IMP (NEW3) and its default RIG_NEG (NEW2) (issue 24, the Solfec heavy top)
     "solfec_imp",
+    "solfec_neg",
 )
 METHODS = {name: register(name, importlib.import_module(f".methods.{name}", __package__)) for name in NAMES}
 
