@@ -90,6 +90,9 @@ NAMES = (
     "dlpoly_fiqa",
     # Project Chrono's default timestepper for a rigid body (issue 24)
     "chrono_euler",
+    # Solfec's rigid rotation updates RIG_IMP (NEW3) and its default RIG_NEG (NEW2) (issue 24, the Solfec heavy top)
+    "solfec_imp",
+    "solfec_neg",
 )
 METHODS = {name: register(name, importlib.import_module(f".methods.{name}", __package__)) for name in NAMES}
 
