@@ -18,6 +18,10 @@ R(q) body → lab; ω body frame; a body is (I1, I2, I3, mgl), indexed only):
 - ``rescale_momentum_step``: Jolt's ``ApplyGyroscopicForceInternal`` /
   Rapier's ``gyroscopic_corrected_angvel``: L' = L − h ω × L in the principal
   frame, rescaled to |L|;
+- ``physx_gyro_step``: PhysX's gyroscopic step (``Dy::copyToSolverBodyData``,
+  PxRigidBodyFlag::eENABLE_GYROSCOPIC_FORCES): the same |L|-rescaled
+  explicit step with PhysX's own arithmetic (I from the stored inverse,
+  ω += (I⁻¹ L' − ω));
 - ``dexp_inv``: the inverse of the right-trivialised differential of exp on
   SO(3), exact (closed form), which MuJoCo 4.0's RK4 applies to the stage
   velocities (Runge–Kutta–Munthe-Kaas);
@@ -183,6 +187,28 @@ def rescale_momentum_step(w, h, body):
         return w
     s = math.sqrt((L1 * L1 + L2 * L2 + L3 * L3) / new_sq)
     return n1 * s / I1, n2 * s / I2, n3 * s / I3
+
+
+@njit(cache=True, error_model="numpy")
+def physx_gyro_step(w, h, body):
+    """PhysX 5.6 ``Dy::copyToSolverBodyData`` with gyroscopicForces: its arithmetic, in the body frame.
+
+    PhysX keeps the inverse inertia, so I = 1/(1/I) (0 for a zero inverse, never here);
+    L = I ω; L' = L + h (−ω × L); L' ← L' · (|L| / |L'|) (0 when |L'| = 0);
+    ω ← ω + (I⁻¹ L' − ω) (PhysX adds the lab-frame difference to the lab ω).
+    """
+    inv1, inv2, inv3 = 1.0 / body[0], 1.0 / body[1], 1.0 / body[2]
+    I1, I2, I3 = 1.0 / inv1, 1.0 / inv2, 1.0 / inv3
+    w1, w2, w3 = w
+    L1, L2, L3 = I1 * w1, I2 * w2, I3 * w3
+    t1 = -(w2 * L3 - w3 * L2)
+    t2 = -(w3 * L1 - w1 * L3)
+    t3 = -(w1 * L2 - w2 * L1)
+    n1, n2, n3 = L1 + t1 * h, L2 + t2 * h, L3 + t3 * h
+    denom = math.sqrt(n1 * n1 + n2 * n2 + n3 * n3)
+    ratio = math.sqrt(L1 * L1 + L2 * L2 + L3 * L3) / denom if denom > 0.0 else 0.0
+    n1, n2, n3 = n1 * ratio, n2 * ratio, n3 * ratio
+    return w1 + (inv1 * n1 - w1), w2 + (inv2 * n2 - w2), w3 + (inv3 * n3 - w3)
 
 
 @njit(cache=True, error_model="numpy")

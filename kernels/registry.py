@@ -77,6 +77,8 @@ NAMES = (
     "physx_default",
     "newton_semi",
     "midpoint_free",
+    # issue 23 item 3: PhysX with its gyroscopic flag set, Brax's spring pipeline, Bepu's ConserveMomentum
+    "physx_gyro",
     # the rotation updates of molecular dynamics, spacecraft and geometric-integration codes (issue 24)
     "no_squish",
     "rk4_mrp",
