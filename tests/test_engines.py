@@ -604,6 +604,8 @@ ORDER_CASES["jolt_rescale"] = (5.0, {"damping": 0.05})
 # newton_semi: against the top with its 0.05/s damping (no cap).
 ORDER_CASES["physx_default"] = (5.0, {"damping": 0.05, "gyro": False})
 ORDER_CASES["newton_semi"] = (50.0, {"damping": 0.05})
+# brax_spring: against its own equation (no ω × Iω; its default ang_damping is 0).
+ORDER_CASES["brax_spring"] = (50.0, {"gyro": False})
 # physx_gyro: on the 5 Hz top (below its cap), against the damped top with ω × Iω.
 ORDER_CASES["physx_gyro"] = (5.0, {"damping": 0.05})
 

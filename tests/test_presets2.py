@@ -155,3 +155,45 @@ def test_physx_gyro_defaults_and_step_order():
     assert abs(np.linalg.norm(w) - 100.0) > 1e-3  # |ω| is not the cap after the gyroscopic step
     wd, _ = default.step(w0, (1.0, 0.0, 0.0, 0.0), h, free)
     assert np.linalg.norm(wd) == pytest.approx(100.0, rel=1e-15)
+
+
+# ---------------------------------------------------------------- Brax 0.14.2 spring pipeline
+
+
+def brax_lab_step(w_lab, q, h, body, ang_damping=0.0):
+    """brax/spring/pipeline.py step (xd_i += xdd_i dt, xdd_i.ang = i_inv @ xf_i.ang) and
+    brax/spring/integrator.py integrate's op, for one link without contacts (xdv_i = 0)."""
+    R = rot(q)
+    i_inv = R @ np.diag(1.0 / np.array(body[:3])) @ R.T  # com.inv_inertia
+    ang = w_lab + (i_inv @ lab_torque(q, body)) * h
+    ang = np.exp(ang_damping * h) * ang + 0.0
+    rot_at_ang_quat = np.concatenate(([0.0], ang)) * 0.5 * h  # math.ang_to_quat(ang) * 0.5 * dt
+    r = q + qmul(rot_at_ang_quat, q)
+    return ang, r / np.linalg.norm(r)
+
+
+@pytest.mark.parametrize("h", [1e-3, 1e-2])
+def test_brax_spring_is_brax_lab_frame_update(h):
+    """3 steps from 20 random states and bodies: body ω and q equal Brax's world-frame update to a few ulp."""
+    check_lab("brax_spring", brax_lab_step, h, random_cases(20))
+
+
+def test_brax_spring_default_ang_damping_is_zero():
+    """ang_damping defaults to 0 (mjcf._get_custom): a free body's ω is untouched bit for bit over 1000 steps
+    (no ω × Iω either); Brax's environments' -0.05/s multiplies ω by exp(-0.05 h) per step, not 1 − 0.05 h."""
+    brax = METHODS["brax_spring"]
+    assert brax.ANG_DAMPING == 0.0
+    free = Body(1e-4, 3e-4, 2e-4, 0.0)
+    w0, q = (6.0, -4.0, 14.0), (1.0, 0.0, 0.0, 0.0)
+    w = w0
+    for _ in range(1000):
+        w, q = brax.step(w, q, 1e-3, free)
+    assert w == w0
+    h = 1e-2
+    wd, _ = brax.brax_step(w0, (1.0, 0.0, 0.0, 0.0), h, free, -0.05)
+    assert np.array(wd) / np.array(w0) == pytest.approx(math.exp(-0.05 * h), rel=1e-15)
+    assert abs(wd[0] / w0[0] - (1 - 0.05 * h)) > 1e-7
+    # the first-order step turns the body by 2 atan(h|ω|/2), not h|ω|
+    _, q1 = brax.step(w0, (1.0, 0.0, 0.0, 0.0), h, free)
+    turned = 2 * math.atan2(math.sqrt(q1[1] ** 2 + q1[2] ** 2 + q1[3] ** 2), q1[0])
+    assert turned == pytest.approx(2 * math.atan(h * np.linalg.norm(w0) / 2), rel=1e-14)

@@ -56,6 +56,8 @@ ENGINE_PACKAGES = {
     "PhysX / Godot": None,
     "PhysX": None,
     "Newton": None,
+    "Brax": None,
+    "BEPUphysics": None,
 }
 # A sentence of a docstring that cites a source: a code or paper reference, a commit, a year, an issue.
 CITES = re.compile(r"Followed:|[Ss]ource\b|\bdocs\b|\bcommit [0-9a-f]{7}|\b(1[89]|20)\d\d\b|(issue|PR) #\d+")
