@@ -80,6 +80,7 @@ NAMES = (
     # issue 23 item 3: PhysX with its gyroscopic flag set, Brax's spring pipeline, Bepu's ConserveMomentum
     "physx_gyro",
     "brax_spring",
+    "bepu_conserve_momentum",
     # the rotation updates of molecular dynamics, spacecraft and geometric-integration codes (issue 24)
     "no_squish",
     "rk4_mrp",
