@@ -623,7 +623,8 @@ def test_measured_order_matches_declared(name):
     the reference) 1.000, jolt_rescale_bare 1.005, rapier_rescale 1.005, no_gyro (against its own
     equation, without ω × Iω) 1.000, physx_default (5 Hz, below its cap, against its own damped equation
     without ω × Iω) 1.000, newton_semi (damping in the reference) 1.006, midpoint_free (its torque held
-    over the step) 1.000."""
+    over the step) 1.000, physx_gyro (5 Hz, damping in the reference) 1.000, brax_spring (without ω × Iω)
+    1.004, bepu_conserve_momentum 0.999."""
     f, options = ORDER_CASES[name]
     w0, q0 = top_state(f)
     t_end = 1.0

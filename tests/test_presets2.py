@@ -125,7 +125,7 @@ def physx_gyro_lab_step(w_lab, q, h, body, damping=0.05, max_w=100.0):
 @pytest.mark.parametrize("h", [1e-3, 1e-2])
 def test_physx_gyro_is_physx_lab_frame_update(h):
     """3 steps from 20 random states and bodies (rates up to 30 rad/s, and up to 200 rad/s so that the cap
-    acts): body ω and q equal PhysX's world-frame update to a few ulp."""
+    acts): body ω and q equal PhysX's world-frame update to a few ulp (measured ≤ 4.9 eps·|ω| on ω, eps on q)."""
     check_lab("physx_gyro", physx_gyro_lab_step, h, random_cases(10))
     check_lab("physx_gyro", physx_gyro_lab_step, h, random_cases(10, scale=200.0))
 
@@ -174,7 +174,8 @@ def brax_lab_step(w_lab, q, h, body, ang_damping=0.0):
 
 @pytest.mark.parametrize("h", [1e-3, 1e-2])
 def test_brax_spring_is_brax_lab_frame_update(h):
-    """3 steps from 20 random states and bodies: body ω and q equal Brax's world-frame update to a few ulp."""
+    """3 steps from 20 random states and bodies: body ω and q equal Brax's world-frame update to a few ulp
+    (measured ≤ 2.7 eps·|ω| on ω, eps on q)."""
     check_lab("brax_spring", brax_lab_step, h, random_cases(20))
 
 
@@ -236,7 +237,8 @@ def bepu_lab_step(w_lab, q, h, body, angular_damping=0.0):
 @pytest.mark.parametrize("h", [1e-3, 1e-2])
 def test_bepu_conserve_momentum_is_bepu_update(h):
     """3 steps from 20 random states and bodies: body ω and q equal Bepu's world-frame update to a few ulp of
-    |ω| scaled by the inertia ratio (≤ 8 here): ω = I⁻¹ (R L) carries L's rounding, eps |L| / I_min."""
+    |ω| scaled by the inertia ratio (≤ 8 here): ω = I⁻¹ (R L) carries L's rounding, eps |L| / I_min (measured
+    ≤ 7.1 eps·|ω| at h = 1e-3, 14.0 at 1e-2)."""
     check_lab("bepu_conserve_momentum", bepu_lab_step, h, random_cases(20), ulps=32)
 
 

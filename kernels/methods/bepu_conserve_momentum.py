@@ -43,7 +43,9 @@ to the same drift.
 Bepu computes in single precision; this is double.  The pivot of the heavy
 top is a gravity torque here (the unconstrained-body path), not a Bepu ball
 socket (constrained bodies take the same calls inside the solver's substeps,
-Constraints/TypeProcessor.cs).  Order 1.
+Constraints/TypeProcessor.cs).  Order 1 (for the rigid body itself, ω × Iω
+included through the re-projection: measured slope 0.999 on the 50 Hz top,
+tests/test_engines.py).
 """
 
 from numba import njit

@@ -30,7 +30,8 @@ turns q about ω, which leaves ω's body components unchanged):
 The first-order quaternion step turns the body by 2 atan(h|ω|/2), not h|ω|.
 Brax (JAX) computes in single precision by default; this is double.  The
 pivot of the heavy top is a gravity torque here, not a Brax spring joint.
-Order 1 (for I ω̇ = τ + ANG_DAMPING I ω: the equation without ω × Iω).
+Order 1 (for I ω̇ = τ + ANG_DAMPING I ω: the equation without ω × Iω; measured
+slope 1.004 on the 50 Hz top against it, tests/test_engines.py).
 """
 
 import math

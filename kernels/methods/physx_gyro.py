@@ -35,7 +35,7 @@ The gyroscopic step is Jolt's (jolt_rescale) with PhysX's own arithmetic
 before the torque and its damping, PhysX after both and after the cap.  PhysX
 computes in single precision; this is double.  The pivot of the heavy top is a
 gravity torque here, not a PhysX joint.  Order 1 (for I ω̇ = τ − ω × Iω − c I ω,
-below the cap).
+below the cap; measured slope 1.000 on the 5 Hz top, tests/test_engines.py).
 """
 
 from numba import njit
