@@ -18,6 +18,15 @@ R(q) body → lab; ω body frame; a body is (I1, I2, I3, mgl), indexed only):
 - ``rescale_momentum_step``: Jolt's ``ApplyGyroscopicForceInternal`` /
   Rapier's ``gyroscopic_corrected_angvel``: L' = L − h ω × L in the principal
   frame, rescaled to |L|;
+- ``physx_gyro_step``: PhysX's gyroscopic step (``Dy::copyToSolverBodyData``,
+  PxRigidBodyFlag::eENABLE_GYROSCOPIC_FORCES): the same |L|-rescaled
+  explicit step with PhysX's own arithmetic (I from the stored inverse,
+  ω += (I⁻¹ L' − ω));
+- ``bepu_conserve_momentum``: BEPUphysics v2's
+  ``PoseIntegration.IntegrateAngularVelocityConserveMomentum``: the world
+  angular momentum at the previous orientation, I_world⁻¹ of the new one
+  applied to it (its local inertia from the stored inverse by
+  ``Symmetric3x3Wide.Invert``'s cofactors);
 - ``dexp_inv``: the inverse of the right-trivialised differential of exp on
   SO(3), exact (closed form), which MuJoCo 4.0's RK4 applies to the stage
   velocities (Runge–Kutta–Munthe-Kaas);
@@ -30,7 +39,7 @@ import math
 from numba import njit
 
 from .rigid_body import gravity_torque
-from .rotation import quat_mul
+from .rotation import body_to_lab, quat_mul
 
 MJ_MINVAL = 1e-15  # MuJoCo's mjMINVAL (include/mujoco/mjtnum.h)
 
@@ -183,6 +192,49 @@ def rescale_momentum_step(w, h, body):
         return w
     s = math.sqrt((L1 * L1 + L2 * L2 + L3 * L3) / new_sq)
     return n1 * s / I1, n2 * s / I2, n3 * s / I3
+
+
+@njit(cache=True, error_model="numpy")
+def physx_gyro_step(w, h, body):
+    """PhysX 5.6 ``Dy::copyToSolverBodyData`` with gyroscopicForces: its arithmetic, in the body frame.
+
+    PhysX keeps the inverse inertia, so I = 1/(1/I) (0 for a zero inverse, never here);
+    L = I ω; L' = L + h (−ω × L); L' ← L' · (|L| / |L'|) (0 when |L'| = 0);
+    ω ← ω + (I⁻¹ L' − ω) (PhysX adds the lab-frame difference to the lab ω).
+    """
+    inv1, inv2, inv3 = 1.0 / body[0], 1.0 / body[1], 1.0 / body[2]
+    I1, I2, I3 = 1.0 / inv1, 1.0 / inv2, 1.0 / inv3
+    w1, w2, w3 = w
+    L1, L2, L3 = I1 * w1, I2 * w2, I3 * w3
+    t1 = -(w2 * L3 - w3 * L2)
+    t2 = -(w3 * L1 - w1 * L3)
+    t3 = -(w1 * L2 - w2 * L1)
+    n1, n2, n3 = L1 + t1 * h, L2 + t2 * h, L3 + t3 * h
+    denom = math.sqrt(n1 * n1 + n2 * n2 + n3 * n3)
+    ratio = math.sqrt(L1 * L1 + L2 * L2 + L3 * L3) / denom if denom > 0.0 else 0.0
+    n1, n2, n3 = n1 * ratio, n2 * ratio, n3 * ratio
+    return w1 + (inv1 * n1 - w1), w2 + (inv2 * n2 - w2), w3 + (inv3 * n3 - w3)
+
+
+@njit(cache=True, error_model="numpy")
+def bepu_conserve_momentum(w, q_prev, q_new, body):
+    """BEPUphysics v2 ``IntegrateAngularVelocityConserveMomentum``, body frame in and out.
+
+    Bepu stores the local inverse inertia (1/I1, 1/I2, 1/I3); ``Symmetric3x3Wide.Invert`` gives the local
+    inertia by cofactors: I1 = (i2 i3) · 1/((i2 i3) i1), and so on.  L = R_prev (I ω); ω' = R_new⁻¹-frame
+    I⁻¹ (R_newᵀ L), i.e. the world ω' = R_new I⁻¹ R_newᵀ L; a non-finite result keeps ω
+    (``FallbackIfInertiaIncompatible``).
+    """
+    i1, i2, i3 = 1.0 / body[0], 1.0 / body[1], 1.0 / body[2]
+    xx, yy, zz = i2 * i3, i3 * i1, i1 * i2
+    det_inv = 1.0 / (xx * i1)
+    L = body_to_lab(q_prev, xx * det_inv * w[0], yy * det_inv * w[1], zz * det_inv * w[2])
+    a, b, c, d = q_new
+    m1, m2, m3 = body_to_lab((a, -b, -c, -d), L[0], L[1], L[2])
+    out = (i1 * m1, i2 * m2, i3 * m3)
+    if not (abs(out[0]) < math.inf and abs(out[1]) < math.inf and abs(out[2]) < math.inf):
+        return w
+    return out
 
 
 @njit(cache=True, error_model="numpy")

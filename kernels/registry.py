@@ -77,6 +77,10 @@ NAMES = (
     "physx_default",
     "newton_semi",
     "midpoint_free",
+    # issue 23 item 3: PhysX with its gyroscopic flag set, Brax's spring pipeline, Bepu's ConserveMomentum
+    "physx_gyro",
+    "brax_spring",
+    "bepu_conserve_momentum",
     # the rotation updates of molecular dynamics, spacecraft and geometric-integration codes (issue 24)
     "no_squish",
     "rk4_mrp",

@@ -605,6 +605,10 @@ ORDER_CASES["jolt_rescale"] = (5.0, {"damping": 0.05})
 # newton_semi: against the top with its 0.05/s damping (no cap).
 ORDER_CASES["physx_default"] = (5.0, {"damping": 0.05, "gyro": False})
 ORDER_CASES["newton_semi"] = (50.0, {"damping": 0.05})
+# brax_spring: against its own equation (no ω × Iω; its default ang_damping is 0).
+ORDER_CASES["brax_spring"] = (50.0, {"gyro": False})
+# physx_gyro: on the 5 Hz top (below its cap), against the damped top with ω × Iω.
+ORDER_CASES["physx_gyro"] = (5.0, {"damping": 0.05})
 
 
 @pytest.mark.slow
@@ -620,7 +624,8 @@ def test_measured_order_matches_declared(name):
     the reference) 1.000, jolt_rescale_bare 1.005, rapier_rescale 1.005, no_gyro (against its own
     equation, without ω × Iω) 1.000, physx_default (5 Hz, below its cap, against its own damped equation
     without ω × Iω) 1.000, newton_semi (damping in the reference) 1.006, midpoint_free (its torque held
-    over the step) 1.000."""
+    over the step) 1.000, physx_gyro (5 Hz, damping in the reference) 1.000, brax_spring (without ω × Iω)
+    1.004, bepu_conserve_momentum 0.999."""
     f, options = ORDER_CASES[name]
     w0, q0 = top_state(f)
     t_end = 1.0

@@ -235,6 +235,9 @@ NOT_CONVERGENT = {
     "physx_default": "PhysX's default drops ω × Iω, damps ω by 0.05/s and caps it at 100 rad/s (the 50 Hz top's 314): "
     "it converges to another equation, not to the rigid body",
     "newton_semi": "Newton's default angular damping (0.05/s) changes the equation: 5 % of ω in the 1 s run",
+    "brax_spring": "Brax's spring pipeline drops ω × Iω: it converges to another equation, not to the rigid body",
+    "physx_gyro": "PhysX's damping (0.05/s) and 100 rad/s cap stay on with its gyroscopic flag: the cap clips the "
+    "50 Hz top (314 rad/s) and the damping changes the equation",
 }
 
 

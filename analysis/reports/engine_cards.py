@@ -61,6 +61,8 @@ ENGINE_PACKAGES = {
     # PyPI: "pychrono" is an unrelated package, "projectchrono" a name reservation (PyChrono ships on conda)
     "Project Chrono": None,
     "Solfec": None,
+    "Brax": None,
+    "BEPUphysics": None,
 }
 # A sentence of a docstring that cites a source: a code or paper reference, a commit, a year, an issue.
 CITES = re.compile(r"Followed:|[Ss]ource\b|\bdocs\b|\bcommit [0-9a-f]{7}|\b(1[89]|20)\d\d\b|(issue|PR) #\d+")

@@ -58,8 +58,9 @@ MAX_ANGULAR_VELOCITY = 100.0  # rad/s, Sc::BodyCore::BodyCore maxAngularVelocity
 
 
 @njit(cache=True, error_model="numpy")
-def physx_step(w, q, dt, body, angular_damping, max_angular_velocity):
-    """One PhysX step with the given damping (1/s) and cap (rad/s)."""
+def physx_velocity(w, q, dt, body, angular_damping, max_angular_velocity):
+    """PhysX's velocity update before the solver: torque (updateForces), then damping and cap
+    (bodyCoreComputeUnconstrainedVelocity) with the given damping (1/s) and cap (rad/s)."""
     w = torque_kick(w, q, dt, body)
     # fsel(x, x, 0): x when x >= 0, else 0
     damp = max(0.0, 1.0 - angular_damping * dt)
@@ -70,6 +71,13 @@ def physx_step(w, q, dt, body, angular_damping, max_angular_velocity):
     if sq > max_sq:
         s = math.sqrt(max_sq / sq)
         w = (w[0] * s, w[1] * s, w[2] * s)
+    return w
+
+
+@njit(cache=True, error_model="numpy")
+def physx_step(w, q, dt, body, angular_damping, max_angular_velocity):
+    """One PhysX step with the given damping (1/s) and cap (rad/s)."""
+    w = physx_velocity(w, q, dt, body, angular_damping, max_angular_velocity)
     return w, exp_rotate(q, w, dt, 0.0)
 
 
