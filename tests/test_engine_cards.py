@@ -35,7 +35,7 @@ def test_every_method_and_every_real_backend_has_a_card_listed_in_both_indexes()
     readme, index = (ROOT / "README.md").read_text(), (ENGINES / "README.md").read_text()
     block = readme.split(engine_cards.BEGIN)[1].split(engine_cards.END)[0]
     names = [*METHODS, *real.NAMES]
-    assert len(names) == 36
+    assert len(set(names)) == len(names) > 0  # a name twice would hide a missing card
     for name in names:
         assert _card(name).startswith(f"# `{name}`\n"), name
         assert engine_cards.FOOTER in _card(name)
@@ -108,7 +108,7 @@ def test_write_then_check_in_a_scratch_copy(tmp_path):
     out.mkdir()
     assert engine_cards.main(["--check", *_args(readme=readme, out_dir=out)]) == 1  # no cards yet
     assert engine_cards.main(_args(readme=readme, out_dir=out)) == 0
-    assert len(list(out.glob("*.md"))) == 37  # 36 cards and the index
+    assert len(list(out.glob("*.md"))) == len(METHODS) + len(real.NAMES) + 1  # a card each and the index
     assert readme.read_text() == (ROOT / "README.md").read_text()
     assert engine_cards.main(["--check", *_args(readme=readme, out_dir=out)]) == 0
     (out / "rk4.md").write_text("edited by hand\n")
