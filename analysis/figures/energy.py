@@ -141,7 +141,8 @@ def _panel(ax, sub, quantity, f, th, envelope=True, methods=None):
             bbox=dict(fc="white", ec="0.7", alpha=0.85),
         )
     if any_zero:
-        ax.text(0.98, 0.03, "at 1e-17: exactly conserved", transform=ax.transAxes, ha="right", fontsize=7, color="0.3")
+        note = fit_text("at 1e-17: exactly conserved", ax, 7)  # a narrow panel: wrapped, or it met the tick labels
+        ax.text(0.98, 0.03, note, transform=ax.transAxes, ha="right", va="bottom", fontsize=7, color="0.3")
     return series
 
 
