@@ -120,6 +120,21 @@ def test_invariants_figure_drops_exact_rows_and_says_so(results_file):
     assert any("L_3: kept exactly (error 0) by every run drawn" in n for n in fig.gyrolab_notes)
 
 
+def test_a_run_that_stopped_at_its_first_step_is_not_called_exact(results_file):
+    # its only finite sample is t = 0, where every error is 0: that says nothing about conservation
+    ds = open_results(results_file).load()
+    run = {"integrator": str(ds.integrator.values[0]), "f": ds.f.values[0], "theta0": ds.theta0.values[0]}
+    run["dt"] = ds.dt.values[0]
+    ds["status"].loc[run] = 1
+    for name in ("energy", "Lz", "L3", "L", "omega", "axis"):
+        if name in ds:
+            ds[name].loc[{**run, "time": ds.time.values[1:]}] = np.nan
+    fig = invariants_figure(ds)
+    assert len(fig.axes) == 3 * 2  # L_3 now has its row: the stopped run did not keep it
+    assert not any("kept exactly" in n for n in getattr(fig, "gyrolab_notes", []))
+    assert not any("exactly conserved" in t.get_text() for ax in drift_figure(ds).axes for t in ax.texts)
+
+
 def test_standard_figures_default_and_single_run(results_file, single_run_file, tmp_path):
     paths = standard_figures(results_file, tmp_path / "a")
     assert [p.name for p in paths] == ["nutation_theta.png", "tip_locus.png", "energy_drift.png", "invariants.png"]

@@ -35,11 +35,12 @@ from .record import (
     coincidence_text,
     coincident,
     diverged_text,
-    fit_text,
     legend_below,
     method_groups,
     method_handles,
+    panel_note,
     panel_size,
+    refit_notes,
     run_title,
     subplots,
     suptitle,
@@ -89,6 +90,12 @@ def _series(sub, quantity, f, th, envelope, methods):
     return out
 
 
+def _kept_exactly(run, err):
+    """The run finished (status 0) with error 0 at every sample: a run that stopped in its first step
+    has only its t = 0 sample finite, and that zero says nothing."""
+    return int(run.status) == 0 and bool(np.all(err[np.isfinite(err)] == 0))
+
+
 def _coincidences(series):
     """Groups of methods whose curves lie on top of each other (within 0.02 decades) at every dt drawn."""
     dts = sorted({dt for _, dt in series})
@@ -112,7 +119,7 @@ def _panel(ax, sub, quantity, f, th, envelope=True, methods=None):
     for (m, dt), err in series.items():
         k = list(sub.dt.values).index(dt)
         run = sub.sel({"integrator": m, "f": f, "theta0": th, "dt": dt})
-        any_zero |= bool(np.all(err[np.isfinite(err)] == 0))
+        any_zero |= _kept_exactly(run, err)
         label = f"{m}" + (f", {fmt_dt(dt)}" if sub.dt.size > 1 else "")
         style = line_style(m)
         if int(run.status) != 0:
@@ -127,22 +134,13 @@ def _panel(ax, sub, quantity, f, th, envelope=True, methods=None):
     ax.set_ylabel(f"|Δ{sym}| / |{sym}(0)|")
     ax.set_title(run_title(sub, f, th), fontsize=9)
     ax.grid(alpha=0.3, which="major")
-    groups = _coincidences(series)
-    if groups:  # wrapped to the panel's width: a box wider than its panel ran into the next one
-        ax.text(
-            0.02,
-            0.97,
-            fit_text(coincidence_text(groups, "same curve"), ax, 7),
-            transform=ax.transAxes,
-            ha="left",
-            va="top",
-            fontsize=7,
-            color="0.15",
-            bbox=dict(fc="white", ec="0.7", alpha=0.85),
-        )
+    # one box for the panel's notes: two boxes in a narrow panel met each other (the coincidences grow
+    # downwards from the top, the floor note upwards from the bottom)
+    notes = [coincidence_text(groups, "same curve")] if (groups := _coincidences(series)) else []
     if any_zero:
-        note = fit_text("at 1e-17: exactly conserved", ax, 7)  # a narrow panel: wrapped, or it met the tick labels
-        ax.text(0.98, 0.03, note, transform=ax.transAxes, ha="right", va="bottom", fontsize=7, color="0.3")
+        notes.append("at 1e-17: exactly conserved")
+    if notes:
+        panel_note(ax, notes)
     return series
 
 
@@ -197,6 +195,7 @@ def drift_figure(ds, quantity="energy", sel=None, envelope=True):
         fontsize=10.5,
     )
     fig.tight_layout()
+    refit_notes(fig)
     add_note(fig, note)
     handles, labels = method_handles([m for g in groups for m in g], list(sub.dt.values), diverged_text(sub))
     legend_below(fig, handles, labels, ncol=min(len(labels), 5))
@@ -222,13 +221,13 @@ def invariants_figure(ds, sel=None, envelope=True):
     panels = [(f, th) for f in sub.f.values for th in sub.theta0.values]
     exact, quantities_drawn = [], []
     for q in quantities:
-        errs = [
-            invariant_error(sub.sel({"integrator": m, "f": f, "theta0": th, "dt": dt}), q)
+        runs = [
+            sub.sel({"integrator": m, "f": f, "theta0": th, "dt": dt})
             for m in sub.integrator.values
             for f, th in panels
             for dt in sub.dt.values
         ]
-        (exact if all(np.all(e[np.isfinite(e)] == 0) for e in errs) else quantities_drawn).append(q)
+        (exact if all(_kept_exactly(r, invariant_error(r, q)) for r in runs) else quantities_drawn).append(q)
     quantities_drawn = quantities_drawn or quantities[:1]
     rows = [(q, g) for q in quantities_drawn for g in range(n_groups)]
     width, height = panel_size(len(rows), len(panels), 4.4, 2.9)
@@ -253,6 +252,7 @@ def invariants_figure(ds, sel=None, envelope=True):
         fontsize=10.5,
     )
     fig.tight_layout()
+    refit_notes(fig)
     if exact:
         add_note(
             fig,

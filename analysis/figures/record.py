@@ -15,7 +15,7 @@ from ..io import absent_variable, missing_variable_error, save_figure
 MAX_COLS = 3  # panels per row before wrapping
 MAX_PANELS = 9  # panels drawn before values are selected (and the figure says which)
 MAX_METHODS = 8  # curves of different methods in one panel; more methods are faceted into more panels
-MAX_CELLS = 40  # panels in one figure (panels per method group × method groups): past it, f and θ0 are selected
+MAX_CELLS = 60  # panels in one figure (panels per method group × method groups): past it, f and θ0 are selected
 MAX_DT = 3  # line styles (dt values) in one panel
 MAX_WIDTH, MAX_HEIGHT = 15.5, 15.0  # inches (× 110 dpi in PNG)
 
@@ -221,12 +221,44 @@ def diverged_text(sub):
     return out
 
 
-def fit_text(text, ax, fontsize):
-    """``text`` wrapped at its words to the width of ``ax`` (about 120 / fontsize characters per inch)."""
-    import textwrap
+def fit_text(text, ax, fontsize, pad_in=0.12):
+    """``text`` wrapped at its words to the width of ``ax`` less ``pad_in`` (in): each line's width is
+    measured in the figure's own font (an estimate per character let long method names overflow)."""
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.textpath import TextToPath
 
-    width_in = ax.get_position().width * ax.figure.get_figwidth()
-    return "\n".join(textwrap.wrap(text, max(12, int(width_in * 120 / fontsize)), break_on_hyphens=False))
+    width_pt = (ax.get_position().width * ax.figure.get_figwidth() - pad_in) * 72
+    font = FontProperties(size=fontsize)
+
+    def fits(line):
+        return TextToPath().get_text_width_height_descent(line, font, ismath=False)[0] <= width_pt
+
+    lines = []
+    for word in text.split():
+        if lines and fits(lines[-1] + " " + word):
+            lines[-1] += " " + word
+        else:
+            lines.append(word)  # a word wider than the panel gets a line of its own
+    return "\n".join(lines)
+
+
+def panel_note(ax, paragraphs, fontsize=7, **kwargs):
+    """A boxed note in the upper left of ``ax``: ``paragraphs`` (one line each at least) wrapped to the
+    panel's width.  Call ``refit_notes(fig)`` after the figure's layout: tight_layout narrows the panels
+    after their notes were wrapped, and a note wrapped before it ran past its panel."""
+    style = dict(ha="left", va="top", fontsize=fontsize, color="0.15", bbox=dict(fc="white", ec="0.7", alpha=0.75))
+    note = ax.text(0.02, 0.97, "", transform=ax.transAxes, **(style | kwargs))
+    note.gyrolab_paragraphs = list(paragraphs)
+    note.set_text("\n".join(fit_text(p, ax, fontsize) for p in paragraphs))
+    return note
+
+
+def refit_notes(fig):
+    """Wrap every panel_note of ``fig`` again to its panel's width as laid out now."""
+    for ax in fig.axes:
+        for t in ax.texts:
+            if hasattr(t, "gyrolab_paragraphs"):
+                t.set_text("\n".join(fit_text(p, ax, t.get_fontsize()) for p in t.gyrolab_paragraphs))
 
 
 def legend_below(fig, handles, labels, ncol=None, fontsize=8):
