@@ -17,38 +17,9 @@ import pytest
 from gyrolab.kernels.body import Body
 from gyrolab.kernels.registry import METHODS
 
+from transcribe import lab_torque, qmul, rot
+
 RNG_SEED = 23
-
-
-def qmul(p, q):
-    a1, b1, c1, d1 = p
-    a2, b2, c2, d2 = q
-    return np.array(
-        [
-            a1 * a2 - b1 * b2 - c1 * c2 - d1 * d2,
-            a1 * b2 + b1 * a2 + c1 * d2 - d1 * c2,
-            a1 * c2 - b1 * d2 + c1 * a2 + d1 * b2,
-            a1 * d2 + b1 * c2 - c1 * b2 + d1 * a2,
-        ]
-    )
-
-
-def rot(q):
-    """R(q): body → lab."""
-    a, b, c, d = q
-    return np.array(
-        [
-            [a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c)],
-            [2 * (b * c + a * d), a * a - b * b + c * c - d * d, 2 * (c * d - a * b)],
-            [2 * (b * d - a * c), 2 * (c * d + a * b), a * a - b * b - c * c + d * d],
-        ]
-    )
-
-
-def lab_torque(q, body):
-    """The weight's torque about the pivot in the lab: R c × (−M g ẑ), from M g c = (mgc1, mgc2, mgl)."""
-    mg_c = np.array([body.mgc1, body.mgc2, body.mgl])
-    return np.cross(rot(q) @ mg_c, [0.0, 0.0, -1.0])
 
 
 def random_cases(n, free=False, scale=30.0):
