@@ -71,27 +71,34 @@ DEG_10_SQ = 3.0461741978671e-02  # alg.h: ten degrees squared in radians, EXPMAP
 
 
 @njit(cache=True, error_model="numpy")
-def _expmap(o0, o1, o2):
-    """alg.h EXPMAP: exp(Ô) = I + sin|o|/|o| Ô + (1 − cos|o|)/|o|² Ô², as the 9-tuple of Solfec's
-    column-major matrix (element (i, j) at 3 j + i), in its arithmetic (Taylor below 10°)."""
-    x = o0 * o0 + o1 * o1 + o2 * o2
-    if x < DEG_10_SQ:
-        s = (
-            1.0
+def _sinc_taylor(x):
+    """sin|o|/|o| as alg.h's Horner polynomial in x = |o|², the Taylor series EXPMAP and EXPMAP123 share
+    below ten degrees."""
+    return (
+        1.0
+        + (
+            -1.666666666666667e-1
             + (
-                -1.666666666666667e-1
+                8.333333333333333e-3
                 + (
-                    8.333333333333333e-3
-                    + (
-                        -1.984126984126984e-4
-                        + (2.755731922398589e-6 + (-2.505210838544172e-8 + 1.605904383682161e-10 * x) * x) * x
-                    )
-                    * x
+                    -1.984126984126984e-4
+                    + (2.755731922398589e-6 + (-2.505210838544172e-8 + 1.605904383682161e-10 * x) * x) * x
                 )
                 * x
             )
             * x
         )
+        * x
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def _expmap(o0, o1, o2):
+    """alg.h EXPMAP: exp(Ô) = I + sin|o|/|o| Ô + (1 − cos|o|)/|o|² Ô², as the 9-tuple of Solfec's
+    column-major matrix (element (i, j) at 3 j + i), in its arithmetic (Taylor below 10°)."""
+    x = o0 * o0 + o1 * o1 + o2 * o2
+    if x < DEG_10_SQ:
+        s = _sinc_taylor(x)
         c = (
             0.5
             + (
@@ -177,22 +184,7 @@ def _tangent_column(o0, o1, o2, jw0, jw1, jw2, j):
         return 0.0 * jw0 - 1.0 * jw1 + 0.0 * jw2, 1.0 * jw0 + 0.0 * jw1 + 0.0 * jw2, 0.0 * jw0 + 0.0 * jw1 + 0.0 * jw2
     c = 1.0 / x
     if x < DEG_10_SQ:
-        a = (
-            1.0
-            + (
-                -1.666666666666667e-1
-                + (
-                    8.333333333333333e-3
-                    + (
-                        -1.984126984126984e-4
-                        + (2.755731922398589e-6 + (-2.505210838544172e-8 + 1.605904383682161e-10 * x) * x) * x
-                    )
-                    * x
-                )
-                * x
-            )
-            * x
-        )
+        a = _sinc_taylor(x)
         b = (
             c
             - 0.5
@@ -315,9 +307,10 @@ def _residual(w0, w1, w2, half, I1, I2, I3, g0, g1, g2):
     return b, r0, r1, r2
 
 
-@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
-def step_driven(w, q, t, dt, body):
-    """One Solfec RIG_IMP step of dt seconds from time t (s); the torque at t + dt/2."""
+@njit(cache=True, error_model="numpy", forceinline=True)
+def step_begin(w, q, t, dt, body):
+    """Solfec's BODY_Dynamic_Step_Begin and RIG_AUXILIARY, shared by RIG_IMP and RIG_NEG: (Λ_{1/2} as a
+    quaternion, A = exp(−h/2 Ŵ_n) J W_n + h T (N m s, body frame), the explicit velocity W⁰ (rad/s, body))."""
     I1, I2, I3 = body[0], body[1], body[2]
     half = 0.5 * dt
     W0, W1, W2 = w
@@ -345,6 +338,15 @@ def step_driven(w, q, t, dt, body):
     W0 = W0 + dt * f0 * inv1
     W1 = W1 + dt * f1 * inv2
     W2 = W2 + dt * f2 * inv3
+    return q_half, (g0, g1, g2), (W0, W1, W2)
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
+def step_driven(w, q, t, dt, body):
+    """One Solfec RIG_IMP step of dt seconds from time t (s); the torque at t + dt/2."""
+    I1, I2, I3 = body[0], body[1], body[2]
+    half = 0.5 * dt
+    q_half, (g0, g1, g2), (W0, W1, W2) = step_begin(w, q, t, dt, body)
     # Step_End: SOLVE (half, J, W, A, DR), Newton from W⁰
     level = TOLERANCE * half
     b, r0, r1, r2 = _residual(W0, W1, W2, half, I1, I2, I3, g0, g1, g2)

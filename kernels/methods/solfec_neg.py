@@ -31,9 +31,8 @@ not symplectic.
 from numba import njit
 
 from ..body import without_drive
-from ..rigid_body import torque_at
 from ..rotation import quat_from_rotvec, quat_mul, quat_normalize
-from .solfec_imp import _expmap
+from .solfec_imp import _expmap, step_begin
 
 ORDER = 2
 SYMPLECTIC = False
@@ -46,28 +45,8 @@ def step_driven(w, q, t, dt, body):
     """One Solfec RIG_NEG step of dt seconds from time t (s); the torque at t + dt/2."""
     I1, I2, I3 = body[0], body[1], body[2]
     half = 0.5 * dt
-    W0, W1, W2 = w
-    # Step_Begin (as solfec_imp): DR = exp(h/2 Ŵ_n), Λ_{1/2} = Λ_n DR, the torque at Λ_{1/2} and t + h/2
-    o0, o1, o2 = W0 * half, W1 * half, W2 * half
-    dr = _expmap(o0, o1, o2)
-    q_half = quat_mul(q, quat_from_rotvec(o0, o1, o2))
-    f0, f1, f2 = torque_at(q_half, t + half, body)
-    jw0, jw1, jw2 = I1 * W0, I2 * W1, I3 * W2
-    e0 = dr[0] * jw0 + dr[1] * jw1 + dr[2] * jw2  # TVMUL (DR, JW): exp(−h/2 Ŵ_n) J W_n
-    e1 = dr[3] * jw0 + dr[4] * jw1 + dr[5] * jw2
-    e2 = dr[6] * jw0 + dr[7] * jw1 + dr[8] * jw2
-    g0, g1, g2 = e0 + dt * f0, e1 + dt * f1, e2 + dt * f2  # A = exp(−h/2 Ŵ_n) J W_n + h T
+    q_half, (g0, g1, g2), (W0, W1, W2) = step_begin(w, q, t, dt, body)  # as solfec_imp
     inv1, inv2, inv3 = 1.0 / I1, 1.0 / I2, 1.0 / I3
-    v0 = inv1 * (f0 * half + e0)  # W_{1/2} = J⁻¹ [(h/2) T + DRᵀ J W_n]
-    v1 = inv2 * (f1 * half + e1)
-    v2 = inv3 * (f2 * half + e2)
-    u0, u1, u2 = I1 * v0, I2 * v1, I3 * v2
-    f0 = f0 - (v1 * u2 - v2 * u1)  # T − W_{1/2} × J W_{1/2} (PRODUCTSUB)
-    f1 = f1 - (v2 * u0 - v0 * u2)
-    f2 = f2 - (v0 * u1 - v1 * u0)
-    W0 = W0 + dt * f0 * inv1  # W¹ = W_n + (h force) J⁻¹ (dgemv, alpha = h, beta = 1)
-    W1 = W1 + dt * f1 * inv2
-    W2 = W2 + dt * f2 * inv3
     # Step_End (SCH_RIG_NEG): DR = exp(h/2 Ŵ¹), Λ_{n+1} = Λ_{1/2} DR, W_{n+1} = J⁻¹ DRᵀ A
     o0, o1, o2 = W0 * half, W1 * half, W2 * half
     dr = _expmap(o0, o1, o2)
