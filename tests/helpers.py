@@ -4,7 +4,8 @@
   ``TINY`` and chunking ``SLOW``, ``data(path)`` (a file without its volatile
   attrs), ``tiny_reference(root)``;
 - ``build_dataset(path, grid, scene, ...)``: a small results file made
-  through the batch kernels and gyrolab/results/layout.py, without the runner.
+  through the batch kernels and gyrolab/results/layout.py, without the runner;
+- one method's steps: ``DRIVEN_BODY``, ``random_states(n, seed)``, ``step_run(name, ...)``.
 """
 
 import os
@@ -17,6 +18,8 @@ import numpy as np
 import xarray as xr
 
 from gyrolab.kernels.batch import integrate, sample_schedule
+from gyrolab.kernels.body import Body
+from gyrolab.kernels.registry import METHODS
 from gyrolab.kernels.scenes import build_scene, get_scene
 from gyrolab.results.identity import VOLATILE_ATTRS
 from gyrolab.results.layout import GRID_DIMS, scene_attrs, to_dataset
@@ -276,3 +279,31 @@ def experiment_scene(name):
     scene = options.pop("name")
     (f,), (theta0,) = cfg.sweep.f, cfg.sweep.theta0
     return build_scene(scene, float(f), float(theta0), **options)
+
+
+# a heavy asymmetric body with its centre of mass off every axis and a drive: every torque path
+DRIVEN_BODY = Body(0.02, 0.025, 0.008, 0.98, 0.29, 0.1, 0.3, -0.2, 0.75, 3.0, 0.0, 100.0)
+
+
+def random_states(n, seed, dt_max=1e-2):
+    """n (ω, q, t, dt): ω ~ 20 rad/s, q uniform on S³, t in [0, 10] s, dt in [1e-4, dt_max] s."""
+    rng = np.random.default_rng(seed)
+    for _ in range(n):
+        q = rng.normal(size=4)
+        yield (
+            tuple(rng.normal(scale=20.0, size=3)),
+            tuple(q / np.linalg.norm(q)),
+            float(rng.uniform(0.0, 10.0)),
+            float(rng.uniform(1e-4, dt_max)),
+        )
+
+
+def step_run(name, w, q, dt, body, n):
+    """Arrays (n + 1, 3) of ω (rad/s, body) and (n + 1, 4) of q of n steps of dt seconds of ``name``."""
+    step = METHODS[name].step
+    W, Q = [w], [q]
+    for _ in range(n):
+        w, q = step(w, q, dt, body)
+        W.append(w)
+        Q.append(q)
+    return np.array(W), np.array(Q)

@@ -8,29 +8,12 @@ invariants and block path; this file checks what is particular to each one.
 import numpy as np
 from numba import njit
 
-from gyrolab.kernels.body import Body
 from gyrolab.kernels.free_flow import _axis_rotation, kick_at
 from gyrolab.kernels.registry import METHODS
 
-from helpers import experiment_scene
+from helpers import DRIVEN_BODY, experiment_scene, random_states
 
 EPS = np.finfo(float).eps
-
-# a heavy asymmetric body with its centre of mass off every axis and a drive: every torque path
-DRIVEN_BODY = Body(0.02, 0.025, 0.008, 0.98, 0.29, 0.1, 0.3, -0.2, 0.75, 3.0, 0.0, 100.0)
-
-
-def random_states(n, seed):
-    """n (ω, q, t, dt): ω ~ 20 rad/s, q uniform on S³, t in [0, 10] s, dt in [1e-4, 1e-2] s."""
-    rng = np.random.default_rng(seed)
-    for _ in range(n):
-        q = rng.normal(size=4)
-        yield (
-            tuple(rng.normal(scale=20.0, size=3)),
-            tuple(q / np.linalg.norm(q)),
-            float(rng.uniform(0.0, 10.0)),
-            float(rng.uniform(1e-4, 1e-2)),
-        )
 
 
 @njit(cache=True, error_model="numpy")

@@ -23,7 +23,7 @@ from gyrolab.kernels.registry import METHODS
 from gyrolab.kernels.rigid_body import energy, lab_momentum
 from gyrolab.kernels.rotation import ck_matrix
 
-from helpers import experiment_scene
+from helpers import experiment_scene, step_run
 
 METHOD = METHODS["solfec_imp"]
 EPS = np.finfo(float).eps
@@ -293,16 +293,6 @@ def test_non_converged_step_is_nan():
     assert status[0] == STATUS_NONFINITE
 
 
-def run(w, q, dt, body, n, name="solfec_imp"):
-    step = METHODS[name].step
-    W, Q = [w], [q]
-    for _ in range(n):
-        w, q = step(w, q, dt, body)
-        W.append(w)
-        Q.append(q)
-    return np.array(W), np.array(Q)
-
-
 @pytest.mark.parametrize("scene", ["heavy_top", "heavy_body", "free_symmetric", "free_asymmetric", "kovalevskaya"])
 @pytest.mark.parametrize("name", ["solfec_imp", "solfec_neg"])
 def test_keeps_what_it_declares_on_every_scene_that_conserves_it(name, scene):
@@ -312,7 +302,7 @@ def test_keeps_what_it_declares_on_every_scene_that_conserves_it(name, scene):
 
     sc = build_scene(scene, 10.0, 30.0)
     kept = set(METHODS[name].PRESERVES) & set(get_scene(scene).CONSERVED)
-    W, Q = run(sc.omega0, sc.q0, 5e-4, sc.body, 2000, name)
+    W, Q = step_run(name, sc.omega0, sc.q0, 5e-4, sc.body, 2000)
     L = np.array([lab_momentum(tuple(w), tuple(q), sc.body) for w, q in zip(W, Q)])
     E = np.array([energy(tuple(w), tuple(q), sc.body) for w, q in zip(W, Q)])
     scale = np.linalg.norm(L[0])
@@ -335,7 +325,7 @@ def test_second_order(name):
         ref_w, ref_q = METHODS["rk4"].step(ref_w, ref_q, 0.5 / 16000, sc.body)
     errors = []
     for n in (1000, 2000, 4000):
-        W, Q = run(sc.omega0, sc.q0, 0.5 / n, sc.body, n, name)
+        W, Q = step_run(name, sc.omega0, sc.q0, 0.5 / n, sc.body, n)
         errors.append(np.abs(ck_matrix(tuple(Q[-1])) - ck_matrix(ref_q)).max())
     ratios = [a / b for a, b in zip(errors, errors[1:])]
     print(f"\n{name} errors {errors}, ratios {ratios}")

@@ -22,7 +22,7 @@ from gyrolab.kernels.registry import METHODS
 from gyrolab.kernels.rigid_body import energy, lab_momentum, torque_at
 from gyrolab.kernels.rotation import ck_matrix
 
-from helpers import experiment_scene
+from helpers import DRIVEN_BODY, experiment_scene, random_states, step_run
 
 SOLFEC_H = 1269.975  # H as published (three decimals)
 
@@ -79,22 +79,6 @@ def test_energy_table_of_every_method():
 
 # ---------------------------------------------------------------- simo_wong itself
 
-# a heavy asymmetric body with its centre of mass off every axis and a drive: every torque path
-DRIVEN_BODY = Body(0.02, 0.025, 0.008, 0.98, 0.29, 0.1, 0.3, -0.2, 0.75, 3.0, 0.0, 100.0)
-
-
-def random_states(n, seed):
-    """n (ω, q, t, dt): ω ~ 20 rad/s, q uniform on S³, t in [0, 10] s, dt in [1e-4, 1e-3] s."""
-    rng = np.random.default_rng(seed)
-    for _ in range(n):
-        q = rng.normal(size=4)
-        yield (
-            tuple(rng.normal(scale=20.0, size=3)),
-            tuple(q / np.linalg.norm(q)),
-            float(rng.uniform(0.0, 10.0)),
-            float(rng.uniform(1e-4, 1e-3)),
-        )
-
 
 def test_simo_wong_step_solves_its_discrete_equations():
     """Independently of the quaternion form: from 300 random states of a driven heavy body, the
@@ -104,7 +88,7 @@ def test_simo_wong_step_solves_its_discrete_equations():
     step = METHODS["simo_wong"].step_driven
     J = np.diag(DRIVEN_BODY[:3])
     worst_theta = worst_p = 0.0
-    for w, q, t, dt in random_states(300, 24):
+    for w, q, t, dt in random_states(300, 24, dt_max=1e-3):
         w1, q1 = step(w, q, t, dt, DRIVEN_BODY)
         F = ck_matrix(q).T @ ck_matrix(q1)
         theta = 0.5 * dt * (np.array(w) + w1)
@@ -115,24 +99,13 @@ def test_simo_wong_step_solves_its_discrete_equations():
     assert worst_theta <= 1e-12 and worst_p <= 1e-12, (worst_theta, worst_p)
 
 
-def run(name, w, q, dt, body, n):
-    """Arrays (n + 1, 3) of ω and (n + 1, 4) of q of n steps of ``name``."""
-    step = METHODS[name].step
-    W, Q = [w], [q]
-    for _ in range(n):
-        w, q = step(w, q, dt, body)
-        W.append(w)
-        Q.append(q)
-    return np.array(W), np.array(Q)
-
-
 def test_simo_wong_keeps_energy_and_momentum_of_a_free_body_and_lz_under_gravity():
     """Torque-free (an asymmetric box tumbling near its middle axis, 5000 steps of 1e-3 s, h|ω| = 0.05):
     the lab angular momentum, |L| and the energy stay to rounding (≤ 1e-13 relative; measured ~1e-15 ..
     1e-14); Solfec's top at h = 9e-3 (1111 steps): L_z to rounding (≤ 1e-13 of |L|), while the energy
     moves by 6.6e-8 (the trapezoidal torque keeps it to O(h²) only)."""
     free = Body(1.0, 2.0, 3.5, 0.0)
-    W, Q = run("simo_wong", (0.3, 5.0, 0.4), (1.0, 0.0, 0.0, 0.0), 1e-3, free, 5000)
+    W, Q = step_run("simo_wong", (0.3, 5.0, 0.4), (1.0, 0.0, 0.0, 0.0), 1e-3, free, 5000)
     L = np.array([lab_momentum(tuple(w), tuple(q), free) for w, q in zip(W, Q)])
     E = np.array([energy(tuple(w), tuple(q), free) for w, q in zip(W, Q)])
     scale = np.linalg.norm(L[0])
@@ -141,7 +114,7 @@ def test_simo_wong_keeps_energy_and_momentum_of_a_free_body_and_lz_under_gravity
     assert np.abs(E / E[0] - 1).max() <= 1e-13
 
     sc = solfec_top.solfec_scene()
-    W, Q = run("simo_wong", sc.omega0, sc.q0, 9e-3, sc.body, 1111)
+    W, Q = step_run("simo_wong", sc.omega0, sc.q0, 9e-3, sc.body, 1111)
     L = np.array([lab_momentum(tuple(w), tuple(q), sc.body) for w, q in zip(W, Q)])
     assert np.abs(L[:, 2] - L[0, 2]).max() / np.linalg.norm(L[0]) <= 1e-13
     E = np.array([energy(tuple(w), tuple(q), sc.body) for w, q in zip(W, Q)])
@@ -178,7 +151,7 @@ def test_simo_wong_keeps_what_it_declares_on_every_scene_that_conserves_it(scene
     sc = build_scene(scene, 10.0, 30.0)
     kept = set(METHODS["simo_wong"].PRESERVES) & set(get_scene(scene).CONSERVED)
     assert "Lz" in kept
-    W, Q = run("simo_wong", sc.omega0, sc.q0, 5e-4, sc.body, 2000)
+    W, Q = step_run("simo_wong", sc.omega0, sc.q0, 5e-4, sc.body, 2000)
     L = np.array([lab_momentum(tuple(w), tuple(q), sc.body) for w, q in zip(W, Q)])
     scale = np.linalg.norm(L[0])
     values = {"L": L, "L_norm": np.linalg.norm(L, axis=1), "Lz": L[:, 2]}
