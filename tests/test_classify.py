@@ -438,6 +438,36 @@ def test_stability_threshold_bisects_to_a_known_edge(batch):
     assert math.isnan(bad.omega_dt_crit) and "not bounded" in bad.reason
 
 
+def test_stability_threshold_past_a_failure_at_small_steps():
+    # bounded on [3e-3, 0.0123456] only: the smallest steps fail as a solver stalling at its rounding
+    # floor does (solfec_imp), so the edge above is still found, and the small-step failure is reported
+    edge, floor = 0.0123456, 3e-3
+
+    def run_ok(dts):
+        dts = np.asarray(dts)
+        return (dts >= floor) & (dts <= edge)
+
+    th = stability_threshold(run_ok, 1e-4, 1.0, omega=10.0, rtol=1e-4, batch=2)
+    assert not th.reason
+    assert th.omega_dt_crit == pytest.approx(10 * edge, rel=1e-4)
+    assert 10 * 1e-4 <= th.omega_dt_small_fail < 10 * floor
+    from gyrolab.analysis.verdicts.verdict import fmt_threshold
+
+    cell = fmt_threshold({"omega_dt_crit": th.omega_dt_crit, "omega_dt_small_fail": th.omega_dt_small_fail})
+    assert cell.startswith("0.123; fails at ≤ "), cell
+    # sporadic failures below the bounded range (a Newton solve that meets its floor by luck): the edge above
+    flaky = stability_threshold(
+        lambda dts: (np.asarray(dts) <= edge) & ((np.asarray(dts) >= floor) | (np.asarray(dts) * 1e4 % 2 < 1)),
+        1e-4,
+        1.0,
+        rtol=1e-4,
+        batch=2,
+    )
+    assert flaky.omega_dt_crit == pytest.approx(edge, rel=1e-4) and flaky.omega_dt_small_fail < floor
+    plain = stability_threshold(lambda dts: np.asarray(dts) <= edge, 1e-4, 1.0, rtol=1e-3)
+    assert math.isnan(plain.omega_dt_small_fail)
+
+
 def test_method_stability_threshold_runs_batches():
     """Through batch.integrate (or any callable with its signature): a fake 'integrate' whose
     runs fail above |ω| dt = 1.7 gives that threshold."""

@@ -720,7 +720,11 @@ class Threshold(_Record):
     dimensionless step), with the bracket omega_dt_lo, omega_dt_hi = |ω| ·
     (dt_lo, dt_hi); omega (rad/s): the |ω| used (1 when none given, so the
     omega_dt values are then plain dt); n_evals: predicate calls (runs);
-    reason: "" when the bracket converged, else why not.
+    reason: "" when the bracket converged, else why not; omega_dt_small_fail:
+    when the smallest step failed but a larger one stayed bounded (a solver
+    whose absolute tolerance falls below rounding at small steps), |ω| times
+    the largest step seen failing below the last bounded stretch of probes
+    (the bisection then runs above it), else NaN.
     """
 
     omega_dt_crit: float = math.nan
@@ -731,6 +735,7 @@ class Threshold(_Record):
     omega: float = 1.0
     n_evals: int = 0
     reason: str = ""
+    omega_dt_small_fail: float = math.nan  # |ω| dt of the largest failing step below the bounded range
 
 
 def _finish(rec, lo, hi, omega, evals, reason=""):
@@ -759,8 +764,24 @@ def stability_threshold(run_ok, lo, hi, *, omega=1.0, rtol=1e-3, max_evals=60, b
     ends = np.asarray(run_ok(np.array([lo, hi], dtype=float)), dtype=bool)
     evals = 2
     if not ends[0]:
-        return _finish(rec, math.nan, lo, omega, evals, f"the run at lo = {lo:g} s is not bounded")
-    if ends[1]:
+        # unstable at every step, or a failure only small steps meet (an implicit solver whose absolute
+        # tolerance lies below the rounding of its residual): probe upward once before saying "unstable"
+        probes = np.geomspace(lo, hi, max(batch, 8) + 2)[1:-1]
+        ok = np.asarray(run_ok(probes), dtype=bool)
+        evals += probes.size
+        if not ok.any():
+            return _finish(rec, math.nan, lo, omega, evals, f"the run at lo = {lo:g} s is not bounded")
+        # the stability edge lies above the last bounded probe (failures below it may be sporadic: whether
+        # a Newton solve meets its floor is luck); those below the last bounded stretch are reported
+        last = int(np.nonzero(ok)[0][-1])
+        below = np.nonzero(~ok[:last])[0]
+        rec.omega_dt_small_fail = omega * float(probes[below[-1]] if below.size else lo)
+        lo = float(probes[last])
+        if last + 1 < probes.size:
+            hi = float(probes[last + 1])
+        elif ends[1]:
+            return _finish(rec, hi, math.nan, omega, evals, f"the run at hi = {hi:g} s stays bounded")
+    elif ends[1]:
         return _finish(rec, hi, math.nan, omega, evals, f"the run at hi = {hi:g} s stays bounded")
     while hi / lo - 1 > rtol:
         if evals >= max_evals:

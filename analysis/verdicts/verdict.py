@@ -411,6 +411,7 @@ def threshold_records(datasets, t_end, rtol=1e-3):
                     stability_t_end=float(t_end),
                     omega_dt_crit=thr.omega_dt_crit,
                     omega_dt_bracket=[thr.omega_dt_lo, thr.omega_dt_hi],
+                    omega_dt_small_fail=thr.omega_dt_small_fail,
                     omega=thr.omega,
                     threshold_reason=thr.reason,
                     order=None,
@@ -526,6 +527,7 @@ def _group_summaries(scene, m, f, th, order, group_runs, thr, quantities):
             rec.update(
                 omega_dt_crit=thr["omega_dt_crit"],
                 omega_dt_bracket=thr["omega_dt_bracket"],
+                omega_dt_small_fail=thr.get("omega_dt_small_fail"),
                 stability_t_end=thr["stability_t_end"],
                 threshold_reason=thr["threshold_reason"],
                 stability_f=thr["f"],
@@ -654,14 +656,18 @@ def fmt_drift(rec, short=False):
 
 
 def fmt_threshold(rec):
+    """'2.57', '< 0.001' (not bounded at the smallest step), '> 10' (bounded at the largest); with
+    '; fails at ≤ x' when steps below the bounded range failed too (a solver that stalls at small steps)."""
+    small = rec.get("omega_dt_small_fail")
+    tail = f"; fails at ≤ {small:.3g}" if small is not None and math.isfinite(small) else ""
     crit = rec.get("omega_dt_crit")
     if crit is not None and math.isfinite(crit):
-        return f"{crit:.3g}"
+        return f"{crit:.3g}{tail}"
     lo, hi = rec.get("omega_dt_bracket") or (None, None)
     if hi is not None and math.isfinite(hi) and (lo is None or not math.isfinite(lo)):
         return f"< {hi:.3g}"
     if lo is not None and math.isfinite(lo) and (hi is None or not math.isfinite(hi)):
-        return f"> {lo:.3g}"
+        return f"> {lo:.3g}{tail}"
     return "—"
 
 
@@ -702,7 +708,9 @@ def markdown(records, title="Verdicts measured by gyrolab"):
         "PRESERVES but not kept.  '≤ reference': the errors lie below the reference's own error estimate, "
         "so they measure the reference, not the method (such points are left out of every fit).  "
         "(‖ω‖dt)_crit: largest step, by bisection, whose run stays bounded (|E − E0| ≤ T0 + |Mgl|) over the "
-        "stated time; '< x' = not bounded even at the smallest step tried, '> x' = bounded at the largest.",
+        "stated time; '< x' = not bounded even at the smallest step tried (nor at any of 8 larger ones), "
+        "'> x' = bounded at the largest; '; fails at ≤ y': steps up to y failed too (a solver that stalls "
+        "at small steps), the bisection ran above them.",
         "",
     ]
     for scene in dict.fromkeys(r["scene"] for r in summ):
