@@ -295,13 +295,15 @@ def test_non_converged_step_is_nan():
 
 @pytest.mark.parametrize("scene", ["heavy_top", "heavy_body", "free_symmetric", "free_asymmetric", "kovalevskaya"])
 @pytest.mark.parametrize("name", ["solfec_imp", "solfec_neg"])
-def test_keeps_what_it_declares_on_every_scene_that_conserves_it(name, scene):
-    """Each of PRESERVES (L, |L|, L_z) that the scene declares conserved stays within 1e-12 of its start,
-    relative to |L(0)|, over 2000 steps of 5e-4 s at f = 10 Hz, θ0 = 30° (the measured drifts printed)."""
+def test_keeps_its_momentum_on_every_scene_that_conserves_it(name, scene):
+    """Each of L, |L|, L_z that the scene declares conserved (exactly, in exact arithmetic, for both
+    schemes) stays within 1e-12 of its start, relative to |L(0)|, over 2000 steps of 5e-4 s at f = 10 Hz,
+    θ0 = 30° (the measured drifts printed).  Not all of them to rounding over a long run: PRESERVES
+    declares only what the verdict finds kept so."""
     from gyrolab.kernels.scenes import build_scene, get_scene
 
     sc = build_scene(scene, 10.0, 30.0)
-    kept = set(METHODS[name].PRESERVES) & set(get_scene(scene).CONSERVED)
+    kept = {"L", "L_norm", "Lz"} & set(get_scene(scene).CONSERVED)
     W, Q = step_run(name, sc.omega0, sc.q0, 5e-4, sc.body, 2000)
     L = np.array([lab_momentum(tuple(w), tuple(q), sc.body) for w, q in zip(W, Q)])
     E = np.array([energy(tuple(w), tuple(q), sc.body) for w, q in zip(W, Q)])
