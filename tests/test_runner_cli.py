@@ -3,6 +3,7 @@
 Each subprocess costs ~1-2 s (Hydra, numba and xarray imports; JIT from cache).
 """
 
+import os
 import shlex
 import signal
 import subprocess
@@ -174,11 +175,16 @@ def test_second_writer_to_the_same_output_is_refused(tmp_path, reference):
     run = tmp_path / "run"
     first = start(*TINY, *SLOW, f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=1.0)
     wait_for(lambda: chunk_count(run) >= 1, first)
-    for extra in ([], ["runner.resume=true"], ["output.overwrite=true"]):
-        second = gyrolab(*TINY, *SLOW, f"hydra.run.dir={run}", *extra, cwd=tmp_path)
-        assert first.poll() is None, "the first writer finished too soon for this test"
-        assert second.returncode == 2, second.stderr
-        assert f"another gyrolab (pid {first.pid}) is writing it" in second.stderr
+    # paused mid-run (it keeps its lock), so that three slow starts on a loaded machine cannot outlast it
+    os.kill(first.pid, signal.SIGSTOP)
+    try:
+        for extra in ([], ["runner.resume=true"], ["output.overwrite=true"]):
+            second = gyrolab(*TINY, *SLOW, f"hydra.run.dir={run}", *extra, cwd=tmp_path)
+            assert first.poll() is None, "the first writer finished too soon for this test"
+            assert second.returncode == 2, second.stderr
+            assert f"another gyrolab (pid {first.pid}) is writing it" in second.stderr
+    finally:
+        os.kill(first.pid, signal.SIGCONT)
     assert first.wait(timeout=120) == 0, first.communicate()
     xr.testing.assert_identical(data(run / "results.h5"), data(reference))
 
