@@ -57,11 +57,13 @@ FREE_ORDER = 2  # torque-free: the implicit midpoint rule
 SYMPLECTIC = False
 # judged by conformance with the engine (tests/test_engines.py)
 REPRODUCES = "MuJoCo 3.10 implicitfast midpoint rule for free bodies"
-# |Iω|² is a quadratic invariant of the torque-free ω equation, which the midpoint rule keeps (the energy
-# too, but the heavy top's is not kept, and PRESERVES must hold on every scene conserving the invariant).
+# |Iω|² is a quadratic invariant of the torque-free ω equation, which the midpoint rule keeps, but only to
+# the Newton tolerance: over the verdict's 1e6 steps of 1e-3 s on the free asymmetric body |L| drifts
+# 5.6e-14 /s, above its 0.1 eps a step (docs/verdict.md), so L_norm is not declared (nor the energy: the
+# heavy top's is not kept, and PRESERVES must hold on every scene conserving the invariant).
 # For I1 = I2 with τ3 = 0 the third row of the Newton system is (0, 0, 2 I3 / h | −f3), f3 a rounding-level
 # difference of ω1 (I ω2) and ω2 (I ω1): ω3 stays (measured: bit-identical over 5000 steps of the heavy top).
-PRESERVES = ("L_norm", "L3")
+PRESERVES = ("L3",)
 
 MAX_NEWTON_ITERATIONS = 100  # midpointNewton: for (niter=0; niter < 100; niter++)
 MAX_LINE_SEARCH = 20  # backtracking halvings per Newton step, midpointNewton: for (ls=0; ls < 20; ls++)
