@@ -20,10 +20,6 @@ from ...safe_files import check_output, write_text
 BEGIN, END = "<!-- verdict-table:begin -->", "<!-- verdict-table:end -->"
 
 
-def _fmt(x, digits=3):
-    return "—" if x is None else f"{x:.{digits}g}"
-
-
 def _drift(rec):
     """The energy drift cell: the verdict's own wording (analysis/verdicts/verdict.py fmt_drift)."""
     from ..verdicts.verdict import fmt_drift
@@ -34,7 +30,7 @@ def _drift(rec):
 def table(records, scene="heavy_top"):
     """Markdown rows: one per registered method, from its ``summary`` records on ``scene``."""
     from ...kernels.registry import METHODS
-    from ..verdicts.verdict import ladder_words
+    from ..verdicts.verdict import fmt_threshold, ladder_words
 
     summary = {
         (r["method"], r["quantity"]): r for r in records if r.get("kind") == "summary" and r.get("scene") == scene
@@ -65,9 +61,7 @@ def table(records, scene="heavy_top"):
             if order is not None
             else f"— ({rec.get('order_reason') or 'no fit'})"
         )
-        crit = rec.get("omega_dt_crit")
-        low = (rec.get("omega_dt_bracket") or [None])[0]
-        crit_text = _fmt(crit) if crit is not None else (f"> {low:g}" if low is not None else "—")
+        crit_text = fmt_threshold(rec)  # the verdict table's own cell ("; fails at ≤ y" included)
         doc = module.__doc__.strip().splitlines()[0].split(": ", 1)[1]
         lines.append(
             f"| `{name}` | {module.ORDER} | {measured} | {'yes' if module.SYMPLECTIC else 'no'} | "

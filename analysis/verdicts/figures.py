@@ -70,7 +70,9 @@ def _threshold_panel(ax, thresholds):
         c = color(r["method"])
         if crit is not None and math.isfinite(crit):
             ax.barh(k, crit, color=c, alpha=0.8)
-            ax.text(crit * 1.1, k, f"{crit:.3g}", va="center", fontsize=6.5)
+            small = r.get("omega_dt_small_fail")  # runs at smaller steps failed too (verdict.fmt_threshold)
+            tail = f"; fails at ≤ {small:.3g}" if small is not None and math.isfinite(small) else ""
+            ax.text(crit * 1.1, k, f"{crit:.3g}{tail}", va="center", fontsize=6.5)
         elif hi is not None and math.isfinite(hi):
             ax.plot(hi, k, "<", color=c)
             ax.text(hi * 1.3, k, f"< {hi:.3g}", va="center", fontsize=6.5)
@@ -171,12 +173,14 @@ def scene_figure(scene, records, datasets):
         runs = [r for r in summ if r["quantity"] == q and r.get("drift_class")]
         _drift_panel(fig.add_subplot(grid[1, k]), q, runs, datasets)
     handles = [plt.Line2D([], [], color=color(m), lw=2, marker=marker(m, methods), mfc="none") for m in methods]
-    fig.legend(
-        handles, methods, loc="lower center", ncol=min(10, len(methods)), fontsize=7.5, bbox_to_anchor=(0.5, -0.045)
-    )
+    ncol_legend = min(10, len(methods))
+    fig.legend(handles, methods, loc="lower center", ncol=ncol_legend, fontsize=7.5, bbox_to_anchor=(0.5, 0.0))
     measured = ", long-time invariant errors" if quantities else " (the scene declares no conserved quantity)"
     fig.suptitle(f"Verdicts measured on {scene}: order, stability threshold{measured}", fontsize=12)
-    fig.tight_layout()
+    # the panels above the legend: ~0.17 in a legend row (7.5 pt), so that 39 methods' rows do not cover
+    # the bottom panels' axis labels
+    legend_rows = math.ceil(len(methods) / max(ncol_legend, 1))
+    fig.tight_layout(rect=(0, (0.17 * legend_rows + 0.1) / fig.get_figheight(), 1, 1))
     return fig
 
 
