@@ -8,7 +8,8 @@ free_flow: the torque-free motion for a time h.  For a symmetric body
 c = (1/I3 − 1/I1) L3, while L_b turns by −c t about e3.  For an asymmetric
 body it is the symmetric sub-splitting into rotations about single body axes
 (McLachlan 1993; Touma & Wisdom 1994): e1(h/2) e2(h/2) e3(h) e2(h/2) e1(h/2),
-each exact, second order and Poisson, conserving |L| exactly.
+each exact, second order and Poisson, conserving |L| exactly (``axis_splitting``
+writes it in any of the six axis orders).
 """
 
 from numba import njit
@@ -72,10 +73,20 @@ def free_flow(w, q, h, body):
         # Products of nearly constant unit quaternions round the same way every
         # substep, so |q| would drift linearly (2e-11 after 1e6 steps): renormalise.
         return (cp * w[0] + sp * w[1], -sp * w[0] + cp * w[1], w[2]), quat_normalize(q)
+    return axis_splitting(w, q, h, body, (0, 1, 2))
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined: the constant order folds the branches
+def axis_splitting(w, q, h, body, order):
+    """Torque-free motion of (ω, q) for h seconds by the symmetric sub-splitting into exact rotations about
+    single body axes, order[0](h/2) order[1](h/2) order[2](h) order[1](h/2) order[0](h/2) (0-based body
+    axes): second order, Poisson, |L| kept exactly, q renormalised.  free_flow's order is (0, 1, 2)
+    (written 1-2-3-2-1); NO_SQUISH as the MD codes ship it is (2, 1, 0) (methods/no_squish.py).  Which
+    order is best depends on the moments (Fassò 2003); analysis/reports/splitting_order.py maps it."""
     half = 0.5 * h
-    w, q = _axis_rotation(w, q, 0, half, body)
-    w, q = _axis_rotation(w, q, 1, half, body)
-    w, q = _axis_rotation(w, q, 2, h, body)
-    w, q = _axis_rotation(w, q, 1, half, body)
-    w, q = _axis_rotation(w, q, 0, half, body)
+    w, q = _axis_rotation(w, q, order[0], half, body)
+    w, q = _axis_rotation(w, q, order[1], half, body)
+    w, q = _axis_rotation(w, q, order[2], h, body)
+    w, q = _axis_rotation(w, q, order[1], half, body)
+    w, q = _axis_rotation(w, q, order[0], half, body)
     return w, quat_normalize(q)
