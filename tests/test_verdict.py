@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from gyrolab.analysis.verdicts import classify
 from gyrolab.analysis.verdicts import verdict as V
 from gyrolab.analysis.verdicts.classify import DRIFT_CLASSES
 
@@ -285,13 +286,13 @@ def test_a_rounding_level_trend_is_a_rounding_drift_whatever_the_window_calls_it
     # lie_poisson4's |L − L0| on the free disc over 1e6 steps: 9.3e-12 in all, 0.04 ulp per step, which a
     # 1000 s window sees as the start of an oscillation of period ~7000 s (docs/verdict.md said
     # "!L declared, not kept").
-    for cls in V.TREND_CLASSES:
-        assert V.is_rounding_drift(cls, 9.3e-12, 1_000_000, False)
-        assert not V.is_rounding_drift(cls, 1e-9, 1_000_000, False)  # 4.5 ulp a step: truncation
+    for cls in classify.TREND_CLASSES:
+        assert classify.is_rounding_drift(cls, 9.3e-12, 1_000_000, False)
+        assert not classify.is_rounding_drift(cls, 1e-9, 1_000_000, False)  # 4.5 ulp a step: truncation
     for cls in ("bounded", "collapse", "diverged", "growing"):
-        assert not V.is_rounding_drift(cls, 1e-15, 1_000_000, False)
-    assert not V.is_rounding_drift("linear", 1e-15, 1_000_000, True)  # preserved is said as such
-    assert not V.is_rounding_drift("linear", None, 1_000_000, False)
+        assert not classify.is_rounding_drift(cls, 1e-15, 1_000_000, False)
+    assert not classify.is_rounding_drift("linear", 1e-15, 1_000_000, True)  # preserved is said as such
+    assert not classify.is_rounding_drift("linear", None, 1_000_000, False)
     rec = dict(quantity="L", preserved=False, declared_preserved=True, drift_class="slow_oscillation")
     assert V.fmt_preserved([dict(rec, amplitude=9.3e-12, n_steps=1_000_000)]) == "L (rounding drift)"
     assert V.fmt_preserved([dict(rec, amplitude=1e-9, n_steps=1_000_000)]) == "!L declared, not kept"

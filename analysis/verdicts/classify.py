@@ -867,3 +867,23 @@ def signed_error(values):
     if not scale > 1e-9 * big:
         scale = big or 1.0
     return (x - x[0]) / scale
+
+
+# The fewest steps of a dt ladder an order is fitted from (and worded from: cells.fmt_order).
+MIN_LADDER = 3
+
+# The drift classes that are a trend (a rate, however it bends); a bounded, collapsing or diverging
+# invariant is not a rounding bias whatever its size.
+TREND_CLASSES = ("linear", "wander", "slow_oscillation", "slowing")
+
+
+def is_rounding_drift(drift_class, amplitude, n_steps, preserved):
+    """A trend whose total stays below 0.1 ulp per step (``amplitude`` ≤ 0.1 eps N): a rounding bias,
+    not truncation, whether the window shows it as a line, a √t wander or the start of a slow oscillation."""
+    return (
+        not preserved
+        and drift_class in TREND_CLASSES
+        and amplitude is not None
+        and math.isfinite(amplitude)
+        and amplitude <= 0.1 * EPS * n_steps
+    )

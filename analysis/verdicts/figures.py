@@ -16,6 +16,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ..io import FLOOR, color, save_figure
+from .cells import fmt_threshold
 
 MARKERS = "osv^<>DPX*h"  # with the colours: PALETTE repeats after 12 methods
 
@@ -68,17 +69,16 @@ def _threshold_panel(ax, thresholds):
         lo, hi = r["omega_dt_bracket"]
         crit = r["omega_dt_crit"]
         c = color(r["method"])
+        cell = fmt_threshold(r)  # the verdict table's own cell, '; fails at ≤ y' included
         if crit is not None and math.isfinite(crit):
             ax.barh(k, crit, color=c, alpha=0.8)
-            small = r.get("omega_dt_small_fail")  # runs at smaller steps failed too (verdict.fmt_threshold)
-            tail = f"; fails at ≤ {small:.3g}" if small is not None and math.isfinite(small) else ""
-            ax.text(crit * 1.1, k, f"{crit:.3g}{tail}", va="center", fontsize=6.5)
+            ax.text(crit * 1.1, k, cell, va="center", fontsize=6.5)
         elif hi is not None and math.isfinite(hi):
             ax.plot(hi, k, "<", color=c)
-            ax.text(hi * 1.3, k, f"< {hi:.3g}", va="center", fontsize=6.5)
+            ax.text(hi * 1.3, k, cell, va="center", fontsize=6.5)
         elif lo is not None and math.isfinite(lo):
             ax.plot(lo, k, ">", color=c)
-            ax.text(lo * 0.25, k, f"> {lo:.3g}", va="center", fontsize=6.5)
+            ax.text(lo * 0.25, k, cell, va="center", fontsize=6.5)
     ax.set_yticks(y, [r["method"] for r in thresholds], fontsize=7)
     ax.invert_yaxis()
     ax.set_xscale("log")
