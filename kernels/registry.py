@@ -55,6 +55,7 @@ NAMES = (
     "rk4",
     "lie_poisson",
     "lie_poisson4",
+    "lie_poisson_sorted",
     "explicit_euler",
     "lie_trotter",
     # splittings around the exact Euler-Poinsot free flow (kernels/euler_poinsot.py)

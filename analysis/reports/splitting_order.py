@@ -215,6 +215,11 @@ def markdown(res):
             f" | {np.mean(best_o == i):.0%} | {np.median(fo_all[:, i]):.3g} | {fo_all[:, i].max():.3g} |"
         )
     lines += ["", "## What this says", ""] + [f"- {s}" for s in conclusions(res)]
+    lines += [
+        "",
+        "`lie_poisson_sorted` is lie_poisson with its axis splitting in the S-M-L order whatever the scene's"
+        " axis labels (kernels/free_flow.py `moment_sorted_order`); `lie_poisson` turns 1-2-3-2-1 in the labels.",
+    ]
     return "\n".join(lines) + "\n"
 
 
