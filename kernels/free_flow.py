@@ -59,28 +59,32 @@ def _axis_rotation(w, q, axis, h, body):
     return (L[0] / I[0], L[1] / I[1], L[2] / I[2]), q
 
 
-@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into both free flows, as it was written there
-def _symmetric_flow(w, q, h, body):
-    """The exact torque-free motion of a body with I1 = I2 for h seconds (module docstring)."""
-    I1, I3 = body[0], body[2]
-    c = (1.0 - I3 / I1) * w[2]  # (1/I3 − 1/I1) L3
-    q = rotate_body_step(q, w[0] * h, w[1] * h, I3 / I1 * w[2] * h)
-    ch, sh = half_angle(c * h)
-    q = quat_mul(q, (ch, 0.0, 0.0, sh))
-    cp = 1.0 - 2.0 * sh * sh  # cos(c h)
-    sp = 2.0 * sh * ch  # sin(c h)
-    # Products of nearly constant unit quaternions round the same way every
-    # substep, so |q| would drift linearly (2e-11 after 1e6 steps): renormalise.
-    return (cp * w[0] + sp * w[1], -sp * w[0] + cp * w[1], w[2]), quat_normalize(q)
-
-
 @njit(cache=True, error_model="numpy")
 def free_flow(w, q, h, body):
     """Torque-free motion of (ω, q) for h seconds; exact when I1 = I2, else the axis splitting in the
     axis order 1-2-3-2-1 of the body's own labels."""
-    if body[0] == body[1]:
-        return _symmetric_flow(w, q, h, body)
-    return axis_splitting(w, q, h, body, (0, 1, 2))
+    I1, I2, I3 = body[0], body[1], body[2]
+    if I1 == I2:
+        c = (1.0 - I3 / I1) * w[2]  # (1/I3 − 1/I1) L3
+        q = rotate_body_step(q, w[0] * h, w[1] * h, I3 / I1 * w[2] * h)
+        ch, sh = half_angle(c * h)
+        q = quat_mul(q, (ch, 0.0, 0.0, sh))
+        cp = 1.0 - 2.0 * sh * sh  # cos(c h)
+        sp = 2.0 * sh * ch  # sin(c h)
+        # Products of nearly constant unit quaternions round the same way every
+        # substep, so |q| would drift linearly (2e-11 after 1e6 steps): renormalise.
+        return (cp * w[0] + sp * w[1], -sp * w[0] + cp * w[1], w[2]), quat_normalize(q)
+    # axis_splitting(w, q, h, body, (0, 1, 2)) written out with literal axes: through axis_splitting the
+    # one-by-one path ran 13-20 % slower on asymmetric free bodies (benchmarks/bench_methods.py, lie_poisson
+    # and lie_poisson4 on free_asymmetric; the block path was unchanged); tests/test_splitting_order.py
+    # checks that the two are the same map bit for bit.
+    half = 0.5 * h
+    w, q = _axis_rotation(w, q, 0, half, body)
+    w, q = _axis_rotation(w, q, 1, half, body)
+    w, q = _axis_rotation(w, q, 2, h, body)
+    w, q = _axis_rotation(w, q, 1, half, body)
+    w, q = _axis_rotation(w, q, 0, half, body)
+    return w, quat_normalize(q)
 
 
 @njit(cache=True, error_model="numpy")
@@ -103,11 +107,11 @@ def free_flow_sorted(w, q, h, body):
     """free_flow with the axis splitting in the moment-sorted order S-M-L-M-S whatever the body's axis
     labels (``moment_sorted_order``); exact when I1 = I2, as free_flow."""
     if body[0] == body[1]:
-        return _symmetric_flow(w, q, h, body)
+        return free_flow(w, q, h, body)  # the exact symmetric flow: no axis order
     return axis_splitting(w, q, h, body, moment_sorted_order(body))
 
 
-@njit(cache=True, error_model="numpy", forceinline=True)  # inlined: the constant order folds the branches
+@njit(cache=True, error_model="numpy")
 def axis_splitting(w, q, h, body, order):
     """Torque-free motion of (ω, q) for h seconds by the symmetric sub-splitting into exact rotations about
     single body axes, order[0](h/2) order[1](h/2) order[2](h) order[1](h/2) order[0](h/2) (0-based body
