@@ -141,3 +141,20 @@ def test_moment_sorted_order_sorts_every_labelling():
     for labels in itertools.permutations((1.0, 2.0, 3.0)):
         order = moment_sorted_order(Body(*labels, 0.0))
         assert [labels[k] for k in order] == [1.0, 2.0, 3.0], (labels, order)
+
+
+def test_report_that_cannot_write_says_so_in_one_line(tmp_path, capsys, monkeypatch):
+    """A write that fails after the study (here: the figure's file system refuses) is one line, exit 1,
+    and leaves no Markdown behind."""
+
+    def refuse(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    small_study = so.study
+    monkeypatch.setattr(so, "study", lambda: small_study(n=2, t_end=2.0, n_motions=2))
+    monkeypatch.setattr(so, "figure", refuse)
+    out = tmp_path / "splitting_order.md"
+    assert so.main(["-o", str(out)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("splitting_order: error: could not write") and "\n" not in err
+    assert not out.exists()

@@ -311,8 +311,12 @@ def main(argv=None):
         sys.stderr.write(f"splitting_order: error: {err}\n")
         return 2
     res = study()
-    png = figure(res, out.with_suffix(".png"))
-    write_text(out, markdown(res))
+    try:  # each file is written whole or not at all (safe_files); a failed write is one line, exit 1
+        png = figure(res, out.with_suffix(".png"))
+        write_text(out, markdown(res))
+    except (UnsafePathError, OSError) as err:
+        sys.stderr.write(f"splitting_order: error: could not write the results: {' '.join(str(err).split())}\n")
+        return 1
     print(f"wrote {out} and {png}")
     return 0
 
