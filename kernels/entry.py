@@ -6,7 +6,8 @@ methods/README.md); ``add_entry_points(module)`` gives it
 - ``run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps)``:
   one ``prange`` over runs, each run by driver.make_advance's ``advance_run``;
 - ``run_blocks(..., runs, starts, queues)``: one ``prange`` over threads, each
-  running its queue of vectorised blocks (block.py);
+  running its queue of vectorised blocks (block.py); not made for a method that
+  declares ``BLOCKS = False`` (its steps do not vectorise: registry.uses_blocks);
 - for a method that sees time (``step_driven``), ``run_batch_driven`` with
   ``run_batch``'s arguments: driven bodies, one run after another
   (driver.make_advance_driven).  Compiled only when a driven scene runs.
@@ -33,8 +34,8 @@ _TEMPLATE = """
 def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
     for i in _prange(w0.shape[0]):
         _advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
-
-
+"""
+_BLOCKS_TEMPLATE = """
 @_njit(cache=True, parallel=True, error_model="numpy")
 def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts, queues):
     for t in _prange(queues.size - 1):
@@ -49,14 +50,17 @@ def run_batch_driven(w0, q0, bodies, dts, strides, threshold, out, status, n_ste
 
 
 def add_entry_points(module):
-    """Define ``run_batch`` and ``run_blocks`` in ``module`` (a method module with ``step``)."""
+    """Define ``run_batch``, ``run_blocks`` (unless the module says ``BLOCKS = False``) and
+    ``run_batch_driven`` (if it has ``step_driven``) in ``module`` (a method module with ``step``)."""
     from numba import njit, prange
 
     namespace = vars(module)
     namespace["_njit"], namespace["_prange"] = njit, prange
     namespace["_advance_run"] = make_advance(module.step)
-    namespace["_advance_queue"] = make_advance_queue(module.step)
     exec(compile(_TEMPLATE, module.__file__, "exec"), namespace)
+    if getattr(module, "BLOCKS", True):
+        namespace["_advance_queue"] = make_advance_queue(module.step)
+        exec(compile(_BLOCKS_TEMPLATE, module.__file__, "exec"), namespace)
     if hasattr(module, "step_driven"):
         namespace["_advance_driven"] = make_advance_driven(module.step_driven)
         exec(compile(_DRIVEN_TEMPLATE, module.__file__, "exec"), namespace)

@@ -1,7 +1,8 @@
 """``gyrolab-compile [METHOD ...] [--jobs N]``: fill numba's cache with methods' kernels, in parallel.
 
 numba compiles on one thread, and a method's kernels (its run kernel, its block kernel of five lane
-passes, its driven kernel if it sees time) take 10-270 s of CPU cold.  A sweep or a test session that
+passes unless it declares ``BLOCKS = False``, its driven kernel if it sees time) take 0.5-5 min of CPU
+cold (``benchmarks/bench_compile.py`` times them; docs/benchmarks.md).  A sweep or a test session that
 compiles them one after another in its own process uses one core and keeps every compiler's memory
 (the suite's process grew to 8.7 GB compiling 27 methods; loading the same kernels from the cache
 takes 0.43 GB).  Here each method compiles in a worker process of its own (``spawn``; a fresh worker

@@ -34,19 +34,15 @@ STEP_RATE.update(REAL_STEP_RATES)
 # Speed of the vectorised block path (kernels/block.py; chunks of >= MIN_BLOCK_RUNS runs) over the
 # one-by-one path, per method: ns/step one by one / in blocks, heavy top, 256 runs, 2 threads, the
 # "after" columns of docs/benchmarks.md's centre-of-mass table (bench_methods.py, quiet machine).
-# seed_prev is seed_next's arithmetic; strang_exact, split6_exact and suzuki4_exact take strang_exact4's
-# exact free flow, whose libm-bound elliptic functions the blocks do not speed up.  Any other method: the lowest
-# measured speed-up of a method the blocks do help (mujoco_implicit's).
+# seed_prev is seed_next's arithmetic.  Any other method: the lowest measured speed-up of a method the
+# blocks do help (mujoco_implicit's).  The exact-free-flow methods (strang_exact, ...) are off the block
+# path (BLOCKS = False: their libm-bound elliptic functions ran 0.8-1.2x one by one's time in blocks).
 BLOCK_SPEEDUP = {
     "seed_next": 6.9,
     "seed_prev": 6.9,
     "rk4": 5.7,
     "lie_poisson": 6.0,
     "lie_poisson4": 5.8,
-    "strang_exact": 1.0,
-    "strang_exact4": 1.0,
-    "split6_exact": 1.0,
-    "suzuki4_exact": 1.0,
     "mujoco_implicit": 2.7,
 }
 DEFAULT_BLOCK_SPEEDUP = 2.7

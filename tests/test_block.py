@@ -16,13 +16,15 @@ from gyrolab.kernels.block import VECTOR, WIDE_INTERVALS, make_block_steps, plan
 from gyrolab.kernels.body import is_driven
 from gyrolab.kernels.driver import N_FIELDS, STATUS_ENERGY, STATUS_NONFINITE, STATUS_OK
 from gyrolab.kernels.lanes import _half_angle_or_nan, _quat_from_rotvec_or_nan, ieee_step, lane_step
-from gyrolab.kernels.registry import METHODS
+from gyrolab.kernels.registry import METHODS, uses_blocks
 from gyrolab.kernels.rotation import SMALL_ANGLE, half_angle, quat_from_rotvec
 from gyrolab.kernels.scenes import SCENES, build_scene
 
 EVERY, T_END = 1e-2, 0.2
 # Scenes the block path runs: a driven body (a torque that depends on time) always goes one by one.
 BLOCK_SCENES = [name for name in SCENES if not is_driven([build_scene(name, 1.0, 0.0).body])]
+# Methods with a block kernel; the others (BLOCKS = False) run one by one on every path.
+BLOCK_METHODS = [name for name, module in METHODS.items() if uses_blocks(module)]
 
 
 def mixed_batch(scene, fs=(2.0, 50.0, 400.0), thetas=(5.0, 60.0, 120.0), dts=(1e-4, 5e-4, 2e-3, 1e-2)):
@@ -79,7 +81,7 @@ def test_driven_bodies_go_one_by_one_whatever_the_path():
 
 
 @pytest.mark.parametrize("scene", BLOCK_SCENES)
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", BLOCK_METHODS)
 def test_blocks_equal_runs_bit_for_bit(method, scene):
     """36 runs (not a whole number of 8-lane vectors): 2, 50, 400 Hz x θ0 5°, 60°, 120° x dt 1e-4 .. 1e-2
     (ω dt from 1e-3 to 25 rad), 0.2 s.  The non-symplectic methods lose some runs to the energy check
@@ -108,6 +110,21 @@ def test_blocks_mixing_symmetric_and_asymmetric_bodies(method):
     assert_same(
         integrate(method, *inputs, n_samples, path="blocks"), integrate(method, *inputs, n_samples, path="runs")
     )
+
+
+def test_methods_off_the_block_path_have_no_block_kernel_and_run_one_by_one():
+    """A method with BLOCKS = False (the exact-free-flow splittings) gets no run_blocks to compile, and
+    path="blocks" or "auto" on 64 runs gives the one-by-one kernel's bits."""
+    off = [name for name in METHODS if name not in BLOCK_METHODS]
+    assert {"strang_exact", "strang_exact4", "split6_exact", "suzuki4_exact"} <= set(off)
+    assert all(not hasattr(METHODS[name], "run_blocks") for name in off)
+    assert all(hasattr(METHODS[name], "run_blocks") for name in BLOCK_METHODS)
+    inputs, n_samples = mixed_batch("heavy_top", fs=np.linspace(1.0, 60.0, 16), thetas=(60.0,), dts=(1e-3,) * 4)
+    assert len(inputs[0]) >= MIN_BLOCK_RUNS
+    runs = integrate("strang_exact", *inputs, n_samples, path="runs")
+    assert (runs[1] == STATUS_OK).all()
+    assert_same(integrate("strang_exact", *inputs, n_samples, path="blocks"), runs)
+    assert_same(integrate("strang_exact", *inputs, n_samples), runs)
 
 
 def test_blocks_do_not_depend_on_threads():

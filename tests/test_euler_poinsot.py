@@ -392,8 +392,10 @@ def test_splitting_box_near_separatrix():
 def test_lane_step_is_bit_for_bit():
     """lanes.lane_step(strang_exact.step) (the forceinline recompilation of the block path, with the
     small-angle polynomial in place of libm in half_angle/quat_from_rotvec) returns step's bits on the box at
-    dt = 1e-4 (measured compile time of lane_step in a loop: 4.9 s for strang_exact, 6.2 s for strang_exact4,
-    10.3 s for split6_exact; benchmarks/bench_free_body.py)."""
+    dt = 1e-4.  strang_exact itself is off the block path (BLOCKS = False: docs/benchmarks.md), but its
+    branchy elliptic code is the hardest input the recompilation meets (measured compile time of lane_step
+    in a loop: 4.9 s for strang_exact, 6.2 s for strang_exact4, 10.3 s for split6_exact;
+    benchmarks/bench_free_body.py)."""
     from gyrolab.kernels.lanes import lane_step
 
     fast = lane_step(strang_exact.step)

@@ -21,7 +21,7 @@ from gyrolab.kernels.batch import MIN_BLOCK_RUNS, integrate
 from gyrolab.kernels.closed_form import free_symmetric_solution
 from gyrolab.kernels.invariants import INVARIANTS
 from gyrolab.kernels.reference import dop853
-from gyrolab.kernels.registry import METHODS, register
+from gyrolab.kernels.registry import METHODS, register, uses_blocks
 from gyrolab.kernels.rigid_body import potential_scale
 from gyrolab.kernels.rotation import ck_matrix
 from gyrolab.kernels.scenes import build_scene
@@ -59,7 +59,8 @@ def test_registry_contract(name):
     assert set(module.PRESERVES) <= set(INVARIANTS)
     assert isinstance(getattr(module, "FREE_ORDER", 1), int)
     assert isinstance(module.step, Dispatcher) and module.step.targetoptions["error_model"] == "numpy"
-    for entry in ("run_batch", "run_blocks"):
+    assert hasattr(module, "run_blocks") == uses_blocks(module)
+    for entry in ("run_batch", "run_blocks") if uses_blocks(module) else ("run_batch",):
         kernel = getattr(module, entry)
         assert isinstance(kernel, Dispatcher), entry
         assert kernel.targetoptions["error_model"] == "numpy" and kernel.targetoptions["parallel"], entry

@@ -19,6 +19,7 @@ from ..free_flow import kick_at
 ORDER = 4
 SYMPLECTIC = True
 FREE_EXACT = True  # on a torque-free body the step is the exact flow: error at rounding for any dt
+BLOCKS = False  # its libm-bound elliptic free flow does not vectorise: docs/benchmarks.md, "Off the block path"
 PRESERVES = ("L", "L_norm", "Lz", "L3")
 
 G1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
