@@ -12,7 +12,8 @@ import numpy as np
 from .classify import MIN_LADDER, is_rounding_drift
 
 
-def _g(x, digits=3):
+def fmt_number(x, digits=3):
+    """``x`` to ``digits`` significant digits; "—" for a value that is missing (None) or not finite."""
     return "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else f"{x:.{digits}g}"
 
 
@@ -49,8 +50,8 @@ UNIT_TEXT = {"1/s": "/s", "1/sqrt(s)": "/√s", "1/s e-folding": "/s (e-fold)", 
 
 def _fmt_rate(c, rate, unit):
     if unit == "power":
-        return f"growing ∝ t^{_g(rate)}"
-    return f"{c} {_g(rate)} {UNIT_TEXT.get(unit, unit)}"
+        return f"growing ∝ t^{fmt_number(rate)}"
+    return f"{c} {fmt_number(rate)} {UNIT_TEXT.get(unit, unit)}"
 
 
 def fmt_drift(rec, short=False):
@@ -66,9 +67,9 @@ def fmt_drift(rec, short=False):
         )
         period = rec.get("period")
         per = f", period {period:.3g} s" if period is not None and math.isfinite(period) else ""
-        return f"bounded (≤ {_g(amp, 2)}{settles}{per})"
+        return f"bounded (≤ {fmt_number(amp, 2)}{settles}{per})"
     if c == "diverged":
-        return f"diverged (t = {_g(rec.get('t_diverged'))} s)"
+        return f"diverged (t = {fmt_number(rec.get('t_diverged'))} s)"
     if c == "undetermined":
         return "undetermined (too few samples)"
     if c == "collapse":
@@ -76,23 +77,27 @@ def fmt_drift(rec, short=False):
         word = "collapses" if (size or 0) < 0 else "jumps"
         then = rec.get("then_class") or "—"
         if then == "slow_oscillation":
-            then = f"a trend {_g(rec.get('then_rate'))} /s (oscillation ~ {_g(rec.get('period'), 2)} s > record)"
+            rate, period = fmt_number(rec.get("then_rate")), fmt_number(rec.get("period"), 2)
+            then = f"a trend {rate} /s (oscillation ~ {period} s > record)"
         elif then == "slowing":
             then = "a trend that slows"
         elif then in ("linear", "wander", "growing") and rec.get("then_rate") is not None:
             then = _fmt_rate(then, rec["then_rate"], rec.get("then_rate_unit") or "")
-        return f"{word} by {abs(size):.0%} within {_g(when, 2)} s, then {then}"
+        return f"{word} by {abs(size):.0%} within {fmt_number(when, 2)} s, then {then}"
     if c == "slow_oscillation" and short:
-        return f"trend {_g(rec.get('drift_rate'))} /s; oscillation ~ {_g(rec.get('period'), 2)} s > record"
+        rate, period = fmt_number(rec.get("drift_rate")), fmt_number(rec.get("period"), 2)
+        return f"trend {rate} /s; oscillation ~ {period} s > record"
     if c == "slowing" and short:
-        return f"trend slowing (stops ~ {_g(rec.get('t_turn'), 2)} s)"
+        return f"trend slowing (stops ~ {fmt_number(rec.get('t_turn'), 2)} s)"
     if c == "slow_oscillation":
         return (
-            f"trend {_g(rec.get('drift_rate'))} /s over a record shorter than its oscillation "
-            f"(period ~ {_g(rec.get('period'), 2)} s); run > {_g(rec.get('run_longer'), 2)} s to decide"
+            f"trend {fmt_number(rec.get('drift_rate'))} /s over a record shorter than its oscillation "
+            f"(period ~ {fmt_number(rec.get('period'), 2)} s); "
+            f"run > {fmt_number(rec.get('run_longer'), 2)} s to decide"
         )
     if c == "slowing":
-        return f"trend slowing (would stop at t ~ {_g(rec.get('t_turn'), 2)} s); run > {_g(rec.get('run_longer'), 2)} s"
+        turn, longer = fmt_number(rec.get("t_turn"), 2), fmt_number(rec.get("run_longer"), 2)
+        return f"trend slowing (would stop at t ~ {turn} s); run > {longer} s"
     return _fmt_rate(c, rec.get("drift_rate"), rec.get("drift_rate_unit") or "")
 
 

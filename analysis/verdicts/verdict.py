@@ -48,7 +48,7 @@ import numpy as np
 
 from ...results import EXIT_BAD_INPUT
 from ...safe_files import UnsafePathError, check_replaceable, write_text
-from .cells import _g, fmt_drift, fmt_order, fmt_preserved, fmt_threshold
+from .cells import fmt_drift, fmt_number, fmt_order, fmt_preserved, fmt_threshold
 from .classify import MIN_LADDER, classify_drift, fit_order, is_rounding_drift, signed_error
 
 YARDSTICKS = ("lie_poisson4", "split6_exact")
@@ -599,7 +599,7 @@ def markdown(records, title="Verdicts measured by gyrolab"):
         for key in dict.fromkeys((r["method"], r["f"], r["theta0"]) for r in rows):
             mine = [r for r in rows if (r["method"], r["f"], r["theta0"]) == key]
             first = mine[0]
-            cells = [f"`{key[0]}`"] + ([_g(key[1]), _g(key[2])] if several else [])
+            cells = [f"`{key[0]}`"] + ([fmt_number(key[1]), fmt_number(key[2])] if several else [])
             cells += [str(first.get("declared_order") or "—"), fmt_order(first)]
             cells += [fmt_drift(next((r for r in mine if r["quantity"] == q), {})) for q in quantities]
             cells += [fmt_preserved(mine), fmt_threshold(first)]
@@ -677,13 +677,13 @@ def table(records, width=TABLE_WIDTH):
     for key in dict.fromkeys((r["scene"], r["f"], r["theta0"]) for r in summ):
         rows = [r for r in summ if (r["scene"], r["f"], r["theta0"]) == key]
         scene, f, th = key
-        lines += ["", f"{scene}: f = {_g(f)} Hz, θ0 = {_g(th)}°"]
+        lines += ["", f"{scene}: f = {fmt_number(f)} Hz, θ0 = {fmt_number(th)}°"]
         first = next((r for r in rows if r.get("ladder_dt")), None)
         if first:
             dts = first["ladder_dt"]
             lines.append(
                 _cell(
-                    f"  order: final state at t = {_g(first.get('order_t_end'))} s, dt = {max(dts):.3g} … "
+                    f"  order: final state at t = {fmt_number(first.get('order_t_end'))} s, dt = {max(dts):.3g} … "
                     f"{min(dts):.3g} s ({ladder_words(dts)})",
                     width,
                 ).rstrip()
@@ -691,7 +691,8 @@ def table(records, width=TABLE_WIDTH):
             lines.append(_cell(f"  reference: {first['reference']}", width).rstrip())
         run = next((r for r in rows if r.get("dt") is not None), None)
         if run:
-            lines.append(f"  drift: dt = {_g(run['dt'])} s over {_g(run['t_end'])} s ({run['n_steps']:.3g} steps)")
+            dt, t_end = fmt_number(run["dt"]), fmt_number(run["t_end"])
+            lines.append(f"  drift: dt = {dt} s over {t_end} s ({run['n_steps']:.3g} steps)")
         head = [_cell("method", cols[0]), _cell("invariant", cols[1]), _cell("measured order", cols[2])]
         lines.append(" ".join(head + [_cell("drift", drift_w), "crit"]))
         shown = set()
