@@ -18,7 +18,8 @@ that an exploding run amplifies rounding as fast as it grows):
   reproduction that rounds differently can do better);
 - the steps compared and the first step at which |Δω|/|ω| > 1e-9.
 
-Pairs: MuJoCo's four integrators; PyBullet's btRigidBody
+Pairs: MuJoCo's four integrators; MJX's three (against the reproductions of the C engine's, READING
+says which); PyBullet's btRigidBody
 (real_pybullet_maximal, free bodies) against bullet_implicit_body; PyBullet's
 default btMultiBody (real_pybullet) with its angular damping set to 0 against
 bullet_explicit, and as shipped (damping 0.04) against bullet_implicit_body,
@@ -74,6 +75,11 @@ PAIRS = (
     ("bullet_implicit_body", "real_pybullet_maximal", None),
     ("bullet_explicit", "real_pybullet", 0.0),
     ("bullet_implicit_body", "real_pybullet", None),
+    # MJX (JAX): its Euler is MuJoCo's; its implicitfast has no RNE derivative, so it is that Euler step
+    # again; its RK4 is MuJoCo 3.12's (no dexp⁻¹ of the stage rotations), not the 4.0 update mujoco_rk4 follows
+    ("mujoco_euler", "real_mjx_euler", None),
+    ("mujoco_euler", "real_mjx_implicitfast", None),
+    ("mujoco_rk4", "real_mjx_rk4", None),
 )
 
 
@@ -81,6 +87,11 @@ def engine_trajectory(name, body, w0, q0, dt, n, damping):
     """(W (k, 3), Q (k, 4)) after each of the k ≤ n steps the engine completed (k < n: it reset the state)."""
     backend = get_backend(name)
     run = backend.start(body, np.asarray(w0, float), np.asarray(q0, float), dt, **_damping(damping))
+    if hasattr(run, "trajectory"):  # the engine steps n times in one call (MJX: a jitted scan)
+        try:
+            return run.trajectory(n)
+        finally:
+            run.close()
     W, Q = np.empty((n, 3)), np.empty((n, 4))
     try:
         for i in range(n):
@@ -220,6 +231,15 @@ Reading the table (causes; the numbers are the rows above):
   first step agrees to the bit and the difference then grows by ~dt² a step: PyBullet's spherical joint
   (Featherstone's articulated-body algorithm with the gravity of the link) is not bullet_explicit's
   free-body update with the torque added; the cause is not isolated yet.
+- MJX (mujoco-mjx on CPU JAX, float64 because the backend sets jax_enable_x64): real_mjx_euler is
+  mujoco_euler to rounding.  real_mjx_implicitfast is paired with mujoco_euler, not mujoco_implicitfast:
+  MJX's implicitfast takes no derivative of the Coriolis and centrifugal forces (its derivative.py:
+  "TODO(team): rne derivative"), so with no damping it is its Euler step bit for bit, where MuJoCo's
+  implicitfast (mujoco_implicitfast) treats a free body's gyroscopic term implicitly.  real_mjx_rk4 is
+  not mujoco_rk4: its stages sum the stage velocities and exponentiate them once (MuJoCo 3.12's RK4),
+  without the dexp⁻¹ of each stage's rotation that 4.0 applies, so on a body whose ω turns its
+  orientation is second order (tests/test_mjx.py: order 2.00 against the C engine's 3.9–4.0): its rows
+  differ from the first steps by that truncation error, ω agreeing to rounding on free bodies.
 - Not run: PyBullet's rigid body on a pivot (a point-to-point constraint solved by impulses) and a
   PyBullet heavy body whose centre of mass is off the principal axes (a rotated inertial frame): not built.
 """
@@ -233,11 +253,12 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.steps < 1:
         ap.error(f"--steps={args.steps}: must be >= 1")
-    missing = [n for n in ("real_mujoco_euler", "real_pybullet") if package_missing(n) is not None]
-    if len(missing) == 2:
+    probes = ("real_mujoco_euler", "real_pybullet", "real_mjx_euler")
+    missing = [n for n in probes if package_missing(n) is not None]
+    if len(missing) == len(probes):
         print(f"{ap.prog}: error: {package_missing(missing[0])}", file=sys.stderr)
         return 2
-    engines = engine_versions([n for n in ("real_mujoco_euler", "real_pybullet") if n not in missing])
+    engines = engine_versions([n for n in probes if n not in missing])
     found = rows(args.steps)
     text = f"Reproduction vs real engine, {args.steps} steps ({engines}):\n\n" + table(found) + READING
     json_path = args.json or (str(Path(args.out).with_suffix(".json")) if args.out else None)
