@@ -18,13 +18,15 @@ What differs from the C engine, as shipped:
 
 import numpy as np
 
-from .mujoco_engine import free_xml, heavy_mass_and_com, heavy_xml, is_free
+from . import mujoco_engine
+from .mujoco_engine import is_free
 
 MODES = ("Euler", "implicitfast", "RK4")
 
 
-class Backend:
-    """One MJX integrator (``mode``: the MJCF ``integrator`` attribute, one of ``MODES``)."""
+class Backend(mujoco_engine.Backend):
+    """One MJX integrator (``mode``: the MJCF ``integrator`` attribute, one of ``MODES``); the C backend's
+    models and body check (``xml``, ``check``), its own start."""
 
     PACKAGE = "mujoco-mjx"
     BLOCKS = False  # never the numba block path (kernels/registry.py uses_blocks)
@@ -58,14 +60,6 @@ class Backend:
 
         self.steps = jax.jit(steps)
         self.each = jax.jit(each, static_argnums=2)
-
-    def check(self, body):
-        """ValueError (one line) when this backend does not build ``body`` (as mujoco_engine's)."""
-        if not is_free(body):
-            heavy_mass_and_com(body)
-
-    def xml(self, body, dt):
-        return free_xml(body, dt, self.mode) if is_free(body) else heavy_xml(body, dt, self.mode)
 
     def start(self, body, w0, q0, dt):
         """A run of ``body`` (kernels.body.Body) from ω0 (body, rad/s) and q0 (scalar first) with step dt (s)."""
