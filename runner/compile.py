@@ -10,9 +10,14 @@ per method, so its memory goes back when it ends), ``--jobs`` at a time, into th
 directories (kernels/__init__.py) the sweep and the tests load from.  Only kernels the cache does not
 hold compile (runner/execute.py ``kernel_cached``); the real engines (kernels/real/) compile nothing.
 ``tests/conftest.py`` calls ``compile_methods`` for the methods a test session selects.
+
+Callers that overlap (the two workers of ``pytest -n 2``, two sweeps started together) take turns on a
+lock file in the cache root: the first compiles, the next then finds the kernels cached and compiles
+nothing, instead of both compiling everything at once on the same cores.
 """
 
 import argparse
+import contextlib
 import os
 import sys
 import time
@@ -68,10 +73,38 @@ def compile_weight(name):
     return (bool(getattr(module, "FREE_EXACT", False)), module.ORDER)
 
 
+@contextlib.contextmanager
+def _cache_lock():
+    """Hold an exclusive lock on ``<cache root>/compile.lock`` (blocking) for the duration; nothing where
+    there is no cache root or no ``fcntl`` (then overlapping callers both compile, as before)."""
+    from ..kernels import CACHE_ROOT
+
+    try:
+        import fcntl
+    except ImportError:  # Windows
+        fcntl = None
+    try:
+        handle = open(os.path.join(CACHE_ROOT, "compile.lock"), "a") if CACHE_ROOT and fcntl else None
+    except OSError:
+        handle = None
+    if handle is None:
+        yield
+        return
+    with handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)  # released when the file closes, or when the process dies
+        yield
+
+
 def compile_methods(names, jobs=None, report=print):
     """Compile the cold kernels of ``names`` in ``jobs`` worker processes (default: the CPU count);
     ``report`` gets one line per method.  Returns {method: seconds}; a worker that fails is reported
-    and skipped (whoever runs the method compiles it then)."""
+    and skipped (whoever runs the method compiles it then).  Overlapping callers take turns (the lock
+    above), so each kernel compiles once."""
+    with _cache_lock():
+        return _compile_cold(names, jobs, report)
+
+
+def _compile_cold(names, jobs, report):
     todo = cold_kernels(names)
     if not todo:
         return {}

@@ -7,6 +7,7 @@ registered method inherits every one of them.
 """
 
 import os
+import sys
 
 import numpy as np
 import pytest
@@ -26,7 +27,9 @@ def pytest_collection_finish(session):
     """Before the first test: the kernels of the methods the selected tests are parametrised with, where
     numba's cache lacks them, compile in parallel worker processes (runner/compile.py), one per core.
     The tests then load them from the cache: compiling 27 methods in the test process took one core
-    and grew it to 8.7 GB.  GYROLAB_TEST_PRECOMPILE=0 leaves compiling to the tests."""
+    and grew it to 8.7 GB.  Under ``pytest -n`` every worker collects and gets here: the first compiles,
+    the others wait on compile_methods' lock and then find the cache full.  GYROLAB_TEST_PRECOMPILE=0
+    leaves compiling to the tests."""
     if session.config.option.collectonly or os.environ.get("GYROLAB_TEST_PRECOMPILE", "1") == "0":
         return
     from gyrolab.runner.compile import compile_methods
@@ -37,8 +40,13 @@ def pytest_collection_finish(session):
         for value in getattr(getattr(item, "callspec", None), "params", {}).values()
         if isinstance(value, str) and value in METHODS
     }
-    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
-    compile_methods(sorted(names), report=lambda line: reporter.write_line(line) if reporter else print(line))
+    worker = getattr(session.config, "workerinput", {}).get("workerid")
+    if worker:  # a pytest-xdist worker: its terminal reporter writes nowhere, its stderr reaches the terminal
+        report = lambda line: print(f"[{worker}] {line}", file=sys.__stderr__, flush=True)  # noqa: E731
+    else:
+        reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+        report = reporter.write_line if reporter else print
+    compile_methods(sorted(names), report=report)
 
 
 def _run_scene(method, scene, dt, t_end, every, threshold=1e9):
