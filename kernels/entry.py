@@ -7,7 +7,7 @@ methods/README.md); ``add_entry_points(module)`` gives it
   one ``prange`` over runs, each run by driver.make_advance's ``advance_run``;
 - ``run_blocks(..., runs, starts, queues)``: one ``prange`` over threads, each
   running its queue of vectorised blocks (block.py); not made for a method that
-  declares ``BLOCKS = False`` (its steps do not vectorise: registry.uses_blocks);
+  declares ``BLOCKS = False`` (its steps do not vectorise: ``uses_blocks`` below);
 - for a method that sees time (``step_driven``), ``run_batch_driven`` with
   ``run_batch``'s arguments: driven bodies, one run after another
   (driver.make_advance_driven).  Compiled only when a driven scene runs.
@@ -49,6 +49,12 @@ def run_batch_driven(w0, q0, bodies, dts, strides, threshold, out, status, n_ste
 """
 
 
+def uses_blocks(module):
+    """Whether the method runs on the vectorised block path (``BLOCKS``, default True): whether it has
+    ``run_blocks``.  Callers go through kernels.registry, which re-exports it."""
+    return getattr(module, "BLOCKS", True)
+
+
 def add_entry_points(module):
     """Define ``run_batch``, ``run_blocks`` (unless the module says ``BLOCKS = False``) and
     ``run_batch_driven`` (if it has ``step_driven``) in ``module`` (a method module with ``step``)."""
@@ -58,7 +64,7 @@ def add_entry_points(module):
     namespace["_njit"], namespace["_prange"] = njit, prange
     namespace["_advance_run"] = make_advance(module.step)
     exec(compile(_TEMPLATE, module.__file__, "exec"), namespace)
-    if getattr(module, "BLOCKS", True):
+    if uses_blocks(module):
         namespace["_advance_queue"] = make_advance_queue(module.step)
         exec(compile(_BLOCKS_TEMPLATE, module.__file__, "exec"), namespace)
     if hasattr(module, "step_driven"):

@@ -11,7 +11,7 @@ import importlib
 from numba.core.dispatcher import Dispatcher
 
 from . import real
-from .entry import add_entry_points
+from .entry import add_entry_points, uses_blocks  # noqa: F401 - uses_blocks: the registry's view of a method
 from .invariants import check_names
 
 
@@ -111,11 +111,6 @@ def get_method(name):
         return METHODS[name]
     except KeyError:
         raise ValueError(f"unknown method {name!r}; choose from {', '.join(METHODS)}") from None
-
-
-def uses_blocks(module):
-    """Whether the method runs on the vectorised block path (``BLOCKS``, default True)."""
-    return getattr(module, "BLOCKS", True)
 
 
 # How batch.integrate and the grid check name a method that cannot integrate a driven body.

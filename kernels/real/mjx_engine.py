@@ -29,7 +29,7 @@ class Backend(mujoco_engine.Backend):
     models and body check (``xml``, ``check``), its own start."""
 
     PACKAGE = "mujoco-mjx"
-    BLOCKS = False  # never the numba block path (kernels/registry.py uses_blocks)
+    BLOCKS = False  # never the numba block path (kernels/entry.py uses_blocks)
     DEFAULTS = (
         "MJX as shipped but with jax_enable_x64 set (MJX computes in float32 otherwise); no damping, armature 0; "
         "no mjWARN_BADQACC check: a run that explodes goes to NaN, marked by gyrolab's rule"

@@ -81,7 +81,7 @@ class Backend:
     """One MuJoCo integrator (``mode``: the MJCF ``integrator`` attribute)."""
 
     PACKAGE = "mujoco"
-    BLOCKS = False  # never the numba block path (kernels/registry.py uses_blocks)
+    BLOCKS = False  # never the numba block path (kernels/entry.py uses_blocks)
     DEFAULTS = "MuJoCo as shipped: no damping, armature 0; mjWARN_BADQACC (|qacc| > 1e10 or NaN) resets the state"
 
     def __init__(self, name, mode):

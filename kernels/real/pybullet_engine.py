@@ -70,7 +70,7 @@ class Backend:
     """PyBullet with one body type (``mode``: "multibody", PyBullet's default, or "maximal")."""
 
     PACKAGE = "pybullet"
-    BLOCKS = False  # never the numba block path (kernels/registry.py uses_blocks)
+    BLOCKS = False  # never the numba block path (kernels/entry.py uses_blocks)
 
     def __init__(self, name, mode):
         import pybullet
