@@ -7,6 +7,7 @@ runner/compile.py's ``compile_one``; the first kernel of a process also compiles
 method shares).  Compiling is one thread: run it on a quiet machine, or read the CPU seconds.
 
     python benchmarks/bench_compile.py --methods strang_exact,rk4 --rounds 3
+    python benchmarks/bench_compile.py --methods rk4 --paths runs            # one kernel (runs, blocks, driven)
 
 A/B: put each version's package on ``PYTHONPATH`` and alternate the runs (docs/benchmarks.md).
 """
@@ -23,19 +24,24 @@ _ONE = """
 import json, resource, sys, time
 from gyrolab.runner.compile import cold_kernels, compile_one
 name = sys.argv[1]
-paths = cold_kernels([name]).get(name, [])
+paths = sys.argv[2].split(",") if len(sys.argv) > 2 else cold_kernels([name]).get(name, [])
 _, seconds = compile_one(name, paths)
 cpu = resource.getrusage(resource.RUSAGE_SELF)
 print(json.dumps({"paths": paths, "wall": seconds, "cpu": cpu.ru_utime + cpu.ru_stime}))
 """
 
 
-def compile_cold(method):
-    """{"paths", "wall", "cpu"}: one cold compile of ``method`` in a fresh process and cache."""
+def compile_cold(method, paths=()):
+    """{"paths", "wall", "cpu"}: one cold compile of ``method``'s kernels (those of ``paths``, e.g.
+    ["runs", "blocks"]; default: all it has) in a fresh process and cache."""
     with tempfile.TemporaryDirectory(prefix="gyrolab-bench-compile-") as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
         done = subprocess.run(
-            [sys.executable, "-c", _ONE, method], env=env, capture_output=True, text=True, check=False
+            [sys.executable, "-c", _ONE, method, *([",".join(paths)] if paths else [])],
+            env=env,
+            capture_output=True,
+            text=True,
+            check=False,
         )
         if done.returncode:
             raise SystemExit(f"bench_compile: {method} failed: {done.stderr.strip().splitlines()[-1]}")
@@ -46,14 +52,16 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--methods", default="strang_exact,rk4")
     parser.add_argument("--rounds", type=int, default=1)
+    parser.add_argument("--paths", default="", help="only these kernels, e.g. runs,blocks (default: all)")
     args = parser.parse_args(argv)
     methods = [m for m in args.methods.split(",") if m]
+    paths_wanted = [p for p in args.paths.split(",") if p]
     wall = {m: [] for m in methods}
     cpu = {m: [] for m in methods}
     paths = {}
     for _ in range(args.rounds):
         for method in methods:
-            one = compile_cold(method)
+            one = compile_cold(method, paths_wanted)
             paths[method] = one["paths"]
             wall[method].append(one["wall"])
             cpu[method].append(one["cpu"])
