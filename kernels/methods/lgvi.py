@@ -29,6 +29,11 @@ lab L_z too (the trapezoid's torques are horizontal in the lab).  On a free body
 kinetic energy to rounding as well (measured 3e-15 after 4000 steps of the tumbling box of
 test_methods' L test, where no_squish's energy error is 7.6e-7).  q is renormalised once per step
 against rounding.
+
+This is also RATTLE (Andersen 1983) on the rotation matrix under QᵀQ = 1, i.e. the discrete
+Moser–Veselov map between two half kicks (McLachlan & Scovel 1995; Hairer, Lubich & Wanner,
+Geometric Numerical Integration, VII.5): tests/test_md_methods.py test_lgvi_is_rattle finds the same
+step to 1e-15 from an independent matrix transcription, so gyrolab ships no separate ``rattle``.
 """
 
 import math
