@@ -11,8 +11,8 @@ directories (kernels/__init__.py) the sweep and the tests load from.  Only kerne
 hold compile (runner/execute.py ``kernel_cached``); the real engines (kernels/real/) compile nothing.
 ``tests/conftest.py`` calls ``compile_methods`` for the methods a test session selects.
 
-Callers that overlap (the two workers of ``pytest -n 2``, two sweeps started together) take turns on a
-lock file in the cache root: the first compiles, the next then finds the kernels cached and compiles
+Callers that overlap (the workers of ``pytest -n 2``, two ``gyrolab-compile`` started together) take
+turns on a lock file in the cache root: the first compiles, the next then finds the kernels cached and compiles
 nothing, instead of both compiling everything at once on the same cores.
 """
 
@@ -83,10 +83,13 @@ def _cache_lock():
         import fcntl
     except ImportError:  # Windows
         fcntl = None
-    try:
-        handle = open(os.path.join(CACHE_ROOT, "compile.lock"), "a") if CACHE_ROOT and fcntl else None
-    except OSError:
-        handle = None
+    handle = None
+    if CACHE_ROOT and fcntl:
+        flags = os.O_WRONLY | os.O_CREAT | os.O_CLOEXEC | os.O_NOFOLLOW  # never a file a symlink points at
+        try:
+            handle = os.fdopen(os.open(os.path.join(CACHE_ROOT, "compile.lock"), flags, 0o600), "w")
+        except OSError:  # unwritable, or a symlink planted in its place: compile without the lock
+            handle = None
     if handle is None:
         yield
         return
