@@ -244,7 +244,7 @@ def test_lgvi_is_rattle():
         w1, q1 = METHODS["lgvi"].step(w, q, dt, body)
         worst_w = max(worst_w, np.abs(np.array(w1) - w_rattle).max() / np.abs(w_rattle).max())
         worst_r = max(worst_r, np.abs(ck_matrix(q1) - Q1).max())
-        w2, q2 = METHODS["lie_poisson"].step(w, q, dt, body)
+        w2, _ = METHODS["lie_poisson"].step(w, q, dt, body)
         other.append(np.abs(np.array(w2) - w_rattle).max() / np.abs(w_rattle).max())
     print(
         f"\nlgvi vs RATTLE on matrices: ω {worst_w:.1e} relative, R {worst_r:.1e}; "
