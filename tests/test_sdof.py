@@ -57,7 +57,11 @@ HEAVY = {
     "heavy_body": ((1.0, 0.8, 0.5), (1.0, 2.0, 3.0), (0.3, -0.2, 2.0)),
 }
 # gyrolab method: the sdof schemes that are the same map on a free body
-SAME_FREE = {"simo_wong": ("bb_rkmk_trap",), "lgvi": ("incrso3_mleok",), "midpoint_free": ("incrso3_imid", "incrso3_akw")}
+SAME_FREE = {
+    "simo_wong": ("bb_rkmk_trap",),
+    "lgvi": ("incrso3_mleok",),
+    "midpoint_free": ("incrso3_imid", "incrso3_akw"),
+}
 
 
 def rotation(q):
