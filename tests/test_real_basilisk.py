@@ -141,9 +141,11 @@ def test_conformance_rows_for_basilisk(monkeypatch):
             assert "free bodies only" in r["note"], r
 
 
+@pytest.mark.slow  # the gyrolab command alone starts in ~9 s on a loaded 2-core machine (rk4_mrp only: 9.3 s)
 def test_sweep_beside_rk4_mrp_writes_one_file(tmp_path):
     """gyrolab 'sweep.method=[real_basilisk_rk4,rk4_mrp]' scene=free_asymmetric at a small size: one results file
-    that opens, the engine's version in its attrs, the two methods agreeing to rounding before the first flip."""
+    that opens, the engine's version in its attrs, the two methods agreeing to rounding before the first flip
+    (Basilisk adds ~2 s to the command: its import and 20 ExecuteSimulation calls)."""
     res = gyrolab(
         f"sweep.method=[{NAME},rk4_mrp]",
         "scene=free_asymmetric",
