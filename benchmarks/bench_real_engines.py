@@ -8,7 +8,8 @@ One run of the tennis-racket box (free_asymmetric, f = 10 Hz) and one of the wri
 calls after one warm-up call (numba compile, engine import), in µs per step.  A real engine runs its
 runs one after another in this process (MuJoCo: ``mj_step`` with nstep = stride; PyBullet:
 ``stepSimulation`` called from Python; Basilisk: one ``ExecuteSimulation`` per sample, ~0.2 ms a call),
-so its cost per step includes building the model and reading the state back each sample; a reproduction runs numba's kernel (one run: ``run_batch``).
+so its cost per step includes building the model and reading the state back each sample; a reproduction
+runs numba's kernel (one run: ``run_batch``).
 Quote ratios from one run only: the machine may be shared.
 """
 
