@@ -19,7 +19,7 @@ from ..kernels.batch import MIN_BLOCK_RUNS, sample_schedule
 from ..kernels.body import N_FIELDS as N_BODY
 from ..kernels.body import is_driven
 from ..kernels.real import STEP_RATES as REAL_STEP_RATES
-from ..kernels.real import check_bodies, is_real
+from ..kernels.real import check_bodies, check_steps, is_real
 from ..kernels.registry import DRIVEN_REFUSAL, driven_methods, get_method, sees_time, select_methods
 from ..kernels.scenes import SCENES, build_scene
 from ..results.layout import RAW_PER_SAMPLE, SAMPLE_VARIABLES, chosen_variables, stored_per_sample
@@ -195,6 +195,7 @@ def build_grid(cfg):
         if is_real(m):
             try:
                 check_bodies(m, bodies)
+                check_steps(m, sweep.dt)
             except ValueError as err:
                 raise ConfigError(f"sweep.method={m}: {err} (scene {name})") from None
     if is_driven(bodies):

@@ -2,7 +2,7 @@
 
 A name ``real_<engine>[_<mode>]`` in ``sweep.method`` (``REAL``) runs the
 engine users install, next to gyrolab's reproductions of its rotation update
-(kernels/methods/mujoco_*, bullet_*).  Each run is one body built from the
+(kernels/methods/mujoco_*, bullet_*, rk4_mrp for Basilisk).  Each run is one body built from the
 run's body record (kernels/body.py: principal moments about the pivot, M g c),
 initial state (ω body frame, q scalar first body → lab) and dt:
 
@@ -50,19 +50,26 @@ _BACKENDS = {
     "real_mjx_euler": ("mjx_engine", "Euler"),
     "real_mjx_implicitfast": ("mjx_engine", "implicitfast"),
     "real_mjx_rk4": ("mjx_engine", "RK4"),
+    "real_basilisk_rk4": ("basilisk_engine", "RK4"),
 }
 # backend module: the engine package's distribution name (for its version)
-_PACKAGE = {"mujoco_engine": "mujoco", "pybullet_engine": "pybullet", "mjx_engine": "mujoco-mjx"}
+_PACKAGE = {
+    "mujoco_engine": "mujoco",
+    "pybullet_engine": "pybullet",
+    "mjx_engine": "mujoco-mjx",
+    "basilisk_engine": "bsk",
+}
 # name: the engine package's distribution name.
 PACKAGES = {name: _PACKAGE[module] for name, (module, _) in _BACKENDS.items()}
 # A distribution whose import name differs from it (the rest import under their own name).
-IMPORT_NAMES = {"mujoco-mjx": "mujoco.mjx"}
+IMPORT_NAMES = {"mujoco-mjx": "mujoco.mjx", "bsk": "Basilisk"}
 NAMES = tuple(_BACKENDS)
 # Steps per second of one run on the development machine (mj_step with nstep = stride; stepSimulation
 # called from Python; MJX: a jitted loop of `stride` mjx.step per sample, ~3.5 ms a call, 2.8e3 steps/s at
 # stride 10 and 2.5e4 at stride 100, Euler on the heavy top): only for the runner's chunk sizes and
-# dry-run estimates (runner/grid.py STEP_RATE).
-STEP_RATES = {name: {"mujoco": 3e5, "pybullet": 1e5, "mujoco-mjx": 5e3}[PACKAGES[name]] for name in NAMES}
+# dry-run estimates (runner/grid.py STEP_RATE).  Basilisk: one ExecuteSimulation per sample, ~0.2 ms a call
+# besides ~10 µs a step (kernels/real/basilisk_engine.py): 7e4 steps/s at stride 100.
+STEP_RATES = {name: {"mujoco": 3e5, "pybullet": 1e5, "mujoco-mjx": 5e3, "bsk": 7e4}[PACKAGES[name]] for name in NAMES}
 
 
 def is_real(name):
@@ -113,6 +120,15 @@ def check_bodies(name, bodies):
     backend = get_backend(name)
     for row in np.unique(np.asarray(bodies, dtype=float).reshape(-1, N_BODY), axis=0):
         backend.check(Body(*map(float, row)))
+
+
+def check_steps(name, dts):
+    """ValueError (one line) naming the first dt (s) the backend of ``name`` cannot step (Basilisk's clock
+    counts whole nanoseconds); backends without a ``check_dt`` take any dt."""
+    check = getattr(get_backend(name), "check_dt", None)
+    if check is not None:
+        for dt in dts:
+            check(float(dt))
 
 
 def engine_version(name):

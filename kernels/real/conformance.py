@@ -23,7 +23,8 @@ says which); PyBullet's btRigidBody
 (real_pybullet_maximal, free bodies) against bullet_implicit_body; PyBullet's
 default btMultiBody (real_pybullet) with its angular damping set to 0 against
 bullet_explicit, and as shipped (damping 0.04) against bullet_implicit_body,
-the row that answers whether that reproduction is PyBullet's default.
+the row that answers whether that reproduction is PyBullet's default; Basilisk's
+spacecraft hub (real_basilisk_rk4, free bodies) against rk4_mrp.
 The same rows go to JSON (``--json``; with ``--out`` by default FILE.json beside
 the table) with the engine versions, for the per-method cards
 (analysis/reports/engine_cards.py).
@@ -80,6 +81,8 @@ PAIRS = (
     ("mujoco_euler", "real_mjx_euler", None),
     ("mujoco_euler", "real_mjx_implicitfast", None),
     ("mujoco_rk4", "real_mjx_rk4", None),
+    # Basilisk's spacecraft hub (free bodies only): RK4 on (σ, ω), the MRP shadow switch after the full step
+    ("rk4_mrp", "real_basilisk_rk4", None),
 )
 
 
@@ -240,8 +243,18 @@ Reading the table (causes; the numbers are the rows above):
   without the dexp⁻¹ of each stage's rotation that 4.0 applies, so on a body whose ω turns its
   orientation is second order (tests/test_mjx.py: order 2.00 against the C engine's 3.9–4.0): its rows
   differ from the first steps by that truncation error, ω agreeing to rounding on free bodies.
-- Not run: PyBullet's rigid body on a pivot (a point-to-point constraint solved by impulses) and a
-  PyBullet heavy body whose centre of mass is off the principal axes (a rotated inertial frame): not built.
+- real_basilisk_rk4 (Basilisk's spacecraft hub, svIntegratorRK4, free bodies) is rk4_mrp to rounding: the
+  tumbling box ≤ 1e-10 at both dts.  On the tennis racket at dt = 1e-3 the flips amplify the rounding
+  differences past 1e-9 (step ~1570), as they amplify rk4_mrp's own one-ulp change of ω3 (3.3e-8, first
+  > 1e-9 at step 1572).  The two round differently in ω only: Basilisk forms ω̇_i = −(ω × Iω)_i / I_i
+  (Eigen's LDLT of the diagonal inertia) and the step as y0 + dt (k1/6 + k2/3 + k3/3 + k4/6)
+  (svIntegratorRungeKutta's propagateStateWithKVectors), where rk4_mrp forms (I2 − I3) ω2 ω3 / I1 and
+  y0 + dt/6 (k1 + 2 (k2 + k3) + k4); with Basilisk's forms ω agrees bit for bit over 3000 steps.
+  Basilisk's own one-ulp column can read ~1e-16 there: its two ω runs merged by rounding (a free body's
+  ω does not depend on its orientation), so that column is no measure of the flips' amplification.
+- Not run: Basilisk on a heavy body (a spacecraft hub has no pivot); PyBullet's rigid body on a pivot (a
+  point-to-point constraint solved by impulses) and a PyBullet heavy body whose centre of mass is off the
+  principal axes (a rotated inertial frame): not built.
 """
 
 
@@ -253,7 +266,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.steps < 1:
         ap.error(f"--steps={args.steps}: must be >= 1")
-    probes = ("real_mujoco_euler", "real_pybullet", "real_mjx_euler")
+    probes = ("real_mujoco_euler", "real_pybullet", "real_mjx_euler", "real_basilisk_rk4")
     missing = [n for n in probes if package_missing(n) is not None]
     if len(missing) == len(probes):
         print(f"{ap.prog}: error: {package_missing(missing[0])}", file=sys.stderr)
