@@ -81,6 +81,7 @@ def test_bad_input_is_one_line_and_exit_2_before_any_work(argv, word, capsys, mo
 
     monkeypatch.setattr("gyrolab.kernels.batch.integrate", refuse)
     monkeypatch.setattr(M, "probe", refuse)
+    monkeypatch.setattr(M, "growth_law", refuse)
     assert cli.main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and word in err, err
@@ -175,11 +176,11 @@ def test_predicted_error_on_held_out_bodies(metric):
         k = np.flatnonzero(methods == m)
         dt, stride, T = C.schedule(h[k], tau[k], wn[k])
         err, _ = C.measure(m, I[k], w[k], dt, stride, (metric,))
-        g = M.probe(m, I[k], w[k], T)[metric]
         c = constants[m]
+        g, q = M.growth_law(m, I[k], w[k], T, c["order"])[metric]
         measured[k] = err[:, 0]
         rounding = M.rounding_floor(M.load_constants(), metric)
-        predicted[k] = M.predicted_error(c["kappa"][metric], g, c["order"], h[k], wn[k] * T, rounding)
+        predicted[k] = M.predicted_error(c["kappa"][metric], g, q, h[k], wn[k] * T, rounding)
     use = (measured > 1e-12) & (measured < M.SATURATED)
     ratio = predicted[use] / measured[use]
     within = np.mean((ratio >= 0.5) & (ratio <= 2.0))
