@@ -197,10 +197,8 @@ def probe(method, I, omega0, T, n=N_ORBIT, h=None):
     a = np.sum((r - s[:, None] * w_ex) * m_hat, axis=1)
     dE = 0.5 * np.sum(Ir * num[:, 3:6] ** 2, axis=1) - 0.5 * np.sum(Ir * w_ex**2, axis=1)
     dL = np.linalg.norm(Ir * num[:, 3:6], axis=1) - np.linalg.norm(m_ex, axis=1)
-    N = np.asarray(T, float) / dt  # steps over the horizon
     # A drift of the orbit's invariants (G² = |L|², δ; a non-symplectic method's energy) changes the
-    # period P step by step, so the time shift grows as ½ N² dlnP/step: the lag after N steps is
-    # N s_eff with s_eff = mean(s) − ½ N dlnP/step (in steps)
+    # period P step by step, so the time shift grows as ½ k² dlnP/step after k steps
     m_num_s = np.take_along_axis(Ir * num[:, 3:6], np.repeat(perm, n, axis=0), 1).reshape(B, n, 3)
     m_ex_s = np.take_along_axis(m_ex, np.repeat(perm, n, axis=0), 1).reshape(B, n, 3)
     dlnG2 = (np.sum(m_num_s**2, axis=2) / np.sum(m_ex_s**2, axis=2) - 1).mean(axis=1)
@@ -214,42 +212,44 @@ def probe(method, I, omega0, T, n=N_ORBIT, h=None):
     dlnP = np.where(np.isfinite(dlnP), dlnP, 0.0)
     finite = np.isfinite(period) & (period > 0)
     per_point = np.where(finite, period, 1.0) / (n * dt)  # steps per orbit point
-    covered = np.where(finite, np.asarray(T, float) / np.where(finite, period, 1.0) * n, n)  # points over T
+    T_arr = np.broadcast_to(np.asarray(T, float), (B,))
+    covered = np.where(finite, T_arr / np.where(finite, period, 1.0) * n, n)  # points over T
 
-    def growth(x):
-        """|N mean| + the periodic part's largest excursion from the start over the horizon: its running
-        sum over the orbit from ω0 (the points T covers when T is shorter than a period; over the
-        whole orbit otherwise).  Scaling a whole orbit's peak-to-peak by T/P instead, as before, made
-        a horizon shorter than the period ~π× too small."""
+    # The times the errors are evaluated at: the last orbit of the horizon (n + 1 points, T ≥ P), or
+    # the points it covers and T itself (T < P); their steps from the start and orbit points
+    j = np.arange(n + 1)[None, :] / n
+    Pn = np.where(finite, period, np.inf)[:, None]
+    t = np.where(covered[:, None] >= n, T_arr[:, None] - Pn * (1 - j), np.minimum(j * Pn, T_arr[:, None]))
+    t = np.where(np.isfinite(t), t, T_arr[:, None] * j)  # no period (a spin about a pole): uniform
+    steps = t / dt[:, None]
+    pos = np.where(finite[:, None], np.mod(t, np.where(finite, period, 1.0)[:, None]) / Pn * n, 0.0)
+    idx = np.minimum(np.floor(pos), n - 1).astype(int)
+    frac = pos - idx
+    rows = np.arange(B)[:, None]
+
+    def accumulated(x):
+        """Sum of the per-step defect x (B·n) from the start at the evaluation times (B, n + 1):
+        mean × steps + the running sum of its periodic part from ω0 (it comes and goes)."""
         x = x.reshape(B, n)
         mean = x.mean(axis=1)
         dev = (x - mean[:, None]) * per_point[:, None]
         run = np.concatenate([np.zeros((B, 1)), np.cumsum(dev, axis=1)], axis=1)  # at k P / n
-        k = np.arange(n + 1)[None, :]
-        excursion = np.max(np.where(k <= covered[:, None], np.abs(run), 0.0), axis=1)
-        last = np.minimum(np.floor(covered), n - 1).astype(int)
-        frac = np.clip(covered - last, 0.0, 1.0)
-        end = run[np.arange(B), last] + dev[np.arange(B), last] * frac  # at T, inside the last point
-        return np.abs(N * mean) + np.maximum(excursion, np.abs(end))
+        return mean[:, None] * steps + run[rows, idx] + dev[rows, idx] * frac
 
-    S = (
-        growth(s)
-        - np.abs(N * s.reshape(B, n).mean(axis=1))
-        + np.abs(N * (s.reshape(B, n).mean(axis=1) - 0.5 * N * dlnP))
-    )
-    # attitude: a body ahead by s steps is turned by ω s (body frame); the drift about L adds a m̂.
-    # Secular: N |mean(a) m̂(t) + mean(s) ω(t)| at its largest over the orbit; periodic: as above
-    w_step = wu.reshape(B, n, 3)  # rad per step
-    a_mean, s_mean = a.reshape(B, n).mean(axis=1), s.reshape(B, n).mean(axis=1) - 0.5 * N * dlnP
-    secular = np.linalg.norm(a_mean[:, None, None] * m_hat.reshape(B, n, 3) + s_mean[:, None, None] * w_step, axis=2)
-    # the secular part and the two periodic ones are each a bound at its own worst point of the orbit,
-    # not in phase: the error is the largest of them (their sum overstated it, by up to 3×)
-    A = np.maximum(
-        N * secular.max(axis=1),
-        np.maximum(
-            growth(a) - np.abs(N * a_mean), np.linalg.norm(w_step, axis=2).max(axis=1) * (S - np.abs(N * s_mean))
-        ),
-    )
+    def growth(x):
+        return np.abs(accumulated(x)).max(axis=1)
+
+    # The state after k steps is the exact one at k + σ steps turned about L by α (both a solution:
+    # the free flow commutes with turns about L), so the attitude error is |α m̂ + σ ω| (body frame,
+    # ω in rad per step), α and σ the accumulated a and s, secular and periodic parts together (in
+    # phase, as they are: a and s's periodic parts nearly cancel when ω is nearly along L).  A drift
+    # of the orbit's invariants adds −½ k² dlnP to σ.
+    sigma = accumulated(s) - 0.5 * steps**2 * dlnP[:, None]
+    alpha = accumulated(a)
+    w_step = wu.reshape(B, n, 3)[rows, idx]  # rad per step, (B, n + 1, 3)
+    mh = m_hat.reshape(B, n, 3)[rows, idx]
+    A = np.linalg.norm(alpha[..., None] * mh + sigma[..., None] * w_step, axis=2).max(axis=1)
+    S = np.abs(sigma).max(axis=1)
     fmax = np.sqrt(ff.reshape(B, n).max(axis=1))  # |ω̇| in units 1/dt²
     E0 = 0.5 * np.sum(I * w0 * w0, axis=1) * dt**2
     L0 = np.linalg.norm(I * w0, axis=1) * dt

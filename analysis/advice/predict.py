@@ -130,9 +130,7 @@ def orbit_points(Is, G2, delta, pole, sign, n=N_ORBIT, start=None, start_rate=No
     u = 4.0 * K[:, None] * (np.arange(n) + (0.5 if start is None else 0.0))[None, :] / n
     if start is not None:  # the start's u: its amplitude φ (sn u = sin φ, cn u = cos φ), then F(φ | k²)
         with np.errstate(divide="ignore", invalid="ignore"):
-            phi = np.arctan2(
-                np.nan_to_num(start[:, 1] / np.sqrt(a_m2)), np.nan_to_num(start[idx, o] / np.sqrt(a_o2))
-            )
+            phi = np.arctan2(np.nan_to_num(start[:, 1] / np.sqrt(a_m2)), np.nan_to_num(start[idx, o] / np.sqrt(a_o2)))
         half = np.floor(phi / math.pi + 0.5)
         u0 = ellipkinc(phi - half * math.pi, k2) + 2.0 * K * half
         sn0, cn0, dn0, _ = ellipj(u0, k2)
