@@ -209,7 +209,13 @@ def probe(method, I, omega0, T, n=N_ORBIT, h=None):
         _, P_G = orbit_points(Is, G2 * (1 + eta), delta, pole, sign, 1)
         _, P_d = orbit_points(Is, G2, delta * (1 + eta), pole, sign, 1)
         dlnP = np.log(P_G / period) / eta * dlnG2 + np.log(P_d / period) / eta * dlnd
+        # and the turn about L per period Δφ changes too: the turn α grows as ½ k² (dt/P) dΔφ/step
+        phi0 = _turn_per_period(Is, G2, delta, pole, sign)
+        dphi = (_turn_per_period(Is, G2 * (1 + eta), delta, pole, sign) - phi0) / eta * dlnG2
+        dphi += (_turn_per_period(Is, G2, delta * (1 + eta), pole, sign) - phi0) / eta * dlnd
+        dalpha = dphi * dt / period  # per step², rad
     dlnP = np.where(np.isfinite(dlnP), dlnP, 0.0)
+    dalpha = np.where(np.isfinite(dalpha), dalpha, 0.0)
     finite = np.isfinite(period) & (period > 0)
     per_point = np.where(finite, period, 1.0) / (n * dt)  # steps per orbit point
     T_arr = np.broadcast_to(np.asarray(T, float), (B,))
@@ -245,7 +251,7 @@ def probe(method, I, omega0, T, n=N_ORBIT, h=None):
     # phase, as they are: a and s's periodic parts nearly cancel when ω is nearly along L).  A drift
     # of the orbit's invariants adds −½ k² dlnP to σ.
     sigma = accumulated(s) - 0.5 * steps**2 * dlnP[:, None]
-    alpha = accumulated(a)
+    alpha = accumulated(a) + 0.5 * steps**2 * dalpha[:, None]
     w_step = wu.reshape(B, n, 3)[rows, idx]  # rad per step, (B, n + 1, 3)
     mh = m_hat.reshape(B, n, 3)[rows, idx]
     A = np.linalg.norm(alpha[..., None] * mh + sigma[..., None] * w_step, axis=2).max(axis=1)
@@ -259,6 +265,20 @@ def probe(method, I, omega0, T, n=N_ORBIT, h=None):
         "energy": growth(dE) / E0,
         "L_norm": growth(dL) / L0,
     }
+
+
+def _turn_per_period(Is, G2, delta, pole, sign, n=64):
+    """Δφ (rad): the turn about L over one period of the orbit (sorted moments Is, invariants G², δ),
+    the period times the mean of φ̇ = G (2T − m_p²/I_p) / (G² − m_p²) (Landau & Lifshitz §37, with the
+    pole axis p as the third: R(t + P) = Rot_L(Δφ) R(t))."""
+    from .predict import two_T
+
+    m, period = orbit_points(Is, G2, delta, pole, sign, n)
+    mp2 = np.take_along_axis(m, pole[:, None, None], 2)[..., 0] ** 2
+    Ip = np.take_along_axis(Is, pole[:, None], 1)
+    G = np.sqrt(G2)[:, None]
+    rate = G * (two_T(Is, G2, delta, pole)[:, None] - mp2 / Ip) / (G2[:, None] - mp2)
+    return period * rate.mean(axis=1)
 
 
 def _unsort(v, perm):
