@@ -201,19 +201,24 @@ def probe(method, I, omega0, T, n=N_ORBIT, h=None):
     # period P step by step, so the time shift grows as ½ k² dlnP/step after k steps
     m_num_s = np.take_along_axis(Ir * num[:, 3:6], np.repeat(perm, n, axis=0), 1).reshape(B, n, 3)
     m_ex_s = np.take_along_axis(m_ex, np.repeat(perm, n, axis=0), 1).reshape(B, n, 3)
-    dlnG2 = (np.sum(m_num_s**2, axis=2) / np.sum(m_ex_s**2, axis=2) - 1).mean(axis=1)
+    dlnG2_k = np.sum(m_num_s**2, axis=2) / np.sum(m_ex_s**2, axis=2) - 1
+    dlnG2 = dlnG2_k.mean(axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
-        dlnd = np.nan_to_num((_delta(Is, m_num_s, pole) / _delta(Is, m_ex_s, pole) - 1).mean(axis=1))
+        dlnd_k = np.nan_to_num(_delta(Is, m_num_s, pole) / _delta(Is, m_ex_s, pole) - 1)
+        dlnd = dlnd_k.mean(axis=1)
         # elasticities of the period (closed form, finite differences; dt units cancel in them)
         eta = 1e-6
         _, P_G = orbit_points(Is, G2 * (1 + eta), delta, pole, sign, 1)
         _, P_d = orbit_points(Is, G2, delta * (1 + eta), pole, sign, 1)
-        dlnP = np.log(P_G / period) / eta * dlnG2 + np.log(P_d / period) / eta * dlnd
+        eP_G, eP_d = np.log(P_G / period) / eta, np.log(P_d / period) / eta
+        dlnP = eP_G * dlnG2 + eP_d * dlnd
         # and the turn about L per period Δφ changes too: the turn α grows as ½ k² (dt/P) dΔφ/step
         phi0 = _turn_per_period(Is, G2, delta, pole, sign)
-        dphi = (_turn_per_period(Is, G2 * (1 + eta), delta, pole, sign) - phi0) / eta * dlnG2
-        dphi += (_turn_per_period(Is, G2, delta * (1 + eta), pole, sign) - phi0) / eta * dlnd
-        dalpha = dphi * dt / period  # per step², rad
+        ephi_G = (_turn_per_period(Is, G2 * (1 + eta), delta, pole, sign) - phi0) / eta * dt / period
+        ephi_d = (_turn_per_period(Is, G2, delta * (1 + eta), pole, sign) - phi0) / eta * dt / period
+        dalpha = ephi_G * dlnG2 + ephi_d * dlnd  # per step², rad
+        yP = np.nan_to_num(eP_G[:, None] * dlnG2_k + eP_d[:, None] * dlnd_k)
+        yphi = np.nan_to_num(ephi_G[:, None] * dlnG2_k + ephi_d[:, None] * dlnd_k)
     dlnP = np.where(np.isfinite(dlnP), dlnP, 0.0)
     dalpha = np.where(np.isfinite(dalpha), dalpha, 0.0)
     finite = np.isfinite(period) & (period > 0)
@@ -245,13 +250,28 @@ def probe(method, I, omega0, T, n=N_ORBIT, h=None):
     def growth(x):
         return np.abs(accumulated(x)).max(axis=1)
 
+    def offset_sum(y):
+        """Σ over the steps so far of the periodic part of y's running sum, at the evaluation times: the
+        phase that the invariants' periodic wander away from their start's values (zero at the start,
+        so not zero on average: a symplectic method's bounded energy error) moves the body by, y being
+        the per-step change of ln P (σ) or of the turn per step (α) it causes."""
+        mean = y.mean(axis=1)
+        dev = (y - mean[:, None]) * per_point[:, None]
+        run = np.concatenate([np.zeros((B, 1)), np.cumsum(dev, axis=1)], axis=1)
+        lvl = 0.5 * (run[:, :-1] + run[:, 1:])  # the level over each point
+        avg = lvl.mean(axis=1)
+        dev2 = (lvl - avg[:, None]) * per_point[:, None]
+        run2 = np.concatenate([np.zeros((B, 1)), np.cumsum(dev2, axis=1)], axis=1)
+        out = avg[:, None] * steps + run2[rows, idx] + dev2[rows, idx] * frac
+        return np.where(finite[:, None], out, 0.0)
+
     # The state after k steps is the exact one at k + σ steps turned about L by α (both a solution:
     # the free flow commutes with turns about L), so the attitude error is |α m̂ + σ ω| (body frame,
     # ω in rad per step), α and σ the accumulated a and s, secular and periodic parts together (in
     # phase, as they are: a and s's periodic parts nearly cancel when ω is nearly along L).  A drift
     # of the orbit's invariants adds −½ k² dlnP to σ.
-    sigma = accumulated(s) - 0.5 * steps**2 * dlnP[:, None]
-    alpha = accumulated(a) + 0.5 * steps**2 * dalpha[:, None]
+    sigma = accumulated(s) - 0.5 * steps**2 * dlnP[:, None] - offset_sum(yP)
+    alpha = accumulated(a) + 0.5 * steps**2 * dalpha[:, None] + offset_sum(yphi)
     w_step = wu.reshape(B, n, 3)[rows, idx]  # rad per step, (B, n + 1, 3)
     mh = m_hat.reshape(B, n, 3)[rows, idx]
     A = np.linalg.norm(alpha[..., None] * mh + sigma[..., None] * w_step, axis=2).max(axis=1)
