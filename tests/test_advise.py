@@ -81,6 +81,7 @@ def test_bad_input_is_one_line_and_exit_2_before_any_work(argv, word, capsys, mo
 
     monkeypatch.setattr("gyrolab.kernels.batch.integrate", refuse)
     monkeypatch.setattr(M, "probe", refuse)
+    monkeypatch.setattr(M, "growth_law", refuse)
     assert cli.main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and word in err, err
@@ -120,10 +121,9 @@ BODIES = {
 
 
 # Whether the advice's measured error is within 2x of its prediction, as measured once (not tuned):
-# the molecule 0.66; the drone 0.40 (rk4 on an axisymmetric body: the model's bound on the attitude
-# error is 2.5x too high); the satellite 4.9 (a 1 h horizon, 3240 rad: the period's drift of a
-# non-symplectic method over so many turns is underestimated).  See the README.
-WITHIN_2X = {"drone": False, "satellite": False, "molecule": True}
+# measured/predicted 0.97 (drone, rk4), 0.98 (satellite, rk4 over 3240 rad), 0.99 (molecule).  See
+# the README.
+WITHIN_2X = {"drone": True, "satellite": True, "molecule": True}
 
 
 @pytest.fixture(scope="module")
@@ -162,10 +162,10 @@ def held_out(n=120):
 @pytest.mark.slow
 @pytest.mark.parametrize("metric", ["orientation", "energy"])
 def test_predicted_error_on_held_out_bodies(metric):
-    """120 held-out random bodies, one method each (the 4 default methods in turn), h = |ω|dt in
+    """120 held-out random bodies, one method each (the 3 default methods in turn), h = |ω|dt in
     [0.01, 0.1], τ = |ω|T in [10, 100]: the predicted error within 2x of the measured one.  Counted
     over the runs whose measured error is in the model's range (1e-12 .. 0.1: above rounding, below
-    saturation).  Issue 25 asks for >= 90 %; what the model reaches is asserted (and printed)."""
+    saturation).  Issue 25 asks for >= 90 %, which the model reaches (asserted, and printed)."""
     I, w, h, tau, methods = held_out()
     constants = M.load_constants()["methods"]
     wn = np.linalg.norm(w, axis=1)
@@ -175,11 +175,11 @@ def test_predicted_error_on_held_out_bodies(metric):
         k = np.flatnonzero(methods == m)
         dt, stride, T = C.schedule(h[k], tau[k], wn[k])
         err, _ = C.measure(m, I[k], w[k], dt, stride, (metric,))
-        g = M.probe(m, I[k], w[k], T)[metric]
         c = constants[m]
+        g, q = M.growth_law(m, I[k], w[k], T, c["order"])[metric]
         measured[k] = err[:, 0]
         rounding = M.rounding_floor(M.load_constants(), metric)
-        predicted[k] = M.predicted_error(c["kappa"][metric], g, c["order"], h[k], wn[k] * T, rounding)
+        predicted[k] = M.predicted_error(c["kappa"][metric], g, q, h[k], wn[k] * T, rounding)
     use = (measured > 1e-12) & (measured < M.SATURATED)
     ratio = predicted[use] / measured[use]
     within = np.mean((ratio >= 0.5) & (ratio <= 2.0))
@@ -188,8 +188,9 @@ def test_predicted_error_on_held_out_bodies(metric):
     assert within >= HELD_OUT_FLOOR[metric], f"{within:.0%} within 2x; ratios {np.sort(ratio)}"
 
 
-# what the model reaches on the held-out set (measured once, then fixed: not tuned on it)
-HELD_OUT_FLOOR = {"orientation": 0.70, "energy": 0.70}
+# what the model reaches on the held-out set (measured after each of two model changes, never tuned
+# on it: orientation 92 % of 119, energy 99 % of 118), issue 25's 90 %
+HELD_OUT_FLOOR = {"orientation": 0.90, "energy": 0.90}
 
 
 def test_a_budget_gives_each_method_the_dt_it_affords(tmp_path):

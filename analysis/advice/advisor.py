@@ -56,6 +56,7 @@ class MethodRow:
     dt_corrected: float = math.nan  # s: the dt from the measured error when the advised dt missed
     measured_at_corrected: float = math.nan
     growth: float = 0.0  # κ g: the predicted error over T at Ω dt = model.H_PROBE, before rounding
+    exponent: float = 0.0  # q: the predicted error goes as (Ω dt)^q (model.growth_law)
     free_exact: bool = False  # the method's step is the exact free flow (error: rounding)
 
 
@@ -293,16 +294,17 @@ def advise(
         if c.get("free_exact"):
             if not free:
                 continue  # its constants are for free bodies, where it is exact
-            kappa, g = 1.0, 0.0  # the exact flow: rounding only
+            kappa, g, q = 1.0, 0.0, p  # the exact flow: rounding only
         else:
             kappa = c["kappa"][metric]
-            g = float(model.probe(m, body[None, :3], omega0[None], np.array([T]))[metric][0])
+            g, q = model.growth_law(m, body[None, :3], omega0[None], np.array([T]), p)[metric]
+            g, q = float(g[0]), float(q[0])
         if budget is not None:
             lo, hi = T * ns * 1e-9 / budget, MAX_H / Om
         else:
             lo, hi = dt_bounds
         dt_user = hi if budget is None else lo
-        h_max = model.largest_h(kappa, g, p, tol, tau, rounding)
+        h_max = model.largest_h(kappa, g, q, tol, tau, rounding)
         dt_largest = min(h_max / Om, hi, MAX_H / Om)
         row = MethodRow(
             method=m,
@@ -310,13 +312,14 @@ def advise(
             symplectic=c["symplectic"],
             ns_per_step=ns,
             dt_user=dt_user,
-            predicted_at_user=float(model.predicted_error(kappa, g, p, Om * dt_user, tau, rounding)),
+            predicted_at_user=float(model.predicted_error(kappa, g, q, Om * dt_user, tau, rounding)),
             growth=kappa * g,
+            exponent=q,
             free_exact=bool(c.get("free_exact")),
         )
         if dt_largest >= lo and dt_largest > 0:
             row.dt_largest = dt_largest
-            row.predicted_at_largest = float(model.predicted_error(kappa, g, p, Om * dt_largest, tau, rounding))
+            row.predicted_at_largest = float(model.predicted_error(kappa, g, q, Om * dt_largest, tau, rounding))
             row.cost_s = T / dt_largest * ns * 1e-9
             row.meets = True
         rows.append(row)
@@ -366,16 +369,17 @@ def advise(
             r.measured_at_largest = errs[-1]
         if horizon[-1] < T * (1 - 1e-9):  # measured over the start: the prediction over the same span
             c = constants[r.method]
+            p = c["order"]
             if c.get("free_exact"):
-                kappa, g = 1.0, 0.0
+                kappa, g, q = 1.0, 0.0, p
             else:
                 kappa = c["kappa"][metric]
-                g = float(model.probe(r.method, body[None, :3], omega0[None], np.array([horizon[0]]))[metric][0])
-            p = c["order"]
-            r.predicted_at_user = float(model.predicted_error(kappa, g, p, Om * r.dt_user, Om * horizon[0], rounding))
+                law = model.growth_law(r.method, body[None, :3], omega0[None], np.array([horizon[0]]), p)[metric]
+                g, q = float(law[0][0]), float(law[1][0])
+            r.predicted_at_user = float(model.predicted_error(kappa, g, q, Om * r.dt_user, Om * horizon[0], rounding))
             if r.meets:
                 r.predicted_at_largest = float(
-                    model.predicted_error(kappa, g, p, Om * r.dt_largest, Om * horizon[-1], rounding)
+                    model.predicted_error(kappa, g, q, Om * r.dt_largest, Om * horizon[-1], rounding)
                 )
     if best is not None:
         advice.recommended_measured = best.measured_at_largest

@@ -25,7 +25,7 @@ from ...kernels.euler_poinsot import free_body
 from ...kernels.reference import samples_from_states
 from ...kernels.registry import METHODS
 from . import errors as E
-from .model import CONSTANTS_FILE, H_PROBE, SATURATED, probe
+from .model import CONSTANTS_FILE, H_PROBE, SATURATED, growth_law
 
 CALIBRATION_SEED = 1
 CALIBRATION_BODIES = 120
@@ -128,10 +128,11 @@ def fit(method, I, omega0, progress=None):
     for h, tau in GRID:
         dt, stride, T = schedule(np.full(len(wn), h), tau, wn)
         err, _ = measure(method, I, omega0, dt, stride, FITTED_METRICS)
-        growth = probe(method, I, omega0, T)
+        law = growth_law(method, I, omega0, T, order)
         for k, metric in enumerate(FITTED_METRICS):
             e = err[:, k]
-            pred = growth[metric] * (h / H_PROBE) ** order
+            g, q = law[metric]
+            pred = g * (h / H_PROBE) ** q
             use = (e > FIT_RANGE[0]) & (e < FIT_RANGE[1]) & (pred > 0)
             logs[metric].append(np.log(e[use] / pred[use]))
         if progress:

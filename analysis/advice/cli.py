@@ -121,7 +121,7 @@ def figure(a, path):
         colour = f"C{k}"
         h_user = Om * r.dt_user
         h = np.geomspace(min(h_user, Om * r.dt_largest if r.meets else h_user) / 30, 0.5, 80)
-        err = model.predicted_error(1.0, r.growth, r.order, h, a.tau, a.rounding_per_step)
+        err = model.predicted_error(1.0, r.growth, r.exponent or r.order, h, a.tau, a.rounding_per_step)
         cost = a.T / (h / Om) * r.ns_per_step * 1e-9
         ax.loglog(cost, err, "-", color=colour, lw=1.2, label=f"{r.method} (order {r.order}) predicted")
         pts = [(r.dt_user, r.measured_at_user)] + ([(r.dt_largest, r.measured_at_largest)] if r.meets else [])

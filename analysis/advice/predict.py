@@ -35,7 +35,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import ellipj, ellipk
+from scipy.special import ellipj, ellipk, ellipkinc
 
 from ...kernels.batch import integrate
 from ...kernels.body import N_FIELDS as N_BODY
@@ -103,12 +103,16 @@ def separatrix_delta(Is, G2, pole):
     return G2 * np.abs(Ip / Is[:, 1] - 1.0)
 
 
-def orbit_points(Is, G2, delta, pole, sign, n=N_ORBIT):
+def orbit_points(Is, G2, delta, pole, sign, n=N_ORBIT, start=None, start_rate=None):
     """Body momenta m (B, n, 3), sorted frame, uniform in time over one period of the orbit.
 
     Closed form (Landau & Lifshitz §37), written for either pole p with o the opposite extreme
     axis: m_o = a_o cn u, m_2 = a_2 sn u, m_p = ± a_p dn u, u = λ t, u over one period 4K(k²).
-    Also returns the period in seconds (inf for a body with equal moments about the pole: no motion)."""
+    Also returns the period in seconds (inf for a body with equal moments about the pole: no motion).
+    ``start`` (B, 3), sorted momenta on the orbits, and ``start_rate``, their dm/dt (sorted): the points
+    begin there and follow the motion forward in time (else they begin at u = 2K / n, in the direction
+    of increasing u, which is backward in time for about half the orbits: a sorted frame is left-handed
+    for an odd permutation)."""
     B = Is.shape[0]
     idx = np.arange(B)
     o = 2 - pole
@@ -123,7 +127,19 @@ def orbit_points(Is, G2, delta, pole, sign, n=N_ORBIT):
         k2 = np.clip(np.nan_to_num(k2), 0.0, 1.0 - 1e-15)
         lam = np.sqrt(np.maximum(dpm * X, 0.0) / (Is[:, 0] * Is[:, 1] * Is[:, 2]))
     K = ellipk(k2)
-    u = 4.0 * K[:, None] * (np.arange(n) + 0.5)[None, :] / n
+    u = 4.0 * K[:, None] * (np.arange(n) + (0.5 if start is None else 0.0))[None, :] / n
+    if start is not None:  # the start's u: its amplitude φ (sn u = sin φ, cn u = cos φ), then F(φ | k²)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            phi = np.arctan2(np.nan_to_num(start[:, 1] / np.sqrt(a_m2)), np.nan_to_num(start[idx, o] / np.sqrt(a_o2)))
+        half = np.floor(phi / math.pi + 0.5)
+        u0 = ellipkinc(phi - half * math.pi, k2) + 2.0 * K * half
+        sn0, cn0, dn0, _ = ellipj(u0, k2)
+        tangent = np.zeros((B, 3))  # dm/du at the start
+        tangent[idx, o] = -np.sqrt(a_o2) * sn0 * dn0
+        tangent[:, 1] = np.sqrt(a_m2) * cn0 * dn0
+        tangent[idx, pole] = -sign * np.sqrt(a_p2) * k2 * sn0 * cn0
+        forward = np.where(np.sum(tangent * start_rate, axis=1) < 0, -1.0, 1.0)
+        u = u0[:, None] + forward[:, None] * u
     sn, cn, dn, _ = ellipj(u, k2[:, None])
     m = np.empty((B, n, 3))
     m[idx, :, o] = np.sqrt(a_o2)[:, None] * cn
