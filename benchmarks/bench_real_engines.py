@@ -1,15 +1,16 @@
 """Cost per step of a real-engine run (kernels/real/) next to its reproduction's, both through
 kernels.batch.integrate as a sweep runs them.
 
-    python benchmarks/bench_real_engines.py [--steps 100000] [--stride 100] [--repeat 3]
+    python benchmarks/bench_real_engines.py [--steps 100000] [--stride 100] [--repeat 3] [--only real_newton]
 
 One run of the tennis-racket box (free_asymmetric, f = 10 Hz) and one of the write-up's heavy top
 (f = 10 Hz, θ0 = 45°) at dt = 1e-4 s, a sample every ``stride`` steps, the best of ``repeat`` timed
 calls after one warm-up call (numba compile, engine import), in µs per step.  A real engine runs its
 runs one after another in this process (MuJoCo: ``mj_step`` with nstep = stride; PyBullet:
-``stepSimulation`` called from Python; Basilisk: one ``ExecuteSimulation`` per sample, ~0.2 ms a call),
-so its cost per step includes building the model and reading the state back each sample; a reproduction
-runs numba's kernel (one run: ``run_batch``).
+``stepSimulation`` called from Python; Basilisk: one ``ExecuteSimulation`` per sample, ~0.2 ms a call;
+Newton: ``solver.step`` from Python, a few Warp CPU kernel launches a step), so its cost per step includes
+building the model and reading the state back each sample; a reproduction runs numba's kernel (one run:
+``run_batch``).
 Quote ratios from one run only: the machine may be shared.
 """
 
@@ -30,6 +31,8 @@ PAIRS = (
     ("real_pybullet", "bullet_explicit"),
     ("real_pybullet_maximal", "bullet_implicit_body"),
     ("real_basilisk_rk4", "rk4_mrp"),  # free bodies only: the heavy top row says "not run"
+    ("real_newton_semi", "newton_semi"),
+    ("real_newton_xpbd", "newton_semi"),  # XPBD's damping is 0 as shipped: the closest reproduction, not its update
 )
 
 
@@ -51,12 +54,13 @@ def main():
     ap.add_argument("--steps", type=int, default=100_000)
     ap.add_argument("--stride", type=int, default=100)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--only", default="", help="only the real engines whose name starts with this")
     args = ap.parse_args()
     scenes = {
         "tennis racket": build_scene("free_asymmetric", 10.0, 30.0),
         "heavy top": build_scene("heavy_top", 10.0, 45.0),
     }
-    names = [real for real, _ in PAIRS if package_missing(real) is None]
+    names = [real for real, _ in PAIRS if real.startswith(args.only) and package_missing(real) is None]
     print(f"{engine_versions(names)}; {args.steps} steps of dt = 1e-4 s, a sample every {args.stride}")
     print("| scene | real engine | µs/step | reproduction | µs/step | ratio |")
     print("|---|---|---|---|---|---|")

@@ -326,8 +326,9 @@ def test_conformance_rows_at_a_short_length():
     rows = conformance.rows(200)
     assert len(rows) == len(conformance.cases()) * len(conformance.DTS) * len(conformance.PAIRS)
     for r in rows:
-        if "note" in r:  # PyBullet's unbuilt pivots; Basilisk's hub (free bodies only, tests/test_real_basilisk.py)
-            assert r["engine"].startswith(("real_pybullet", "real_basilisk")) and r["case"] != "tumbling box"
+        if "note" in r:  # unbuilt pivots (PyBullet); Basilisk's hub and Newton: free bodies only (their test files)
+            engines = ("real_pybullet", "real_basilisk", "real_newton")
+            assert r["engine"].startswith(engines) and r["case"] != "tumbling box"
             continue
         isolated = r["engine"].startswith("real_mujoco") or r["engine"] == "real_pybullet_maximal"
         if isolated and r["case"] in ("tumbling box", "50 Hz top", "heavy body, c off-axis"):

@@ -2,7 +2,7 @@
 
 A name ``real_<engine>[_<mode>]`` in ``sweep.method`` (``REAL``) runs the
 engine users install, next to gyrolab's reproductions of its rotation update
-(kernels/methods/mujoco_*, bullet_*, rk4_mrp for Basilisk).  Each run is one body built from the
+(kernels/methods/mujoco_*, bullet_*, rk4_mrp for Basilisk, newton_semi).  Each run is one body built from the
 run's body record (kernels/body.py: principal moments about the pivot, M g c),
 initial state (ω body frame, q scalar first body → lab) and dt:
 
@@ -51,6 +51,8 @@ _BACKENDS = {
     "real_mjx_implicitfast": ("mjx_engine", "implicitfast"),
     "real_mjx_rk4": ("mjx_engine", "RK4"),
     "real_basilisk_rk4": ("basilisk_engine", "RK4"),
+    "real_newton_semi": ("newton_engine", "semi"),
+    "real_newton_xpbd": ("newton_engine", "xpbd"),
 }
 # backend module: the engine package's distribution name (for its version)
 _PACKAGE = {
@@ -58,6 +60,7 @@ _PACKAGE = {
     "pybullet_engine": "pybullet",
     "mjx_engine": "mujoco-mjx",
     "basilisk_engine": "bsk",
+    "newton_engine": "newton",
 }
 # name: the engine package's distribution name.
 PACKAGES = {name: _PACKAGE[module] for name, (module, _) in _BACKENDS.items()}
@@ -68,8 +71,12 @@ NAMES = tuple(_BACKENDS)
 # called from Python; MJX: a jitted loop of `stride` mjx.step per sample, ~3.5 ms a call, 2.8e3 steps/s at
 # stride 10 and 2.5e4 at stride 100, Euler on the heavy top): only for the runner's chunk sizes and
 # dry-run estimates (runner/grid.py STEP_RATE).  Basilisk: one ExecuteSimulation per sample, ~0.2 ms a call
-# besides ~10 µs a step (kernels/real/basilisk_engine.py): 7e4 steps/s at stride 100.
-STEP_RATES = {name: {"mujoco": 3e5, "pybullet": 1e5, "mujoco-mjx": 5e3, "bsk": 7e4}[PACKAGES[name]] for name in NAMES}
+# besides ~10 µs a step (kernels/real/basilisk_engine.py): 7e4 steps/s at stride 100.  Newton on Warp's CPU
+# device: one solver.step from Python launches a few kernels whose argument packing dominates (~0.7 ms a step
+# for SolverSemiImplicit, ~1-3 ms for SolverXPBD's two iterations, measured 1.1e3-1.4e3 and 3e2-1.6e3 steps/s
+# on the shared 2-core machine).
+_RATE = {"mujoco": 3e5, "pybullet": 1e5, "mujoco-mjx": 5e3, "bsk": 7e4, "newton": 1e3}
+STEP_RATES = {name: _RATE[PACKAGES[name]] for name in NAMES}
 
 
 def is_real(name):

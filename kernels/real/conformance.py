@@ -12,7 +12,8 @@ reports, over the steps both completed while |ω| stayed below 2 |ω0| (past
 that an exploding run amplifies rounding as fast as it grows):
 
 - max |Δω|/|ω| (ω body) and max orientation error, the angle of the rotation between the two (rad);
-- the same for the engine against itself with ω3 one ulp larger (its own
+- the same for the engine against itself with ω3 one ulp larger (of the engine's precision: float32 for
+  Newton, float64 for the others; its own
   sensitivity: where the reproduction's disagreement is of that size, the
   motion amplifies rounding, as the tennis racket's flips do, and no
   reproduction that rounds differently can do better);
@@ -24,7 +25,9 @@ says which); PyBullet's btRigidBody
 default btMultiBody (real_pybullet) with its angular damping set to 0 against
 bullet_explicit, and as shipped (damping 0.04) against bullet_implicit_body,
 the row that answers whether that reproduction is PyBullet's default; Basilisk's
-spacecraft hub (real_basilisk_rk4, free bodies) against rk4_mrp.
+spacecraft hub (real_basilisk_rk4, free bodies) against rk4_mrp; Newton's SolverSemiImplicit
+(real_newton_semi, float32, free bodies) as shipped against newton_semi, and its SolverXPBD
+(real_newton_xpbd) with its angular damping set from 0 to newton_semi's 0.05.
 The same rows go to JSON (``--json``; with ``--out`` by default FILE.json beside
 the table) with the engine versions, for the per-method cards
 (analysis/reports/engine_cards.py).
@@ -83,6 +86,11 @@ PAIRS = (
     ("mujoco_rk4", "real_mjx_rk4", None),
     # Basilisk's spacecraft hub (free bodies only): RK4 on (σ, ω), the MRP shadow switch after the full step
     ("rk4_mrp", "real_basilisk_rk4", None),
+    # Newton (float32 on Warp's CPU device): SolverSemiImplicit as shipped (damping 0.05/s) is newton_semi's
+    # update; SolverXPBD on a free body is the same integrate_rigid_body with its damping 0, so it is compared
+    # with that damping set to newton_semi's 0.05 (no reproduction has damping 0)
+    ("newton_semi", "real_newton_semi", None),
+    ("newton_semi", "real_newton_xpbd", 0.05),
 )
 
 
@@ -155,7 +163,9 @@ def rows(n_steps):
                     out.append(row)
                     continue
                 Wr, Qr = reproduction_trajectory(method, body, w0, q0, dt, n_steps)
-                w_ulp = (w0[0], w0[1], float(np.nextafter(w0[2], math.inf)))
+                # one ulp of the engine's own precision (float32 for Newton: a float64 ulp is rounded away)
+                dtype = getattr(get_backend(engine), "PRECISION", np.float64)
+                w_ulp = (w0[0], w0[1], float(np.nextafter(dtype(w0[2]), dtype(math.inf))))
                 W1, Q1 = engine_trajectory(engine, body, w_ulp, q0, dt, n_steps, damping)
                 dw, dq, k = disagreement(W, Q, Wr, Qr, w0)
                 sw, sq, _ = disagreement(W, Q, W1, Q1, w0)
@@ -252,9 +262,24 @@ Reading the table (causes; the numbers are the rows above):
   y0 + dt/6 (k1 + 2 (k2 + k3) + k4); with Basilisk's forms ω agrees bit for bit over 3000 steps.
   Basilisk's own one-ulp column can read ~1e-16 there: its two ω runs merged by rounding (a free body's
   ω does not depend on its orientation), so that column is no measure of the flips' amplification.
-- Not run: Basilisk on a heavy body (a spacecraft hub has no pivot); PyBullet's rigid body on a pivot (a
-  point-to-point constraint solved by impulses) and a PyBullet heavy body whose centre of mass is off the
-  principal axes (a rotated inertial frame): not built.
+- Newton (newton 1.8 on Warp's CPU device) computes in float32 and has no float64 switch, so no row of its
+  can reach 1e-9: the first step already differs by ~1.5e-7 (the float32 rounding of the state and of the
+  step).  The update is newton_semi's: Newton's integrate_rigid_body written out in float64 agrees with it to
+  rounding (≤ 1.5e-9 over 1000 racket steps at dt = 1e-3, where the flips amplify it; 5e-14 at 1e-4), the
+  same formulas in float32 give the engine's first racket step to the bit and
+  disagree with newton_semi as much as the engine does over 10^4 steps (tests/test_real_newton.py).  The
+  rounding is not only noise: ω is turned into the body frame and back by a quaternion normalised to float32
+  (|r|² = 1 + ~half an ulp) every step, which raises |ω| by ~2e-7 a step and the energy with it (+1.7e-3 over
+  10^4 steps on the tumbling box at dt = 1e-4), so the flips' period drifts and the racket's ω differs by
+  O(1) near the flips late in the run, beyond the engine's own float32-ulp spread (which a start perturbation
+  measures, not this drift).  At dt = 1e-3 the box explodes in 519 steps in both (explicit ω × Iω).
+  real_newton_xpbd is compared with its damping set to 0.05 (0 as shipped): its two extra zero-delta passes
+  renormalise q once more each, a different float32 rounding, hence its larger rows; as shipped it also sets
+  |ω| < 1e-4 rad/s to 0.  Heavy bodies: not built (a Newton joint at the pivot), so those rows are not run.
+- Not run: Basilisk on a heavy body (a spacecraft hub has no pivot); Newton on a heavy body (a ball joint
+  at the pivot: not built); PyBullet's rigid body on a pivot (a point-to-point constraint solved by impulses)
+  and a PyBullet heavy body whose centre of mass is off the principal axes (a rotated inertial frame): not
+  built.
 """
 
 
@@ -266,7 +291,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.steps < 1:
         ap.error(f"--steps={args.steps}: must be >= 1")
-    probes = ("real_mujoco_euler", "real_pybullet", "real_mjx_euler", "real_basilisk_rk4")
+    probes = ("real_mujoco_euler", "real_pybullet", "real_mjx_euler", "real_basilisk_rk4", "real_newton_semi")
     missing = [n for n in probes if package_missing(n) is not None]
     if len(missing) == len(probes):
         print(f"{ap.prog}: error: {package_missing(missing[0])}", file=sys.stderr)
