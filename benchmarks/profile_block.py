@@ -3,9 +3,10 @@
 Run:  python benchmarks/profile_block.py [--lanes 64] [--steps 20000] [--repeat 7]
 
 Each line times m steps of a block of lanes (block.make_block_steps' loop, no sampling) with one thing
-changed; the differences say what each part costs.  The variants that change arithmetic (divisions
-replaced by reciprocals) are for measurement only: they do not give seed_next's bits.  Also prints the
-packed instructions of the shipped loop body (the count of vdivpd is the count of divisions per vector).
+changed; the differences say what each part costs.  The variant that changes arithmetic (I⁻¹ applied by
+divisions, as euler_rhs did before it multiplied by reciprocals) is for measurement only: it does not give
+seed_next's bits.  Also prints the packed instructions of the shipped loop body (the count of vdivpd is the
+count of divisions per vector).
 """
 
 import argparse
@@ -25,25 +26,24 @@ from gyrolab.kernels.scenes import build_scene
 
 
 @njit
-def _euler_rhs_reciprocal(w, tau, inv):
-    """euler_rhs with 1/I precomputed: multiplications instead of divisions (other bits)."""
-    I1, I2, I3, i1, i2, i3 = inv
+def _euler_rhs_division(w, tau, body):
+    """euler_rhs as it was before issue 22: I⁻¹ by three divisions per call (other bits)."""
+    I1, I2, I3 = body[0], body[1], body[2]
     return (
-        (tau[0] + (I2 - I3) * w[1] * w[2]) * i1,
-        (tau[1] + (I3 - I1) * w[2] * w[0]) * i2,
-        (tau[2] + (I1 - I2) * w[0] * w[1]) * i3,
+        (tau[0] + (I2 - I3) * w[1] * w[2]) / I1,
+        (tau[1] + (I3 - I1) * w[2] * w[0]) / I2,
+        (tau[2] + (I1 - I2) * w[0] * w[1]) / I3,
     )
 
 
 @njit
-def _step_reciprocal(w, q, dt, body):
-    inv = (body[0], body[1], body[2], 1.0 / body[0], 1.0 / body[1], 1.0 / body[2])
+def _step_division(w, q, dt, body):
     tau = gravity_torque(q, body)
     h = 0.5 * dt
-    k1 = _euler_rhs_reciprocal(w, tau, inv)
-    k2 = _euler_rhs_reciprocal((w[0] + h * k1[0], w[1] + h * k1[1], w[2] + h * k1[2]), tau, inv)
-    k3 = _euler_rhs_reciprocal((w[0] + h * k2[0], w[1] + h * k2[1], w[2] + h * k2[2]), tau, inv)
-    k4 = _euler_rhs_reciprocal((w[0] + dt * k3[0], w[1] + dt * k3[1], w[2] + dt * k3[2]), tau, inv)
+    k1 = _euler_rhs_division(w, tau, body)
+    k2 = _euler_rhs_division((w[0] + h * k1[0], w[1] + h * k1[1], w[2] + h * k1[2]), tau, body)
+    k3 = _euler_rhs_division((w[0] + h * k2[0], w[1] + h * k2[1], w[2] + h * k2[2]), tau, body)
+    k4 = _euler_rhs_division((w[0] + dt * k3[0], w[1] + dt * k3[1], w[2] + dt * k3[2]), tau, body)
     s = dt * (1.0 / 6.0)
     wn = (
         w[0] + s * (k1[0] + 2.0 * (k2[0] + k3[0]) + k4[0]),
@@ -125,8 +125,8 @@ def main():
     )
     for label, variant in [
         ("bare lane loop (as shipped, without checkpoint and check)", step),
-        ("bare; divisions -> reciprocal multiplications (other bits)", _step_reciprocal),
-        ("bare; omega update only (torque + RK4 on Euler, 13 divisions)", _omega_only),
+        ("bare; reciprocals -> 12 divisions, as before issue 22 (other bits)", _step_division),
+        ("bare; omega update only (torque + RK4 on Euler)", _omega_only),
         ("bare; rotation only (polynomial CK quaternion + product)", _rotation_only),
     ]:
         loop = _plain_loop(lane_step(variant))

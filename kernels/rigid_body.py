@@ -69,14 +69,22 @@ def torque_at(q, t, body):
 
 @njit(cache=True, error_model="numpy")
 def euler_rhs(w, tau, body):
-    """ω̇ = I⁻¹ (τ − ω × Iω) (rad/s²), all in the body frame."""
+    """ω̇ = I⁻¹ (τ − ω × Iω) (rad/s²), all in the body frame.
+
+    I⁻¹ is applied as a multiplication by the reciprocals 1/I_k, not as a division: a method that calls
+    this several times a step (RK4: four) inlines the calls, LLVM computes the three reciprocals once
+    and the step has three divisions instead of twelve (a division takes ~13 cycles where a
+    multiplication takes 4; seed_next's block step 4.3 → 3.0 ns a lane, docs/benchmarks.md).  The
+    product differs from the quotient by at most one ulp: a change of the last bit, far below any
+    method's truncation error (issue 22 item 3; the regression data were regenerated with it).
+    """
     I1, I2, I3 = body[0], body[1], body[2]
     w1, w2, w3 = w
     t1, t2, t3 = tau
     return (
-        (t1 + (I2 - I3) * w2 * w3) / I1,
-        (t2 + (I3 - I1) * w3 * w1) / I2,
-        (t3 + (I1 - I2) * w1 * w2) / I3,
+        (t1 + (I2 - I3) * w2 * w3) * (1.0 / I1),
+        (t2 + (I3 - I1) * w3 * w1) * (1.0 / I2),
+        (t3 + (I1 - I2) * w1 * w2) * (1.0 / I3),
     )
 
 

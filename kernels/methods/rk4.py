@@ -41,7 +41,7 @@ def _stage(w, q, h, k):
 @njit(cache=True, error_model="numpy")
 def _combine(w, q, dt, k1, k2, k3, k4):
     """The RK4 update from the four stage slopes, the quaternion renormalised."""
-    s = dt / 6.0
+    s = dt * (1.0 / 6.0)  # a multiplication: dt / 6 would be one more division a step (issue 22)
     w_next = (
         w[0] + s * (k1[0][0] + 2.0 * (k2[0][0] + k3[0][0]) + k4[0][0]),
         w[1] + s * (k1[0][1] + 2.0 * (k2[0][1] + k3[0][1]) + k4[0][1]),

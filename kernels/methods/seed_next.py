@@ -25,7 +25,7 @@ def rk4_frozen_torque(w, tau, dt, body):
     k2 = euler_rhs((w[0] + h * k1[0], w[1] + h * k1[1], w[2] + h * k1[2]), tau, body)
     k3 = euler_rhs((w[0] + h * k2[0], w[1] + h * k2[1], w[2] + h * k2[2]), tau, body)
     k4 = euler_rhs((w[0] + dt * k3[0], w[1] + dt * k3[1], w[2] + dt * k3[2]), tau, body)
-    s = dt / 6.0
+    s = dt * (1.0 / 6.0)  # a multiplication: dt / 6 would be one more division a step (issue 22)
     return (
         w[0] + s * (k1[0] + 2.0 * (k2[0] + k3[0]) + k4[0]),
         w[1] + s * (k1[1] + 2.0 * (k2[1] + k3[1]) + k4[1]),
