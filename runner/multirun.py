@@ -8,7 +8,6 @@ grid; bad input exits with status 2 and one line naming the job, the key and
 the value, before any directory is made.
 """
 
-import re
 from pathlib import Path
 
 from hydra.core.global_hydra import GlobalHydra
@@ -25,6 +24,11 @@ from .config import ConfigError
 class PrecheckCallback(Callback):
     def on_multirun_start(self, config, **kwargs):
         from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+
+        # Which of the sweep directory and its parents exist before Hydra makes them (its sweeper runs
+        # after this hook): a dry run removes only those it made (on_multirun_end).
+        sweep = Path(str(config.hydra.sweep.dir)).absolute()
+        self.made = [d for d in (sweep, sweep.parent, sweep.parent.parent) if not d.exists()]
 
         from .app import describe_hydra_error, fail
         from .grid import build_grid
@@ -53,20 +57,17 @@ class PrecheckCallback(Callback):
 
     def on_multirun_end(self, config, **kwargs):
         """A dry run leaves nothing behind: Hydra wrote the sweep's multirun.yaml before any job (each
-        job only estimated and wrote nothing); it goes, and so does the sweep directory once empty (and
-        Hydra's default ``multirun/<YYYY-MM-DD>`` above it, each once empty)."""
+        job only estimated and wrote nothing); it goes, and so do the sweep directory and its two
+        parents (Hydra's default ``multirun/<YYYY-MM-DD>/<HH-MM-SS>``) where this multirun made them and
+        they are empty.  A directory that existed before, even empty, stays."""
         if not (config.get("runner") or {}).get("dry_run"):
             return
         verdict = (config.hydra.get("callbacks") or {}).get("verdict")
         if verdict is not None and getattr(self, "grids", None):
             print(verdict_estimate(self.grids, verdict.get("stability", 10.0), config.runner.get("threads")))
-        sweep = Path(str(config.hydra.sweep.dir))
+        sweep = Path(str(config.hydra.sweep.dir)).absolute()
         (sweep / "multirun.yaml").unlink(missing_ok=True)
-        for directory in (sweep, sweep.parent, sweep.parent.parent):
-            if directory is sweep.parent and not re.fullmatch(r"\d{4}-\d{2}-\d{2}", directory.name):
-                break
-            if directory is sweep.parent.parent and directory.name != "multirun":
-                break
+        for directory in getattr(self, "made", []):  # innermost first; never one that was there before
             try:
                 directory.rmdir()  # only an empty directory: anything else there is not ours to remove
             except OSError:

@@ -122,6 +122,17 @@ def test_dry_run_of_a_multirun_leaves_nothing_behind(tmp_path):
     assert list(tmp_path.iterdir()) == []  # Hydra's multirun/<date>/<time>/multirun.yaml removed with its dirs
 
 
+def test_dry_run_of_a_multirun_keeps_directories_that_were_there(tmp_path):
+    """The user's own empty directories above the sweep directory, and the sweep directory itself when it
+    existed, stay: the dry run removes only what Hydra made for it (it removed two such parents)."""
+    keep = tmp_path / "dd" / "keep"
+    keep.mkdir(parents=True)
+    for sweep in (keep / "mr", keep):
+        result = gyrolab("-m", "sweep.t_end=0.1,0.2", f"hydra.sweep.dir={sweep}", "runner.dry_run=true", cwd=tmp_path)
+        assert_ok(result)
+        assert keep.is_dir() and not (keep / "mr").exists() and not list(keep.iterdir())
+
+
 def test_dry_run_figure_memory_follows_the_file_and_the_setting(tmp_path):
     """The model of docs/benchmarks.md against the sweeps' peak RSS with their figures: 501 MB for the
     8000-run sweep's 1.09 GB file, 518 MB for the 40000-run sweep's 5.45 GB one, each within 10 %;
