@@ -74,7 +74,9 @@ def _plain_loop(fast):
                     (W[0, j], W[1, j], W[2, j]),
                     (Q[0, j], Q[1, j], Q[2, j], Q[3, j]),
                     DT[j],
-                    (B[0, j], B[0, j], B[2, j], B[3, j], B[4, j], B[5, j]),
+                    # the body's 12 fields (kernels/body.py), I2 taken as I1 (a symmetric top)
+                    (B[0, j], B[0, j], B[2, j], B[3, j], B[4, j], B[5, j])
+                    + (B[6, j], B[7, j], B[8, j], B[9, j], B[10, j], B[11, j]),
                 )
                 W[0, j], W[1, j], W[2, j] = w
                 Q[0, j], Q[1, j], Q[2, j], Q[3, j] = q
