@@ -50,19 +50,27 @@ _BACKENDS = {
     "real_mjx_euler": ("mjx_engine", "Euler"),
     "real_mjx_implicitfast": ("mjx_engine", "implicitfast"),
     "real_mjx_rk4": ("mjx_engine", "RK4"),
+    "real_jaxmd_nve": ("jaxmd_engine", "nve"),
 }
 # backend module: the engine package's distribution name (for its version)
-_PACKAGE = {"mujoco_engine": "mujoco", "pybullet_engine": "pybullet", "mjx_engine": "mujoco-mjx"}
+_PACKAGE = {
+    "mujoco_engine": "mujoco",
+    "pybullet_engine": "pybullet",
+    "mjx_engine": "mujoco-mjx",
+    "jaxmd_engine": "jax-md",
+}
 # name: the engine package's distribution name.
 PACKAGES = {name: _PACKAGE[module] for name, (module, _) in _BACKENDS.items()}
 # A distribution whose import name differs from it (the rest import under their own name).
-IMPORT_NAMES = {"mujoco-mjx": "mujoco.mjx"}
+IMPORT_NAMES = {"mujoco-mjx": "mujoco.mjx", "jax-md": "jax_md"}
 NAMES = tuple(_BACKENDS)
 # Steps per second of one run on the development machine (mj_step with nstep = stride; stepSimulation
 # called from Python; MJX: a jitted loop of `stride` mjx.step per sample, ~3.5 ms a call, 2.8e3 steps/s at
 # stride 10 and 2.5e4 at stride 100, Euler on the heavy top): only for the runner's chunk sizes and
 # dry-run estimates (runner/grid.py STEP_RATE).
-STEP_RATES = {name: {"mujoco": 3e5, "pybullet": 1e5, "mujoco-mjx": 5e3}[PACKAGES[name]] for name in NAMES}
+STEP_RATES = {
+    name: {"mujoco": 3e5, "pybullet": 1e5, "mujoco-mjx": 5e3, "jax-md": 1e5}[PACKAGES[name]] for name in NAMES
+}
 
 
 def is_real(name):
