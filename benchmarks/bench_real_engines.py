@@ -7,8 +7,9 @@ One run of the tennis-racket box (free_asymmetric, f = 10 Hz) and one of the wri
 (f = 10 Hz, θ0 = 45°) at dt = 1e-4 s, a sample every ``stride`` steps, the best of ``repeat`` timed
 calls after one warm-up call (numba compile, engine import), in µs per step.  A real engine runs its
 runs one after another in this process (MuJoCo: ``mj_step`` with nstep = stride; PyBullet:
-``stepSimulation`` called from Python), so its cost per step includes building the model and
-reading the state back each sample; a reproduction runs numba's kernel (one run: ``run_batch``).
+``stepSimulation`` called from Python; jax-md: a jitted ``lax.fori_loop`` of ``stride`` NVE steps
+per sample), so its cost per step includes building the model and reading the state back each
+sample; a reproduction runs numba's kernel (one run: ``run_batch``).
 Quote ratios from one run only: the machine may be shared.
 """
 
@@ -28,6 +29,7 @@ PAIRS = (
     ("real_mujoco_rk4", "mujoco_rk4"),
     ("real_pybullet", "bullet_explicit"),
     ("real_pybullet_maximal", "bullet_implicit_body"),
+    ("real_jaxmd_nve", "no_squish"),  # free bodies only: the heavy top is "not run"
 )
 
 
