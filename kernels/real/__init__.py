@@ -66,7 +66,9 @@ IMPORT_NAMES = {"mujoco-mjx": "mujoco.mjx", "jax-md": "jax_md"}
 NAMES = tuple(_BACKENDS)
 # Steps per second of one run on the development machine (mj_step with nstep = stride; stepSimulation
 # called from Python; MJX: a jitted loop of `stride` mjx.step per sample, ~3.5 ms a call, 2.8e3 steps/s at
-# stride 10 and 2.5e4 at stride 100, Euler on the heavy top): only for the runner's chunk sizes and
+# stride 10 and 2.5e4 at stride 100, Euler on the heavy top; jax-md: a jitted loop of `stride` NVE steps
+# and the read-back per sample, ~3.3 us a step and ~85 us a call, 8e4 steps/s at stride 10 and 2.7e5 at
+# stride 100 on the tennis racket, benchmarks/bench_real_engines.py): only for the runner's chunk sizes and
 # dry-run estimates (runner/grid.py STEP_RATE).
 STEP_RATES = {
     name: {"mujoco": 3e5, "pybullet": 1e5, "mujoco-mjx": 5e3, "jax-md": 1e5}[PACKAGES[name]] for name in NAMES
