@@ -112,7 +112,7 @@ class Backend:
         self.init, step = free_body_nve()
 
         def steps(state, dt, n):
-            """n steps, and (ω, q) of the body after them: one call per sample (dispatch costs ~0.2 ms a call)."""
+            """n steps, and (ω, q) of the body after them: one call per sample (~85 µs of overhead a call)."""
             state = jax.lax.fori_loop(0, n, lambda _, s: step(s, dt=dt), state)
             w, q = omega_and_q(state)
             return state, w[0], q[0]
