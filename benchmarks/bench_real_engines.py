@@ -8,9 +8,9 @@ One run of the tennis-racket box (free_asymmetric, f = 10 Hz) and one of the wri
 calls after one warm-up call (numba compile, engine import), in µs per step.  A real engine runs its
 runs one after another in this process (MuJoCo: ``mj_step`` with nstep = stride; PyBullet:
 ``stepSimulation`` called from Python; Basilisk: one ``ExecuteSimulation`` per sample, ~0.2 ms a call;
-Newton: ``solver.step`` from Python, a few Warp CPU kernel launches a step), so its cost per step includes
-building the model and reading the state back each sample; a reproduction runs numba's kernel (one run:
-``run_batch``).
+Newton: ``solver.step`` from Python, a few Warp CPU kernel launches a step; jax-md: a jitted
+``lax.fori_loop`` of ``stride`` NVE steps per sample), so its cost per step includes building the model
+and reading the state back each sample; a reproduction runs numba's kernel (one run: ``run_batch``).
 Quote ratios from one run only: the machine may be shared.
 """
 
@@ -33,6 +33,7 @@ PAIRS = (
     ("real_basilisk_rk4", "rk4_mrp"),  # free bodies only: the heavy top row says "not run"
     ("real_newton_semi", "newton_semi"),
     ("real_newton_xpbd", "newton_semi"),  # XPBD's damping is 0 as shipped: the closest reproduction, not its update
+    ("real_jaxmd_nve", "no_squish"),  # free bodies only: the heavy top is "not run"
 )
 
 

@@ -99,7 +99,9 @@ def test_conformance_json_has_the_rows_nan_as_null():
     rows = [{"case": "c", "dt": 1e-3, "reproduction": "mujoco_euler", "engine": "real_mujoco_euler", "dw": math.nan}]
     doc = json.loads(conformance.as_json(rows, 7))
     assert doc["steps"] == 7 and doc["rows"][0]["dw"] is None and doc["threshold"] == conformance.THRESHOLD
-    assert set(doc["engines"]) == {"mujoco", "mujoco-mjx", "pybullet"} and len(doc["pairs"]) == len(conformance.PAIRS)
+    assert set(doc["engines"]) == {"mujoco", "mujoco-mjx", "pybullet", "jax-md"} and len(doc["pairs"]) == len(
+        conformance.PAIRS
+    )
 
 
 def test_write_then_check_in_a_scratch_copy(tmp_path):

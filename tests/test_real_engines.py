@@ -320,14 +320,15 @@ def test_sweep_with_real_engines_reads_everywhere(tmp_path):
 def test_conformance_rows_at_a_short_length():
     """python -m gyrolab.kernels.real.conformance at 200 steps: the isolated updates agree to 1e-12 on the
     tumbling box and the top (no amplification that early), PyBullet's default body is not
-    bullet_implicit_body (it differs from step 1), and the table has a row per (case, dt, pair)."""
+    bullet_implicit_body (it differs from step 1), and the table has a row per (case, dt, pair); the rows not
+    run are the free-body-only engines' (PyBullet's rigid body, jax-md) on a pivot."""
     from gyrolab.kernels.real import conformance
 
     rows = conformance.rows(200)
     assert len(rows) == len(conformance.cases()) * len(conformance.DTS) * len(conformance.PAIRS)
     for r in rows:
-        if "note" in r:  # unbuilt pivots (PyBullet); Basilisk's hub and Newton: free bodies only (their test files)
-            engines = ("real_pybullet", "real_basilisk", "real_newton")
+        if "note" in r:  # unbuilt pivots (PyBullet); Basilisk, Newton, jax-md: free bodies only (their test files)
+            engines = ("real_pybullet", "real_basilisk", "real_newton", "real_jaxmd")
             assert r["engine"].startswith(engines) and r["case"] != "tumbling box"
             continue
         isolated = r["engine"].startswith("real_mujoco") or r["engine"] == "real_pybullet_maximal"

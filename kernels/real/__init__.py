@@ -53,6 +53,7 @@ _BACKENDS = {
     "real_basilisk_rk4": ("basilisk_engine", "RK4"),
     "real_newton_semi": ("newton_engine", "semi"),
     "real_newton_xpbd": ("newton_engine", "xpbd"),
+    "real_jaxmd_nve": ("jaxmd_engine", "nve"),
 }
 # backend module: the engine package's distribution name (for its version)
 _PACKAGE = {
@@ -61,11 +62,12 @@ _PACKAGE = {
     "mjx_engine": "mujoco-mjx",
     "basilisk_engine": "bsk",
     "newton_engine": "newton",
+    "jaxmd_engine": "jax-md",
 }
 # name: the engine package's distribution name.
 PACKAGES = {name: _PACKAGE[module] for name, (module, _) in _BACKENDS.items()}
 # A distribution whose import name differs from it (the rest import under their own name).
-IMPORT_NAMES = {"mujoco-mjx": "mujoco.mjx", "bsk": "Basilisk"}
+IMPORT_NAMES = {"mujoco-mjx": "mujoco.mjx", "bsk": "Basilisk", "jax-md": "jax_md"}
 NAMES = tuple(_BACKENDS)
 # Steps per second of one run on the development machine (mj_step with nstep = stride; stepSimulation
 # called from Python; MJX: a jitted loop of `stride` mjx.step per sample, ~3.5 ms a call, 2.8e3 steps/s at
@@ -74,8 +76,10 @@ NAMES = tuple(_BACKENDS)
 # besides ~10 µs a step (kernels/real/basilisk_engine.py): 7e4 steps/s at stride 100.  Newton on Warp's CPU
 # device: one solver.step from Python launches a few kernels whose argument packing dominates (~0.7 ms a step
 # for SolverSemiImplicit, ~1-3 ms for SolverXPBD's two iterations, measured 1.1e3-1.4e3 and 3e2-1.6e3 steps/s
-# on the shared 2-core machine).
-_RATE = {"mujoco": 3e5, "pybullet": 1e5, "mujoco-mjx": 5e3, "bsk": 7e4, "newton": 1e3}
+# on the shared 2-core machine).  jax-md: a jitted loop of `stride` NVE steps and the read-back per sample,
+# ~3.3 us a step and ~85 us a call, 8e4 steps/s at stride 10 and 2.7e5 at stride 100 on the tennis racket
+# (benchmarks/bench_real_engines.py).
+_RATE = {"mujoco": 3e5, "pybullet": 1e5, "mujoco-mjx": 5e3, "bsk": 7e4, "newton": 1e3, "jax-md": 1e5}
 STEP_RATES = {name: _RATE[PACKAGES[name]] for name in NAMES}
 
 

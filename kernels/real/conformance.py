@@ -20,7 +20,7 @@ that an exploding run amplifies rounding as fast as it grows):
 - the steps compared and the first step at which |Δω|/|ω| > 1e-9.
 
 Pairs: MuJoCo's four integrators; MJX's three (against the reproductions of the C engine's, READING
-says which); PyBullet's btRigidBody
+says which); jax-md's rigid-body NVE (real_jaxmd_nve, free bodies) against no_squish; PyBullet's btRigidBody
 (real_pybullet_maximal, free bodies) against bullet_implicit_body; PyBullet's
 default btMultiBody (real_pybullet) with its angular damping set to 0 against
 bullet_explicit, and as shipped (damping 0.04) against bullet_implicit_body,
@@ -91,6 +91,8 @@ PAIRS = (
     # with that damping set to newton_semi's 0.05 (no reproduction has damping 0)
     ("newton_semi", "real_newton_semi", None),
     ("newton_semi", "real_newton_xpbd", 0.05),
+    # jax-md's rigid-body NVE (free bodies): NO_SQUISH, the update no_squish reproduces, stepped at float32(dt)
+    ("no_squish", "real_jaxmd_nve", None),
 )
 
 
@@ -276,10 +278,19 @@ Reading the table (causes; the numbers are the rows above):
   real_newton_xpbd is compared with its damping set to 0.05 (0 as shipped): its two extra zero-delta passes
   renormalise q once more each, a different float32 rounding, hence its larger rows; as shipped it also sets
   |ω| < 1e-4 rad/s to 0.  Heavy bodies: not built (a Newton joint at the pivot), so those rows are not run.
+- jax-md (real_jaxmd_nve, float64 because the backend sets jax_enable_x64) steps NO_SQUISH, the update
+  no_squish reproduces, but its velocity_verlet casts dt to float32: asked for 1e-3 s it steps
+  1.00000005e-3 s, for 1e-4 s 9.99999975e-5 s, so after t seconds the engine is t · 4.7e-8 s ahead
+  (t · 2.5e-8 s behind) of the time both are compared at, an orientation drift of about |ω| times that
+  offset in these rows (the tumbling box, |ω| 150 rad/s: 7.7e-5 rad after 10 s at 1e-3, 3.9e-6 rad after
+  1 s at 1e-4).  Against no_squish run at float32(dt) the same engine runs agree to rounding (measured
+  over the same 10000 steps: tumbling box ≤ 2.6e-10 at 1e-3 and ≤ 1.1e-11 at 1e-4; tennis racket
+  ≤ 3.7e-7 at 1e-3, of no_squish's own one-ulp spread through the flips, 1.4e-7, and ≤ 8.4e-10 at 1e-4):
+  the difference is the step jax-md takes, not its method (tests/test_real_jaxmd.py checks both).
 - Not run: Basilisk on a heavy body (a spacecraft hub has no pivot); Newton on a heavy body (a ball joint
-  at the pivot: not built); PyBullet's rigid body on a pivot (a point-to-point constraint solved by impulses)
-  and a PyBullet heavy body whose centre of mass is off the principal axes (a rotated inertial frame): not
-  built.
+  at the pivot: not built); jax-md on a pivot (simulate.nve has no joint); PyBullet's rigid body on a pivot
+  (a point-to-point constraint solved by impulses) and a PyBullet heavy body whose centre of mass is off the
+  principal axes (a rotated inertial frame): not built.
 """
 
 
@@ -291,7 +302,14 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.steps < 1:
         ap.error(f"--steps={args.steps}: must be >= 1")
-    probes = ("real_mujoco_euler", "real_pybullet", "real_mjx_euler", "real_basilisk_rk4", "real_newton_semi")
+    probes = (
+        "real_mujoco_euler",
+        "real_pybullet",
+        "real_mjx_euler",
+        "real_basilisk_rk4",
+        "real_newton_semi",
+        "real_jaxmd_nve",
+    )
     missing = [n for n in probes if package_missing(n) is not None]
     if len(missing) == len(probes):
         print(f"{ap.prog}: error: {package_missing(missing[0])}", file=sys.stderr)
