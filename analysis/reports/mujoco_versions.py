@@ -293,7 +293,7 @@ def findings(drift, conformance):
             (dt_a, e_a), (dt_b, e_b) = sorted(by_dt.items())[:2]
             w = float(np.linalg.norm(free_cases()[case][1]))
             parts.append(
-                f"{case} (abs(w0) = {w:.3g} rad/s): {e_b:.2g} at dt = {dt_b:g} s, {e_a:.2g} at {dt_a:g} s "
+                f"{case}, abs(w0) = {w:.3g} rad/s: {e_b:.2g} at dt = {dt_b:g} s, {e_a:.2g} at {dt_a:g} s "
                 f"(ratio {e_b / e_a:.2g})"
             )
         if parts:
@@ -384,18 +384,25 @@ def main(argv=None):
     ap.add_argument("-o", "--out", help="write the markdown here (else stdout)")
     ap.add_argument("--json", help="also write the rows as JSON here")
     args = ap.parse_args(argv)
-    infos, drift = {}, []
-    for label, python in (("this", sys.executable), ("other", args.other_python)):
-        info, rows = drift_rows(python, label)
-        infos[label] = info
-        drift.extend(rows)
+    from ...safe_files import UnsafePathError, check_output, write_text
+
+    try:
+        for path in (args.out, args.json):
+            if path:
+                check_output(path)  # before the work: a missing directory or a link there
+        infos, drift = {}, []
+        for label, python in (("other", args.other_python), ("this", sys.executable)):  # a bad one fails first
+            info, rows = drift_rows(python, label)
+            infos[label] = info
+            drift.extend(rows)
+    except (UnsafePathError, RuntimeError, OSError) as err:
+        sys.stderr.write(f"mujoco_versions: error: {' '.join(str(err).split())[:500]}\n")
+        return 2
     order = sorted(infos, key=lambda k: _version_key(infos[k]["version"]))
     older = args.other_python if order[0] == "other" else sys.executable
     drift.sort(key=lambda r: (r["case"], r["integrator"], r["dt"], order.index(r["label"])))
     _, conformance = conformance_rows(older)
     text = report({k: infos[k] for k in order}, drift, conformance)
-    from ...safe_files import write_text
-
     if args.out:
         write_text(args.out, text)
     else:
