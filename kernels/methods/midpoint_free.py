@@ -41,8 +41,11 @@ the Newton tolerance; with a torque held at its start value the energy is
 not kept.  The orientation step is the exponential, not the Cayley map that
 would match the midpoint ω update, so the lab L drifts.  Not a Poisson map
 (see implicit_midpoint).  Order 2 on a free body, 1 with a torque that
-depends on q (held over the step).  No conformance run: the mujoco wheel here
-(4.0) no longer has the scheme.
+depends on q (held over the step).  Conformance: the mujoco wheel of the
+engines extra (4.0) no longer has the scheme; against mujoco 3.10.0 installed
+in a second venv, python -m gyrolab.analysis.reports.mujoco_versions
+(docs/engines/mujoco_versions.md, tests/test_mujoco_versions.py with
+GYROLAB_MUJOCO_OTHER_PYTHON) compares it with implicitfast step by step.
 """
 
 import math
