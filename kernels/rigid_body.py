@@ -74,9 +74,10 @@ def euler_rhs(w, tau, body):
     I⁻¹ is applied as a multiplication by the reciprocals 1/I_k, not as a division: a method that calls
     this several times a step (RK4: four) inlines the calls, LLVM computes the three reciprocals once
     and the step has three divisions instead of twelve (a division takes ~13 cycles where a
-    multiplication takes 4; seed_next's block step 4.3 → 3.0 ns a lane, docs/benchmarks.md).  The
+    multiplication takes 4; seed_next's block step 7.4 → 5.3 ns a lane on a Zen 4, docs/benchmarks.md).  The
     product differs from the quotient by at most one ulp: a change of the last bit, far below any
-    method's truncation error (issue 22 item 3; the regression data were regenerated with it).
+    method's truncation error (issue 22 item 3; the stored regression data agree with it to 7.7e-4 of their
+    tolerance, docs/benchmarks.md).
     """
     I1, I2, I3 = body[0], body[1], body[2]
     w1, w2, w3 = w
