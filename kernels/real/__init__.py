@@ -2,9 +2,10 @@
 
 A name ``real_<engine>[_<mode>]`` in ``sweep.method`` (``REAL``) runs the
 engine users install, next to gyrolab's reproductions of its rotation update
-(kernels/methods/mujoco_*, bullet_*, rk4_mrp for Basilisk, newton_semi).  Each run is one body built from the
-run's body record (kernels/body.py: principal moments about the pivot, M g c),
-initial state (ω body frame, q scalar first body → lab) and dt:
+(kernels/methods/mujoco_*, bullet_*; rk4_mrp for Basilisk, newton_semi, no_squish
+for jax-md).  Each run is one body built from the run's body record
+(kernels/body.py: principal moments about the pivot, M g c), initial state
+(ω body frame, q scalar first body → lab) and dt:
 
 - a free body (M g c = 0): a free joint, gravity off;
 - a heavy body: the body on a ball joint at the pivot, gravity −g ẑ, the
