@@ -45,26 +45,20 @@ non-finite ω or σ reaches gyrolab's own divergence rule.
 
 import numpy as np
 
+from ..methods import rk4_mrp
+from .pybullet_engine import is_free
+
 NANO2SEC = 1e-9  # Basilisk's macroDefinitions.h
 
 
-def is_free(body):
-    return body.mgl == 0.0 and body.mgc1 == 0.0 and body.mgc2 == 0.0
-
-
 def mrp_from_quat(q):
-    """σ_BN (|σ| ≤ 1) of gyrolab's q (scalar first, body → lab)."""
-    a, b, c, d = map(float, q)
-    s = 1.0 / (1.0 + a) if a >= 0.0 else -1.0 / (1.0 - a)
-    return [b * s, c * s, d * s]
+    """σ_BN (|σ| ≤ 1) of gyrolab's q (scalar first, body → lab): rk4_mrp's own conversion."""
+    return list(rk4_mrp.mrp_from_quat(tuple(map(float, q))))
 
 
 def quat_from_mrp(sigma):
-    """gyrolab's q (scalar first, scalar ≥ 0 when |σ| ≤ 1) of σ_BN."""
-    s = np.asarray(sigma, dtype=float)
-    n2 = float(s @ s)
-    inv = 1.0 / (1.0 + n2)
-    return np.array([(1.0 - n2) * inv, 2.0 * s[0] * inv, 2.0 * s[1] * inv, 2.0 * s[2] * inv])
+    """gyrolab's q (scalar first, scalar ≥ 0 when |σ| ≤ 1) of σ_BN: rk4_mrp's own conversion."""
+    return np.array(rk4_mrp.quat_from_mrp(tuple(map(float, sigma))))
 
 
 def step_nanos(dt, name="real_basilisk_rk4"):
