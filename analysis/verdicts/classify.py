@@ -228,8 +228,8 @@ class Drift(_Record):
     stop; run_longer (s), how long a record would decide bounded or saturating.
     preserved_to_rounding: max |e| ≤ preserved_ulps · eps.  amplitude: max |e|
     (finite part); mean: mean of e; late_mean: mean of e over the last window;
-    t_diverged (s): first time e is non-finite or past ``blowup`` (NaN
-    otherwise).  Diagnostics of the rule: n_windows, window (s), z_trend,
+    t_diverged (s): first time e is non-finite (or past ``blowup`` when
+    given; NaN otherwise).  Diagnostics of the rule: n_windows, window (s), z_trend,
     accel, eta, zeta, oscillation, wander; reason: why, in words.
     """
 
@@ -393,7 +393,7 @@ def classify_drift(
     rel_err,
     *,
     n_windows=None,
-    blowup=1.0,
+    blowup=None,
     preserved_ulps=500.0,
     z_crit=4.0,
     accel_crit=1.5,
@@ -412,14 +412,22 @@ def classify_drift(
     t (s), increasing; rel_err: e at those times (dimensionless).  In the
     order tried:
 
-    1. ``diverged``: e is non-finite anywhere, or |e| > ``blowup`` (default 1:
-       the invariant is off by 100 %).  ``undetermined``: fewer than
-       ``min_samples`` (8) samples.
-    2. ``collapse``: a fast relaxation or jump.  With e_late the median of e
-       over the last 5 % of the record, |e_late| ≥ ``collapse_min`` (5 %), e
-       first reaches 90 % of e_late within the first ``collapse_early`` (10 %)
-       of the record (``collapse_time``, ``collapse_size`` = e there) and
-       never comes back below half of it.  The rest of the record (t ≥
+    1. ``diverged``: e is non-finite anywhere: the run stopped (a runner
+       NaN-fills a run's samples after its kernel's divergence test, the
+       energy off by ``runner.divergence_threshold``).  A finite invariant
+       off by more than 100 % is not by itself a divergence: an |L|
+       rescale that turns L, a damped energy that settles below zero, are
+       bounded runs and are classed by their shape below (a collapse, a
+       growth...).  A caller that wants a magnitude rule passes ``blowup``:
+       then |e| > blowup is ``diverged`` too, tested after the collapse
+       test.  ``undetermined``: fewer than ``min_samples`` (8) samples.
+    2. ``collapse``: a fast relaxation or jump.  With x the largest |e| over
+       the first ``collapse_early`` (10 %) of the record: x ≥ ``collapse_min``
+       (1 %) and ≥ half the record's largest |e|; e reaches half of x within
+       the first 1 % of the record (a tenth of ``collapse_early``) and stays
+       there: its median over the ``collapse_early`` after the peak is ≥ 70 %
+       of x.  ``collapse_time`` is when e first reaches 90 % of x,
+       ``collapse_size`` e there.  The rest of the record (t ≥
        collapse_time) is classified by these same rules (``then_class``,
        ``then_rate``...): "collapses by 87 % within 1 s, then linear ...".
        Never a linear rate fitted through the drop.
@@ -491,17 +499,15 @@ def classify_drift(
     if t.size < 2 or not np.all(np.diff(t) > 0):
         raise ValueError("t must hold at least 2 strictly increasing times")
     finite = np.isfinite(e)
-    bad = ~finite | (np.abs(np.where(finite, e, 0.0)) > blowup)
     amplitude = float(np.max(np.abs(e[finite]))) if finite.any() else math.nan
     base = dict(
         amplitude=amplitude,
         preserved_to_rounding=bool(finite.all() and amplitude <= preserved_ulps * EPS),
         mean=float(np.mean(e[finite])) if finite.any() else math.nan,
     )
-    if bad.any():
-        first = int(np.argmax(bad))
-        why = "non-finite" if not finite[first] else f"|e| > {blowup:g}"
-        return Drift("diverged", t_diverged=float(t[first]), reason=f"{why} at t = {t[first]:g} s", **base)
+    if not finite.all():
+        first = int(np.argmax(~finite))
+        return Drift("diverged", t_diverged=float(t[first]), reason=f"non-finite at t = {t[first]:g} s", **base)
     if e.size < min_samples:
         return Drift("undetermined", reason=f"{e.size} samples: too few to classify (need {min_samples})", **base)
     opts = dict(
@@ -549,6 +555,9 @@ def classify_drift(
                     ),
                     **base,
                 )
+    if blowup is not None and amplitude > blowup:
+        first = int(np.argmax(np.abs(e) > blowup))
+        return Drift("diverged", t_diverged=float(t[first]), reason=f"|e| > {blowup:g} at t = {t[first]:g} s", **base)
     k = n_windows or int(np.clip(e.size // 16, 8, 64))
     clean = _remove_fast_oscillations(t, e)
     if e.size < 2 * k:
