@@ -46,6 +46,12 @@ def test_stability_map_cells_and_diverged_marks(tmp_path):
     n_bad = int((ds.status.sel({"integrator": "seed_prev"}) != 0).sum())
     crosses = [ln for ln in ax_prev.get_lines() if ln.get_marker() == "x"]
     assert len(crosses) == n_bad and f"{n_bad} diverged" in ax_prev.get_title()
+    # ... and take no colour of the scale: the error before the stop is no measure of the run
+    prev = np.ma.asarray(ax_prev.collections[0].get_array()).reshape(2, 2)
+    bad = ds.status.sel({"integrator": "seed_prev", "theta0": 45.0}).transpose("f", "dt").values != 0
+    assert np.array_equal(np.ma.getmaskarray(prev), bad)
+    grey = ax_prev.collections[0].get_cmap().get_bad()
+    assert grey[0] == grey[1] == grey[2] and grey[3] == 1.0  # an opaque grey, outside viridis
     assert "log10" in fig.axes[-1].get_ylabel()  # the colour bar says what the colour is
     # the figure step draws what the study's config names (output.figures), whatever the file is called
     other = tmp_path / "renamed.h5"

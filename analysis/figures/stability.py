@@ -9,8 +9,9 @@ box).  Methods whose maps are identical are named in the panel titles.
 Cells are drawn on log-log axes (dt in s, f in Hz), so lines of constant
 ω3·dt = 2π f dt (rad of spin per step) are straight: dotted guides at
 ω3·dt = 0.01, 0.1, 1.  Runs that diverged (status ≠ 0: NaN/inf or energy
-past the runner's threshold) are hatched and marked ×; their colour is the
-worst error reached before they stopped.  A file from ``gyrolab-combine``
+past the runner's threshold) are grey, hatched and marked ×: the worst
+error a run reached before it stopped says nothing of how good it was (a
+run that is exact until its state turns NaN would take the best colour).  A file from ``gyrolab-combine``
 with a ``scene`` (or ``job``) dimension gets one row of panels per scene.
 """
 
@@ -70,7 +71,9 @@ def _panel(ax, sub, method, theta0, measure="energy"):
     logerr = _logerr(run, theta0, measure, sub)
     status = run.status.transpose("f", "dt").values
     f, dt = run.f.values, run.dt.values
-    mesh = ax.pcolormesh(_edges(dt), _edges(f), logerr, cmap="viridis", vmin=VMIN, vmax=VMAX, shading="flat")
+    cmap = plt.get_cmap("viridis").with_extremes(bad="0.8")  # diverged cells: grey, no colour of the scale
+    shown = np.ma.masked_where((status != 0) | ~np.isfinite(logerr), logerr)
+    mesh = ax.pcolormesh(_edges(dt), _edges(f), shown, cmap=cmap, vmin=VMIN, vmax=VMAX, shading="flat")
     for i, fv in enumerate(f):
         for j, dv in enumerate(dt):
             if status[i, j] != 0:
@@ -202,7 +205,7 @@ def stability_figure(ds, sel=None, theta0=None, measure=None):
     suptitle(
         fig,
         f"Stability map: {what}, θ0 = {float(th):g}°, {t_end:g} s; {what_err}{against}\n"
-        "numbers: log10 error; red × hatched: diverged; dotted: ω3·dt = 0.01, 0.1, 1 rad per step",
+        "numbers: log10 error; grey, red × hatched: diverged; dotted: ω3·dt = 0.01, 0.1, 1 rad per step",
         fontsize=10.5,
         y=1.0 + 0.12 / rows,
     )
