@@ -245,8 +245,11 @@ def fit_text(text, ax, fontsize, pad_in=0.12):
 def panel_note(ax, paragraphs, fontsize=7, **kwargs):
     """A boxed note in the upper left of ``ax``: ``paragraphs`` (one line each at least) wrapped to the
     panel's width.  Call ``refit_notes(fig)`` after the figure's layout: tight_layout narrows the panels
-    after their notes were wrapped, and a note wrapped before it ran past its panel."""
-    style = dict(ha="left", va="top", fontsize=fontsize, color="0.15", bbox=dict(fc="white", ec="0.7", alpha=0.75))
+    after their notes were wrapped, and a note wrapped before it ran past its panel.  The note is drawn
+    under the data (zorder 1.5, lines are at 2): a curve that runs through the box stays visible."""
+    style = dict(
+        ha="left", va="top", fontsize=fontsize, color="0.15", zorder=1.5, bbox=dict(fc="white", ec="0.7", alpha=0.75)
+    )
     note = ax.text(0.02, 0.97, "", transform=ax.transAxes, **(style | kwargs))
     note.gyrolab_paragraphs = list(paragraphs)
     note.set_text("\n".join(fit_text(p, ax, fontsize) for p in paragraphs))
