@@ -110,21 +110,28 @@ def compile_estimate(grid):
 def warm_up_methods(methods, inputs, threshold, blocks=False):
     """``warm_up`` without a grid: ``inputs`` are one run's kernel inputs (``Grid.inputs``).  A kernel
     that takes more than COMPILE_NOTICE_SECONDS (numba compiling it: its cache is cold) is named on
-    stdout while it compiles ("compiling block kernels of lie_poisson4 (3/5) ...") and when done."""
+    stdout while it compiles ("compiling block kernels of lie_poisson4 (3/5) ...") and when done; one
+    that numba's cache holds is said to be loading (a large kernel can take seconds to load on a busy
+    machine), so the screen never claims a compile that is not happening."""
     bodies, omega0, q0, dt, _ = inputs
     jobs = [(m, path) for m in methods for path in (("runs", "blocks") if blocks else ("runs",))]
     for k, (method, path) in enumerate(jobs, 1):
         what = f"{'block' if path == 'blocks' else 'run'} kernels of {method} ({k}/{len(jobs)})"
+        verbs = ("compiling", "compiled")
         if is_real(method):  # importing the engine package, compiling the samplers gyrolab calls on its state
             what = f"the engine package and samplers of {method} ({k}/{len(jobs)})"
-        with _compile_notice(what):
+        elif kernel_cached(method, path):
+            verbs = ("loading", "loaded")
+            what += " from the numba cache"
+        with _compile_notice(what, verbs=verbs):
             integrate(method, bodies, omega0, q0, dt, np.ones(1, dtype=np.int64), 2, threshold, path=path)
 
 
 @contextlib.contextmanager
-def _compile_notice(what, after=None):
+def _compile_notice(what, after=None, verbs=("compiling", "compiled")):
     """Print 'gyrolab: compiling WHAT ...' if the block takes longer than ``after`` s (default
-    COMPILE_NOTICE_SECONDS), then how long it took; nothing for a block that is quick (a warm cache)."""
+    COMPILE_NOTICE_SECONDS), then how long it took ('compiled WHAT in N s'); nothing for a block that is
+    quick (a warm cache).  ``verbs``: the words for the two lines."""
     import threading
 
     start = time.perf_counter()
@@ -132,7 +139,7 @@ def _compile_notice(what, after=None):
 
     def say():
         said.set()
-        print(f"gyrolab: compiling {what} ...", flush=True)
+        print(f"gyrolab: {verbs[0]} {what} ...", flush=True)
 
     timer = threading.Timer(COMPILE_NOTICE_SECONDS if after is None else after, say)
     timer.daemon = True
@@ -142,7 +149,7 @@ def _compile_notice(what, after=None):
     finally:
         timer.cancel()
         if said.is_set():
-            print(f"gyrolab: compiled {what} in {time.perf_counter() - start:.0f} s", flush=True)
+            print(f"gyrolab: {verbs[1]} {what} in {time.perf_counter() - start:.0f} s", flush=True)
 
 
 def run_chunk(grid, runs, threads):

@@ -20,3 +20,22 @@ def test_a_quick_warm_up_prints_nothing(capsys):
         pass
     time.sleep(0.05)
     assert capsys.readouterr().out == ""
+
+
+def test_a_kernel_in_the_cache_is_said_to_load_not_to_compile(capsys, monkeypatch):
+    """A large cached kernel can take longer than the notice's delay to load on a busy machine: the
+    screen then says 'loading ... from the numba cache', and 'compiling' only for a cold kernel."""
+    import numpy as np
+
+    from gyrolab.runner import execute
+
+    monkeypatch.setattr(execute, "COMPILE_NOTICE_SECONDS", 0.01)
+    monkeypatch.setattr(execute, "integrate", lambda *args, **kwargs: time.sleep(0.3))
+    inputs = (np.zeros((1, 12)), np.zeros((1, 3)), np.zeros((1, 4)), np.ones(1), None)
+    for cached, words in ((True, ("loading", "loaded")), (False, ("compiling", "compiled"))):
+        monkeypatch.setattr(execute, "kernel_cached", lambda method, path, cached=cached: cached)
+        execute.warm_up_methods(["rk4"], inputs, 10.0)
+        lines = capsys.readouterr().out.splitlines()
+        where = " from the numba cache" if cached else ""
+        assert lines[0] == f"gyrolab: {words[0]} run kernels of rk4 (1/1){where} ...", lines
+        assert lines[1].startswith(f"gyrolab: {words[1]} run kernels of rk4 (1/1){where} in "), lines
