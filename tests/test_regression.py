@@ -277,6 +277,22 @@ def test_a_pack_reads_back_as_the_results_file_it_stores(tmp_path):
         regen.read_pack(cut)
 
 
+def test_write_keeps_a_stored_pack_of_an_older_layout(capsys):
+    """``--write`` on a pack of layout 1 (a fixture of tests/test_layout.py) refuses to move it to
+    today's layout without ``--relayout``: the pack's bytes stay, the command says why and exits non-zero."""
+    stored = regen.stored_path("heavy_top_release", "rk4")
+    before = stored.read_bytes()
+    assert regen._layout(regen.read_pack(stored)) == 1
+    with pytest.raises(SystemExit, match="kept in their layout: heavy_top_release:rk4"):
+        regen.main(["--write", "heavy_top_release:rk4"])
+    out = capsys.readouterr().out
+    assert "NOT WRITTEN tests/data/regression/heavy_top_release/rk4.pack.xz: stored in layout 1" in out
+    assert "Pass --relayout" in out
+    assert stored.read_bytes() == before
+    with pytest.raises(SystemExit):  # --relayout alone is a usage error
+        regen.main(["--relayout", "heavy_top_release:rk4"])
+
+
 def test_coefficient_change_fails_with_a_readable_message(tmp_path):
     """Yoshida's w1 = 1/(2 − 2^(1/3)) with 2^(1/3) written as 1.26 (a 6e-5 relative change):
     the regression check of a copy of the stored file must fail and name lie_poisson4."""

@@ -14,6 +14,9 @@ so every other method's stored bytes stay as they are.  ``--write`` replaces
 the named files (``NAME`` for all methods of a config, ``NAME:METHOD`` for
 one) after printing the comparison of each fresh run with the stored file,
 so a regeneration is always a decision someone made after reading it.
+A stored file of an older layout is kept unless ``--relayout`` is given too:
+tests/test_layout.py opens those packs as its fixtures of the older layouts,
+and a ``--write`` that silently moved them to today's layout broke it once.
 Without options nothing is written.  The regression tests
 (tests/test_regression.py) import ``run_config``, ``DATASETS``, ``stored_path``,
 ``read_pack`` and ``SCALED_TOL`` from here.
@@ -288,6 +291,20 @@ def _targets(words, methods):
     return pairs
 
 
+def _layout(ds):
+    """The layout version a Dataset declares (gyrolab.results.migrate)."""
+    from gyrolab.results.migrate import file_layout_version
+
+    return file_layout_version(ds)
+
+
+def _layout_of_file(path):
+    import xarray as xr
+
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        return _layout(ds)
+
+
 def _store(new, path):
     pack_results(new, path)
     print(f"WROTE {path.relative_to(DATA_DIR.parent.parent)} ({path.stat().st_size / 1024:.0f} kB)")
@@ -316,12 +333,19 @@ def main(argv=None):
     what = parser.add_mutually_exclusive_group()
     what.add_argument("--add", action="store_true", help="write only the files that are missing")
     what.add_argument("--write", action="store_true", help="replace the named stored files (default: only compare)")
+    parser.add_argument(
+        "--relayout",
+        action="store_true",
+        help="with --write: also replace a stored file of an older layout (test_layout's fixtures) in today's",
+    )
     what.add_argument(
         "--export",
         metavar="OUT.h5",
         help="write the one stored NAME:METHOD as a results file OUT.h5 (for gyrolab-compare, gyrolab-plot)",
     )
     args = parser.parse_args(argv)
+    if args.relayout and not args.write:
+        parser.error("--relayout goes with --write")
     if args.export:
         words = args.targets
         if len(words) != 1 or ":" not in words[0]:
@@ -337,6 +361,7 @@ def main(argv=None):
         pairs = [(n, m) for n, m in pairs if not stored_path(n, m).exists()]
         if not pairs:
             print("every (regression config, method) has its stored file; nothing to add")
+    refused = []
     with tempfile.TemporaryDirectory(prefix="gyrolab-regen-") as tmp:
         for name, method in pairs:
             new = run_config(name, method, Path(tmp) / f"{name}_{method}.h5", tmp)
@@ -351,6 +376,16 @@ def main(argv=None):
                     print(f"fresh run cannot be compared with the stored file: {err}")
             else:
                 print("no stored file yet")
+            if args.write and old.exists() and not args.relayout:
+                was, now = _layout(read_pack(old)), _layout_of_file(new)
+                if was != now:  # the stored pack is also test_layout's fixture of its older layout
+                    print(
+                        f"NOT WRITTEN {old.relative_to(DATA_DIR.parent.parent)}: stored in layout {was}, a fresh run "
+                        f"writes layout {now}; tests/test_layout.py opens the stored packs of older layouts to "
+                        "check the migration.  Pass --relayout to rewrite it in today's layout anyway."
+                    )
+                    refused.append(f"{name}:{method}")
+                    continue
             if args.write or args.add:
                 _store(new, old)
     total = sum(p.stat().st_size for p in STORE.rglob(f"*{PACK_SUFFIX}"))
@@ -358,6 +393,8 @@ def main(argv=None):
         f"stored datasets: {total / 1024:.0f} kB in all"
         + ("" if args.write or args.add else " (nothing written: add --add or --write)")
     )
+    if refused:
+        raise SystemExit(f"regenerate.py: {len(refused)} stored file(s) kept in their layout: {' '.join(refused)}")
 
 
 if __name__ == "__main__":
