@@ -149,6 +149,27 @@ def disagreement(W, Q, W2, Q2, w0):
     return dw, angle, k
 
 
+def compare_trajectories(engine, engine_ulp, reproduction, w0):
+    """The conformance columns of one pair: ``engine`` (W, Q) the engine's trajectory from ω0 (rad/s,
+    body frame), ``engine_ulp`` its trajectory from ω0 with ω3 one ulp up (the engine against itself: how
+    far a rounding difference carries), ``reproduction`` ours from ω0.  Returns engine_steps, compared,
+    dw, dq (max |Δω|/|ω| and angle (rad) of engine against reproduction), self_dw, self_dq (engine
+    against itself) and first_over (the first step past THRESHOLD in |Δω|/|ω|, None if never)."""
+    (W, Q), (W1, Q1), (Wr, Qr) = engine, engine_ulp, reproduction
+    dw, dq, k = disagreement(W, Q, Wr, Qr, w0)
+    sw, sq, _ = disagreement(W, Q, W1, Q1, w0)
+    over = np.nonzero(dw > THRESHOLD)[0]
+    return dict(
+        engine_steps=len(W),
+        compared=k,
+        dw=float(dw.max()) if k else math.nan,
+        dq=float(dq.max()) if k else math.nan,
+        self_dw=float(sw[:k].max()) if k else math.nan,
+        self_dq=float(sq[:k].max()) if k else math.nan,
+        first_over=int(over[0]) + 1 if over.size else None,
+    )
+
+
 def rows(n_steps):
     """One dict per (case, dt, pair) the installed engines can run."""
     out = []
@@ -169,18 +190,7 @@ def rows(n_steps):
                 dtype = getattr(get_backend(engine), "PRECISION", np.float64)
                 w_ulp = (w0[0], w0[1], float(np.nextafter(dtype(w0[2]), dtype(math.inf))))
                 W1, Q1 = engine_trajectory(engine, body, w_ulp, q0, dt, n_steps, damping)
-                dw, dq, k = disagreement(W, Q, Wr, Qr, w0)
-                sw, sq, _ = disagreement(W, Q, W1, Q1, w0)
-                over = np.nonzero(dw > THRESHOLD)[0]
-                row.update(
-                    engine_steps=len(W),
-                    compared=k,
-                    dw=float(dw.max()) if k else math.nan,
-                    dq=float(dq.max()) if k else math.nan,
-                    self_dw=float(sw[:k].max()) if k else math.nan,
-                    self_dq=float(sq[:k].max()) if k else math.nan,
-                    first_over=int(over[0]) + 1 if over.size else None,
-                )
+                row.update(compare_trajectories((W, Q), (W1, Q1), (Wr, Qr), w0))
                 out.append(row)
     return out
 
