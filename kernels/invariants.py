@@ -57,7 +57,8 @@ INVARIANTS = {
         "|L|",
         "kg m2 s-1",
         needs=("L",),
-        derive=lambda ds: np.sqrt((ds["L"] ** 2).sum("xyz")),
+        # skipna=False: a diverged run's NaN samples stay NaN (xarray's default sum would read them as |L| = 0)
+        derive=lambda ds: np.sqrt((ds["L"] ** 2).sum("xyz", skipna=False)),
     ),
     "Lz": Invariant("lab vertical angular momentum (R I w).z (kg m2/s)", "L_z", "kg m2 s-1"),
     "L3": Invariant("angular momentum along the symmetry axis, I3 w3 (kg m2/s)", "L_3", "kg m2 s-1"),

@@ -296,3 +296,29 @@ def test_a_rounding_level_trend_is_a_rounding_drift_whatever_the_window_calls_it
     rec = dict(quantity="L", preserved=False, declared_preserved=True, drift_class="slow_oscillation")
     assert V.fmt_preserved([dict(rec, amplitude=9.3e-12, n_steps=1_000_000)]) == "L (rounding drift)"
     assert V.fmt_preserved([dict(rec, amplitude=1e-9, n_steps=1_000_000)]) == "!L declared, not kept"
+
+
+def test_a_diverged_run_is_diverged_in_every_invariant_derived_or_stored():
+    """Issue 26: |L| (derived from L) of a run its kernel stopped was read as 0 after the stop (xarray's sum
+    skips NaN), so the verdict called explicit_euler's L_norm 'bounded (≤ 2.5)' beside its diverged
+    energy.  Every invariant of a stopped run is NaN after the stop and classed diverged at one time."""
+    from gyrolab.kernels.invariants import invariant
+
+    ds = make_dataset(
+        {"integrator": ["explicit_euler"], "f": [50.0], "theta0": [45.0], "dt": [1e-3]},
+        scene="free_asymmetric",
+        t_end=2.0,
+        every=1e-2,
+    )
+    run = ds.isel(integrator=0, f=0, theta0=0, dt=0)
+    assert int(run.status) != 0  # explicit Euler's energy gain stops it within 0.5 s (the verdict study's run)
+    t = ds.time.values
+    times = set()
+    for q in ("energy", "L", "L_norm", "Lz"):
+        x = invariant(run, q).values
+        stop = int(np.argmax(~np.isfinite(x.reshape(len(t), -1)).any(axis=1)))
+        assert 0 < stop and not np.isfinite(x[stop:]).any(), q
+        d = classify.classify_drift(t, V.signed_error(x))
+        assert d.drift_class == "diverged", (q, d.reason)
+        times.add(d.t_diverged)
+    assert len(times) == 1
