@@ -25,6 +25,7 @@ from gyrolab.analysis.verdicts.classify import (
     DRIFT_CLASSES,
     EPS,
     classify_drift,
+    collapse_words,
     fit_order,
     method_stability_threshold,
     stability_threshold,
@@ -191,7 +192,9 @@ def test_a_finite_invariant_past_100_percent_is_classed_by_its_shape():
     settle = -2.5 * (1 - np.exp(-T1K / 0.3)) + 1e-3 * np.sin(2 * np.pi * T1K / 3.3)
     d = classify_drift(T1K, settle)
     assert d.drift_class == "collapse" and d.collapse_size == pytest.approx(-2.5 * 0.9, rel=0.05), d.reason
-    assert "collapses by 2" in d.reason  # "collapses by 225 % within ..."
+    assert d.reason.startswith("falls through zero to -1.3 x its start within")  # 1 + e at 90 % of the drop
+    assert collapse_words(-0.87) == "collapses by 87%" and collapse_words(0.45) == "jumps by 45%"
+    assert collapse_words(4.57e5) == "jumps 4.6e+05-fold"  # Kovalevskaya's K of an |L| rescale, not 45700000 %
     turn = 2 * np.abs(np.sin(0.5 * 2e-3 * T1K))  # L turning at 2e-3 rad/s: |e| passes 1 at t ≈ 524 s
     d = classify_drift(T1K, turn)
     assert d.drift_class not in ("diverged", "collapse", "undetermined"), d.reason

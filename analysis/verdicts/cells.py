@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from .classify import MIN_LADDER, is_rounding_drift
+from .classify import MIN_LADDER, collapse_words, is_rounding_drift
 
 
 def fmt_number(x, digits=3):
@@ -74,7 +74,6 @@ def fmt_drift(rec, short=False):
         return "undetermined (too few samples)"
     if c == "collapse":
         size, when = rec.get("collapse_size"), rec.get("collapse_time")
-        word = "collapses" if (size or 0) < 0 else "jumps"
         then = rec.get("then_class") or "—"
         if then == "slow_oscillation":
             rate, period = fmt_number(rec.get("then_rate")), fmt_number(rec.get("period"), 2)
@@ -83,7 +82,7 @@ def fmt_drift(rec, short=False):
             then = "a trend that slows"
         elif then in ("linear", "wander", "growing") and rec.get("then_rate") is not None:
             then = _fmt_rate(then, rec["then_rate"], rec.get("then_rate_unit") or "")
-        return f"{word} by {abs(size):.0%} within {fmt_number(when, 2)} s, then {then}"
+        return f"{collapse_words(size or 0.0)} within {fmt_number(when, 2)} s, then {then}"
     if c == "slow_oscillation" and short:
         rate, period = fmt_number(rec.get("drift_rate")), fmt_number(rec.get("period"), 2)
         return f"trend {rate} /s; oscillation ~ {period} s > record"

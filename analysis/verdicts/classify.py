@@ -388,6 +388,17 @@ def _on_its_data(t, e, intercept, rate, frac=0.125):
     return 0.5 * float(tail.min()) <= v <= 2.0 * float(tail.max())
 
 
+def collapse_words(size):
+    """How a collapse of relative size ``size`` (e at its end: X/X0 − 1) reads: 'collapses by 87 %',
+    'jumps by 45 %'; past a sign change 'falls through zero to -1.2 x its start', and a jump of ten times
+    or more 'jumps 4.6e+05-fold' (a percentage of millions reads as noise)."""
+    if size < -1:
+        return f"falls through zero to {1 + size:.2g} x its start"
+    if size >= 9:
+        return f"jumps {1 + size:.2g}-fold"
+    return f"{'collapses' if size < 0 else 'jumps'} by {abs(size):.0%}"
+
+
 def classify_drift(
     t,
     rel_err,
@@ -534,7 +545,6 @@ def classify_drift(
             held = s * e[(t >= t[i_pk]) & (t <= t[i_pk] + collapse_early * span)]
             if t[i50] - t[0] <= 0.1 * collapse_early * span and np.median(held) >= 0.7 * x and e.size - i90 >= 2:
                 rest = classify_drift(t[i90:], e[i90:], _tail=True, **opts)
-                word = "collapses" if s < 0 else "jumps"
                 return Drift(
                     "collapse",
                     collapse_size=float(e[i90]),
@@ -550,7 +560,7 @@ def classify_drift(
                     run_longer=rest.run_longer,
                     late_mean=float(np.mean(e[t >= t[-1] - 0.05 * span])),
                     reason=(
-                        f"{word} by {abs(e[i90]):.0%} within {t[i90] - t[0]:.3g} s (half of it within "
+                        f"{collapse_words(float(e[i90]))} within {t[i90] - t[0]:.3g} s (half of it within "
                         f"{t[i50] - t[0]:.3g} s), then {rest.drift_class}: {rest.reason}"
                     ),
                     **base,
