@@ -53,12 +53,22 @@ def warm_up(grid):
 
 
 COMPILE_NOTICE_SECONDS = 3.0  # a warm-up still running after this long is compiling: say so on screen
-# CPU seconds numba takes to compile one method's kernel of each path on a cold cache, measured with a
-# fresh NUMBA_CACHE_DIR on lie_poisson4 and the heavy top (the first kernel of a process also compiles
-# the helpers every method shares): run kernels 9.1 s, block kernels 24.4 s more (docs/benchmarks.md).
-# Compiling is one thread: on an idle machine its wall time is its CPU time.
-COMPILE_SECONDS = {"runs": 10.0, "driven": 10.0, "blocks": 25.0}
+# Seconds numba takes to compile one method's kernel of each path on a cold cache (one thread: its wall
+# time is its CPU time on an idle machine), from the warm-up's own lines on a fresh NUMBA_CACHE_DIR,
+# 2026-12-04: the default study's five run kernels 3-6 s each; rk4 / lie_poisson4 run 6 / 12 s, block
+# 26 / 53 s; the verdict study's 38 run and 23 driven kernels 2-3 s each, but for the methods whose step
+# inlines n exact Euler-Poinsot flows (FREE_EXACT, n = len(WEIGHTS): strang_exact 1, strang_exact4 3,
+# suzuki4_exact 5, split6_exact 7), whose run kernels took 8, 26, 44, 79 s and driven 10, 54, 71, 178 s.
+# The model: COMPILE_SECONDS[path] + EXACT_FLOW_SECONDS[path] * n**1.5 (the verdict study's jobs within
+# 0.6-1.2x of it, the default study's within 1.2x).
+COMPILE_SECONDS = {"runs": 4.0, "driven": 4.0, "blocks": 35.0}
+EXACT_FLOW_SECONDS = {"runs": 6.0, "driven": 10.0, "blocks": 6.0}
 KERNEL_ENTRIES = {"runs": "run_batch", "driven": "run_batch_driven", "blocks": "run_blocks"}
+# Resident memory one kernel compiled in the sweep's process adds and keeps (numba holds every compiled
+# module), measured with benchmarks/peak_rss.py on a fresh NUMBA_CACHE_DIR against the warm run's 0.28 GB:
+# the default study (5 run kernels) 0.56 GB; rk4 + lie_poisson4 with blocks (2 run, 2 block kernels)
+# 0.72 GB; the verdict study's multirun (23 driven + 38 run kernels in one process) 3.85 GB.
+COMPILE_BYTES = {"runs": 60e6, "driven": 60e6, "blocks": 160e6}
 
 
 def warm_up_paths(grid):
@@ -95,16 +105,31 @@ def kernel_cached(method, path):
 _COUNTED = set()
 
 
+def compile_seconds(method, path):
+    """Estimated seconds to compile ``method``'s kernel of ``path`` on a cold cache (the model above)."""
+    from ..kernels.registry import get_method
+
+    module = get_method(method)
+    flows = len(getattr(module, "WEIGHTS", (1.0,))) if getattr(module, "FREE_EXACT", False) else 0
+    return COMPILE_SECONDS[path] + EXACT_FLOW_SECONDS[path] * flows**1.5
+
+
+def compile_memory():
+    """(bytes, kernels): the memory the cold kernels counted so far by this process's dry runs add to it
+    when they compile (a multirun's jobs share the process, so its compilers' memory adds up)."""
+    return sum(COMPILE_BYTES[p] for _, p in _COUNTED), len(_COUNTED)
+
+
 def compile_estimate(grid):
     """(seconds, [(method, path)] cold, [(method, path)] counted before): the CPU seconds of compiling
-    the kernels of ``grid`` that numba's cache does not hold (COMPILE_SECONDS each) and that no earlier
+    the kernels of ``grid`` that numba's cache does not hold (``compile_seconds`` each) and that no earlier
     dry run of this process (an earlier job of the same multirun) has counted; which they are; and the
     cold ones an earlier job compiles first."""
     cold = [(m, p) for m, p in warm_up_paths(grid) if not kernel_cached(m, p)]
     before = [kernel for kernel in cold if kernel in _COUNTED]
     cold = [kernel for kernel in cold if kernel not in _COUNTED]
     _COUNTED.update(cold)
-    return sum(COMPILE_SECONDS[p] for _, p in cold), cold, before
+    return sum(compile_seconds(m, p) for m, p in cold), cold, before
 
 
 def warm_up_methods(methods, inputs, threshold, blocks=False):

@@ -12,7 +12,7 @@ import numpy as np
 from ..results.layout import RAW_PER_SAMPLE
 from ..safe_files import UnsafePathError, check_replaceable
 from .config import ConfigError
-from .execute import compile_estimate
+from .execute import compile_estimate, compile_memory
 from .grid import estimate_writing_seconds
 from .store import Journal, partial_dir
 
@@ -260,7 +260,14 @@ def dry_run(grid, out, chunks, backend, peak, state, figures=True):
         print("  compiling: none (every kernel is in the numba cache)")
     if before:
         print(f"  compiling: {len(before)} more not in the cache, compiled by an earlier job of this multirun")
-    print(f"  peak memory: ~{_size(peak)} of samples per chunk (+ ~0.3 GB for Python, numba, xarray)")
+    extra, n_compiled = compile_memory()
+    compiling_note = (
+        f"; + ~{_size(extra)} while numba compiles {n_compiled} kernel(s) in this process"
+        + (" (with the earlier jobs')" if n_compiled > len(cold) else "")
+        if n_compiled
+        else ""
+    )
+    print(f"  peak memory: ~{_size(peak)} of samples per chunk (+ ~0.3 GB for Python, numba, xarray{compiling_note})")
     if each:
         need, memory = figure_memory(grid), available_memory()
         print(
