@@ -99,35 +99,75 @@ def _cache_lock():
 
 
 def compile_methods(names, jobs=None, report=print):
-    """Compile the cold kernels of ``names`` in ``jobs`` worker processes (default: the CPU count);
-    ``report`` gets one line per method.  Returns {method: seconds}; a worker that fails is reported
-    and skipped (whoever runs the method compiles it then).  Overlapping callers take turns (the lock
-    above), so each kernel compiles once."""
+    """Compile the cold kernels of ``names`` (every path each method has) in ``jobs`` worker processes
+    (default: the CPU count); ``report`` gets one line per method.  Returns {method: seconds}; a worker
+    that fails is reported and skipped (whoever runs the method compiles it then).  Overlapping callers
+    take turns (the lock above), so each kernel compiles once."""
     with _cache_lock():
-        return _compile_cold(names, jobs, report)
+        return _compile(cold_kernels(names), jobs, report, "gyrolab-compile")
 
 
-def _compile_cold(names, jobs, report):
-    todo = cold_kernels(names)
+def compile_kernels(kernels, jobs=None, report=print, prefix="gyrolab"):
+    """Compile the kernels ``kernels`` ([(method, path)], e.g. the cold ones a sweep warms up: only the
+    paths it runs) in worker processes, as ``compile_methods`` does; lines start with ``prefix``."""
+    from .execute import kernel_cached
+
+    with _cache_lock():
+        todo = {}
+        for method, path in kernels:
+            if not kernel_cached(method, path):  # an overlapping caller may have compiled it meanwhile
+                todo.setdefault(method, []).append(path)
+        return _compile(todo, jobs, report, prefix)
+
+
+def _worker_init():
+    """A compile worker: Ctrl-C is its caller's to answer (which then terminates the pool), and it dies
+    with its caller (Linux), so an interrupted or killed sweep leaves no compiler running behind it."""
+    import signal
+
+    from .execute import _die_with_parent
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent()
+
+
+def _compile_task(job):
+    """(name, seconds, error): compile_one in a worker; an exception comes back as its one-line text."""
+    name, paths = job
+    try:
+        return compile_one(name, paths) + ("",)
+    except Exception as err:  # noqa: BLE001 - one method's failure must not stop the others
+        return name, 0.0, f"{type(err).__name__}: {err}"
+
+
+def _compile(todo, jobs, report, prefix):
     if not todo:
         return {}
     jobs = max(1, min(jobs or os.cpu_count() or 1, len(todo)))
-    report(f"gyrolab-compile: {sum(map(len, todo.values()))} kernels of {len(todo)} methods, {jobs} at a time")
+    n_kernels = sum(map(len, todo.values()))
+    report(f"{prefix}: compiling {n_kernels} kernels of {len(todo)} methods, {jobs} at a time ...")
     done = {}
     context = get_context("spawn")  # a fresh interpreter: no numba state or memory inherited
     fresh = {"max_tasks_per_child": 1} if sys.version_info >= (3, 11) else {}  # 3.10: workers are reused
-    with ProcessPoolExecutor(jobs, mp_context=context, **fresh) as pool:
+    pool = ProcessPoolExecutor(jobs, mp_context=context, initializer=_worker_init, **fresh)
+    try:
         # longest first, so that no worker is left alone with a 5-minute method at the end (LPT scheduling)
         order = sorted(todo, key=compile_weight, reverse=True)
-        futures = {pool.submit(compile_one, name, todo[name]): name for name in order}
-        for future in as_completed(futures):
-            name = futures[future]
-            try:
-                done[name] = future.result()[1]
-            except Exception as err:  # noqa: BLE001 - one method's failure must not stop the others
-                report(f"gyrolab-compile: {name}: failed ({type(err).__name__}: {err})")
+        futures = {pool.submit(_compile_task, (name, todo[name])): name for name in order}
+        for k, future in enumerate(as_completed(futures), 1):
+            name, seconds, error = future.result()
+            if error:
+                report(f"{prefix}: {name}: failed ({error})")
                 continue
-            report(f"gyrolab-compile: {name} ({', '.join(todo[name])}) in {done[name]:.0f} s")
+            done[name] = seconds
+            report(f"{prefix}: compiled {name} ({', '.join(todo[name])}) in {seconds:.0f} s ({k}/{len(todo)})")
+    except BaseException:  # an interrupt: stop the compilers now rather than wait minutes for them
+        # the executor has no terminate(): kill its worker processes (its own map of them), then shut down
+        for process in list(getattr(pool, "_processes", {}).values()):
+            process.kill()
+        pool.shutdown(wait=True, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
     return done
 
 

@@ -260,13 +260,8 @@ def dry_run(grid, out, chunks, backend, peak, state, figures=True):
         print("  compiling: none (every kernel is in the numba cache)")
     if before:
         print(f"  compiling: {len(before)} more not in the cache, compiled by an earlier job of this multirun")
-    extra, n_compiled = compile_memory()
-    compiling_note = (
-        f"; + ~{_size(extra)} while numba compiles {n_compiled} kernel(s) in this process"
-        + (" (with the earlier jobs')" if n_compiled > len(cold) else "")
-        if n_compiled
-        else ""
-    )
+    extra, where = compile_memory(cold)
+    compiling_note = f"; + ~{_size(extra)} while numba compiles {len(cold)} kernel(s) {where}" if cold else ""
     print(f"  peak memory: ~{_size(peak)} of samples per chunk (+ ~0.3 GB for Python, numba, xarray{compiling_note})")
     if each:
         need, memory = figure_memory(grid), available_memory()

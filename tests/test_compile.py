@@ -60,3 +60,72 @@ def test_compiles_what_the_cache_lacks_and_a_sweep_process_then_loads_it(tmp_pat
     )
     assert loaded.returncode == 0, loaded.stderr
     assert loaded.stdout.strip() == "{}"  # a fresh process finds both kernels in the cache: it loads them
+
+
+def _compilers_of(cache):
+    """PIDs of live processes whose environment names ``cache`` as their NUMBA_CACHE_DIR (Linux /proc)."""
+    import os
+
+    mark = f"NUMBA_CACHE_DIR={cache}".encode()
+    pids = []
+    for name in os.listdir("/proc"):
+        try:
+            with open(f"/proc/{name}/environ", "rb") as f:
+                if mark in f.read().split(b"\0"):
+                    pids.append(int(name))
+        except (OSError, ValueError):
+            continue
+    return pids
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_cold_sweep_compiles_its_kernels_in_parallel_and_ctrl_c_stops_the_compilers(tmp_path):
+    """runner/execute.py warm_up: two or more cold kernels compile in worker processes, one per core and
+    method, only the paths the sweep runs; a Ctrl-C to the terminal's process group during that compile
+    is answered in one line and exit 130 within seconds, and leaves no compiler running."""
+    import os
+    import signal
+    import time
+
+    from gyrolab.runner.execute import compile_jobs
+
+    if compile_jobs() < 2:
+        pytest.skip("one core: the warm-up compiles in its own process")
+    cache = tmp_path / "cache"
+    sweep = ["sweep.f=[10]", "sweep.dt=[1e-3]", "sweep.t_end=0.01", "output.figures=false"]
+    done = subprocess.run(
+        command("gyrolab", "gyrolab.runner.app") + ["sweep.method=[no_gyro,explicit_euler]", *sweep],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        env=environment(NUMBA_CACHE_DIR=cache),
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stderr
+    assert "gyrolab: compiling 2 kernels of 2 methods, 2 at a time ..." in done.stdout
+    assert "compiled no_gyro (runs) in" in done.stdout and "compiled explicit_euler (runs) in" in done.stdout
+    assert "blocks" not in done.stdout  # 1 run per method: no block kernel is compiled
+    # strang_exact4's run kernel takes ~25 s to compile: interrupt while it does
+    slow = subprocess.Popen(
+        command("gyrolab", "gyrolab.runner.app") + ["sweep.method=[strang_exact4,strang_exact]", *sweep],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=environment(NUMBA_CACHE_DIR=cache),
+        start_new_session=True,  # its own process group, as a terminal's foreground job
+    )
+    deadline = time.monotonic() + 120
+    while len(_compilers_of(cache)) < 3 and time.monotonic() < deadline:  # gyrolab and its compilers
+        time.sleep(0.2)
+    assert len(_compilers_of(cache)) >= 3, "the compile workers never started"
+    time.sleep(1.0)
+    os.killpg(slow.pid, signal.SIGINT)
+    start = time.monotonic()
+    out, err = slow.communicate(timeout=60)
+    assert slow.returncode == 130, (out, err)
+    assert time.monotonic() - start < 10
+    assert "Traceback" not in err and err.strip().splitlines()[0].startswith("gyrolab: interrupted"), err
+    time.sleep(0.5)
+    assert _compilers_of(cache) == []
