@@ -327,8 +327,8 @@ def test_conformance_rows_at_a_short_length():
     rows = conformance.rows(200)
     assert len(rows) == len(conformance.cases()) * len(conformance.DTS) * len(conformance.PAIRS)
     for r in rows:
-        if "note" in r:  # unbuilt pivots (PyBullet); Basilisk, Newton, jax-md: free bodies only (their test files)
-            engines = ("real_pybullet", "real_basilisk", "real_newton", "real_jaxmd")
+        if "note" in r:  # unbuilt pivots (PyBullet); Basilisk, Newton, jax-md, LAMMPS: free bodies only (their tests)
+            engines = ("real_pybullet", "real_basilisk", "real_newton", "real_jaxmd", "real_lammps")
             assert r["engine"].startswith(engines) and r["case"] != "tumbling box"
             continue
         isolated = r["engine"].startswith("real_mujoco") or r["engine"] == "real_pybullet_maximal"
