@@ -17,6 +17,13 @@ angular momentum (LAMMPS ``quatvec``, ``invquatvec``).  One step of dt:
   body axis k: the exact flow of L_k²/(2 I_k);
 - half kick with the torque at the new orientation and time t + dt (``final_integrate``).
 
+The axes are the body's principal axes as given (e1, e2, e3 of the body record).  LAMMPS takes them
+from ``MathEigen::jacobi3(..., 1)`` in ``setup_bodies_static``, which sorts them by ascending moment, so
+its 3-2-1-2-3 turns about the *largest* moment first: on a body whose moments are not in ascending
+order LAMMPS runs another splitting of the same kind (O(dt³) per step apart; measured against the
+engine itself in docs/engines/conformance.md, ``real_lammps_rigid_nve``).  This method is LAMMPS's
+step on a body relabelled so that I1 ≤ I2 ≤ I3.
+
 Between steps gyrolab carries (ω, q), as every method does (kernels/methods/README.md): p is built
 from ω at the start of the step and L = ½ vec(q* ⊗ p)/|q|² (``invquatvec``) read back at its end.
 The two conversions are exact inverses in exact arithmetic (q* ⊗ p = 2 |q|² (0, L)); in floating
