@@ -307,3 +307,28 @@ def step_run(name, w, q, dt, body, n):
         W.append(w)
         Q.append(q)
     return np.array(W), np.array(Q)
+
+
+def free_body_sweep(methods, tmp_path, f="[10]", dt="[1e-3]", t_end=0.2, every=1e-2):
+    """``gyrolab`` on the tumbling box (scene free_asymmetric) with ``methods`` (a list of names), the
+    Hydra lists ``f`` (Hz) and ``dt`` (s), ``t_end`` and ``every`` (s), no figures, run in ``tmp_path``
+    (results.h5 there): what the real engines' tests sweep beside their reproductions.  Asserts that it
+    exits 0 and returns the results Dataset, loaded."""
+    import xarray as xr
+
+    res = gyrolab(
+        f"sweep.method=[{','.join(methods)}]",
+        "scene=free_asymmetric",
+        f"sweep.f={f}",
+        f"sweep.dt={dt}",
+        f"sweep.t_end={t_end}",
+        f"output.every={every}",
+        "output.figures=false",
+        f"hydra.run.dir={tmp_path}",
+        cwd=tmp_path,
+    )
+    assert res.returncode == 0, res.stderr
+    with xr.open_dataset(tmp_path / "results.h5", engine="h5netcdf") as ds:
+        out = ds.load()
+    assert list(out.integrator.values) == list(methods)
+    return out

@@ -94,24 +94,10 @@ def test_mjx_version_and_defaults_are_declared():
 def test_sweep_with_mjx_writes_one_file_with_its_version(tmp_path):
     """A sweep of real_mjx_euler next to mujoco_euler: one results file, MJX's version in its attrs, the two
     integrators' ω within 1e-10 of the spin."""
-    import xarray as xr
+    from helpers import free_body_sweep
 
-    from helpers import gyrolab
-
-    res = gyrolab(
-        "sweep.method=[real_mjx_euler,mujoco_euler]",
-        "scene=free_asymmetric",
-        "sweep.f=[5]",
-        "sweep.dt=[1e-3]",
-        "sweep.t_end=0.2",
-        "output.every=1e-2",
-        "output.figures=false",
-        f"hydra.run.dir={tmp_path}",
-        cwd=tmp_path,
-    )
-    assert res.returncode == 0, res.stderr
-    with xr.open_dataset(tmp_path / "results.h5", engine="h5netcdf") as ds:
-        assert "mujoco-mjx " in ds.attrs["engine_versions"]
-        assert (ds.status == 0).all()
-        a, b = ds.omega.sel(integrator="real_mjx_euler"), ds.omega.sel(integrator="mujoco_euler")
-        assert float(abs(a - b).max()) < 1e-10 * 2 * np.pi * 5
+    ds = free_body_sweep(["real_mjx_euler", "mujoco_euler"], tmp_path, f="[5]")
+    assert "mujoco-mjx " in ds.attrs["engine_versions"]
+    assert (ds.status == 0).all()
+    a, b = ds.omega.sel(integrator="real_mjx_euler"), ds.omega.sel(integrator="mujoco_euler")
+    assert float(abs(a - b).max()) < 1e-10 * 2 * np.pi * 5

@@ -14,7 +14,6 @@ import math
 
 import numpy as np
 import pytest
-import xarray as xr
 
 from gyrolab.kernels import real
 from gyrolab.kernels.batch import integrate
@@ -22,7 +21,7 @@ from gyrolab.kernels.body import Body
 from gyrolab.kernels.driver import STATUS_OK
 from gyrolab.kernels.scenes import build_scene
 
-from helpers import gyrolab
+from helpers import free_body_sweep
 
 NAME = "real_basilisk_rk4"
 pytestmark = pytest.mark.skipif(
@@ -146,21 +145,8 @@ def test_sweep_beside_rk4_mrp_writes_one_file(tmp_path):
     """gyrolab 'sweep.method=[real_basilisk_rk4,rk4_mrp]' scene=free_asymmetric at a small size: one results file
     that opens, the engine's version in its attrs, the two methods agreeing to rounding before the first flip
     (Basilisk adds ~2 s to the command: its import and 20 ExecuteSimulation calls)."""
-    res = gyrolab(
-        f"sweep.method=[{NAME},rk4_mrp]",
-        "scene=free_asymmetric",
-        "sweep.f=[10]",
-        "sweep.dt=[1e-3]",
-        "sweep.t_end=0.2",
-        "output.every=1e-2",
-        "output.figures=false",
-        f"hydra.run.dir={tmp_path}",
-        cwd=tmp_path,
-    )
-    assert res.returncode == 0, res.stderr
-    with xr.open_dataset(tmp_path / "results.h5", engine="h5netcdf") as ds:
-        assert list(ds.integrator.values) == [NAME, "rk4_mrp"]
-        assert ds.attrs["engine_versions"].startswith("bsk ")
-        assert (ds.status == 0).all()
-        a, b = ds.omega.sel(integrator=NAME), ds.omega.sel(integrator="rk4_mrp")
-        assert float(abs(a - b).max()) < 1e-10 * 2 * math.pi * 10
+    ds = free_body_sweep([NAME, "rk4_mrp"], tmp_path)
+    assert ds.attrs["engine_versions"].startswith("bsk ")
+    assert (ds.status == 0).all()
+    a, b = ds.omega.sel(integrator=NAME), ds.omega.sel(integrator="rk4_mrp")
+    assert float(abs(a - b).max()) < 1e-10 * 2 * math.pi * 10

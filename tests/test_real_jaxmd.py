@@ -133,25 +133,10 @@ def test_sweep_with_jaxmd_writes_one_file_that_opens(tmp_path):
     version in its attrs, status 0, the two integrators' ω within 1e-12 of the spin (measured 8.8e-15).
     Slow: the subprocess imports jax-md, whose rigid_body module builds its example shapes with eager JAX
     calls at import (35 s on the loaded 2-core machine, of which ~18 s the import)."""
-    import xarray as xr
+    from helpers import free_body_sweep
 
-    from helpers import gyrolab
-
-    res = gyrolab(
-        f"sweep.method=[{NAME},no_squish]",
-        "scene=free_asymmetric",
-        "sweep.f=[5]",
-        f"sweep.dt=[{2.0**-10!r}]",
-        "sweep.t_end=0.25",
-        "output.every=0.015625",
-        "output.figures=false",
-        f"hydra.run.dir={tmp_path}",
-        cwd=tmp_path,
-    )
-    assert res.returncode == 0, res.stderr
-    with xr.open_dataset(tmp_path / "results.h5", engine="h5netcdf") as ds:
-        assert list(ds.integrator.values) == [NAME, "no_squish"]
-        assert ds.attrs["engine_versions"].startswith("jax-md ")
-        assert (ds.status == 0).all() and ds.sizes["time"] == 17
-        a, b = ds.omega.sel(integrator=NAME), ds.omega.sel(integrator="no_squish")
-        assert float(abs(a - b).max()) < 1e-12 * 2 * np.pi * 5
+    ds = free_body_sweep([NAME, "no_squish"], tmp_path, f="[5]", dt=f"[{2.0**-10!r}]", t_end=0.25, every=0.015625)
+    assert ds.attrs["engine_versions"].startswith("jax-md ")
+    assert (ds.status == 0).all() and ds.sizes["time"] == 17
+    a, b = ds.omega.sel(integrator=NAME), ds.omega.sel(integrator="no_squish")
+    assert float(abs(a - b).max()) < 1e-12 * 2 * np.pi * 5

@@ -262,25 +262,10 @@ def test_sweep_beside_lammps_richardson_writes_one_file(tmp_path):
     """gyrolab 'sweep.method=[real_lammps_rigid,lammps_richardson]' scene=free_asymmetric at a small size: one
     results file that opens, LAMMPS's version in its attrs, status 0, the two agreeing to rounding before the
     first flip."""
-    import xarray as xr
+    from helpers import free_body_sweep
 
-    from helpers import gyrolab
-
-    res = gyrolab(
-        f"sweep.method=[{NAME},lammps_richardson]",
-        "scene=free_asymmetric",
-        "sweep.f=[10]",
-        "sweep.dt=[1e-3]",
-        "sweep.t_end=0.2",
-        "output.every=1e-2",
-        "output.figures=false",
-        f"hydra.run.dir={tmp_path}",
-        cwd=tmp_path,
-    )
-    assert res.returncode == 0, res.stderr
-    with xr.open_dataset(tmp_path / "results.h5", engine="h5netcdf") as ds:
-        assert list(ds.integrator.values) == [NAME, "lammps_richardson"]
-        assert ds.attrs["engine_versions"].startswith("lammps ")
-        assert (ds.status == 0).all()
-        a, b = ds.omega.sel(integrator=NAME), ds.omega.sel(integrator="lammps_richardson")
-        assert float(abs(a - b).max()) < 1e-10 * 2 * math.pi * 10
+    ds = free_body_sweep([NAME, "lammps_richardson"], tmp_path)
+    assert ds.attrs["engine_versions"].startswith("lammps ")
+    assert (ds.status == 0).all()
+    a, b = ds.omega.sel(integrator=NAME), ds.omega.sel(integrator="lammps_richardson")
+    assert float(abs(a - b).max()) < 1e-10 * 2 * math.pi * 10

@@ -17,7 +17,6 @@ import math
 
 import numpy as np
 import pytest
-import xarray as xr
 
 from gyrolab.kernels import real
 from gyrolab.kernels.batch import integrate
@@ -27,7 +26,7 @@ from gyrolab.kernels.real import conformance
 from gyrolab.kernels.real.pybullet_engine import quat_matrix
 from gyrolab.kernels.scenes import build_scene
 
-from helpers import gyrolab
+from helpers import free_body_sweep
 
 pytestmark = pytest.mark.skipif(
     real.package_missing("real_newton_semi") is not None,
@@ -174,23 +173,9 @@ def test_sweep_with_newton_writes_one_file(tmp_path):
     """gyrolab 'sweep.method=[real_newton_semi,newton_semi]' scene=free_asymmetric at a small size: one file,
     the engine's version in its attrs, both methods side by side and close (float32).  Slow: a gyrolab process
     (numba, Hydra, Warp's start-up) takes 20-40 s on the shared 2-core machine, for 100 engine steps."""
-    methods = "real_newton_semi,newton_semi"
-    res = gyrolab(
-        f"sweep.method=[{methods}]",
-        "scene=free_asymmetric",
-        "sweep.f=[5]",
-        "sweep.dt=[1e-3]",
-        "sweep.t_end=0.1",
-        "output.every=1e-2",
-        "output.figures=false",
-        f"hydra.run.dir={tmp_path}",
-        cwd=tmp_path,
-    )
-    assert res.returncode == 0, res.stderr
-    with xr.open_dataset(tmp_path / "results.h5", engine="h5netcdf") as ds:
-        assert list(ds.integrator.values) == methods.split(",")
-        assert "newton " in ds.attrs["engine_versions"]
-        assert (ds.status == 0).all()
-        a = ds.omega.sel(integrator="real_newton_semi")
-        b = ds.omega.sel(integrator="newton_semi")
-        assert float(abs(a - b).max()) < 1e-3 * 2 * math.pi * 5
+    ds = free_body_sweep(["real_newton_semi", "newton_semi"], tmp_path, f="[5]", t_end=0.1)
+    assert "newton " in ds.attrs["engine_versions"]
+    assert (ds.status == 0).all()
+    a = ds.omega.sel(integrator="real_newton_semi")
+    b = ds.omega.sel(integrator="newton_semi")
+    assert float(abs(a - b).max()) < 1e-3 * 2 * math.pi * 5
