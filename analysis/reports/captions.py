@@ -188,9 +188,8 @@ def stability_caption(paths):
             + (f"; identical maps: {'; '.join(' = '.join(g) for g in same)}" if same else "")
         )
     return (
-        "`gyrolab experiment=stability` (every pinned method over f × dt, 10 s each; red ×: diverged). "
-        + ". ".join(out)
-        + "."
+        "`gyrolab experiment=stability` (every pinned method over f × dt, 10 s each; "
+        "grey cells with a red ×: diverged). " + ". ".join(out) + "."
     )
 
 
