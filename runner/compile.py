@@ -9,7 +9,8 @@ takes 0.43 GB).  Here each method compiles in a worker process of its own (``spa
 per method, so its memory goes back when it ends), ``--jobs`` at a time, into the same keyed cache
 directories (kernels/__init__.py) the sweep and the tests load from.  Only kernels the cache does not
 hold compile (runner/execute.py ``kernel_cached``); the real engines (kernels/real/) compile nothing.
-``tests/conftest.py`` calls ``compile_methods`` for the methods a test session selects.
+``tests/conftest.py`` calls ``compile_methods`` for the methods a test session selects, and a sweep's
+warm-up (runner/execute.py ``warm_up``) ``compile_kernels`` for the two or more cold kernels it runs.
 
 Callers that overlap (the workers of ``pytest -n 2``, two ``gyrolab-compile`` started together) take
 turns on a lock file in the cache root: the first compiles, the next then finds the kernels cached and compiles
@@ -100,7 +101,7 @@ def _cache_lock():
 
 def compile_methods(names, jobs=None, report=print):
     """Compile the cold kernels of ``names`` (every path each method has) in ``jobs`` worker processes
-    (default: the CPU count); ``report`` gets one line per method.  Returns {method: seconds}; a worker
+    (default: the cores this process may use); ``report`` gets one line per method.  Returns {method: seconds}; a worker
     that fails is reported and skipped (whoever runs the method compiles it then).  Overlapping callers
     take turns (the lock above), so each kernel compiles once."""
     with _cache_lock():
@@ -143,7 +144,9 @@ def _compile_task(job):
 def _compile(todo, jobs, report, prefix):
     if not todo:
         return {}
-    jobs = max(1, min(jobs or os.cpu_count() or 1, len(todo)))
+    from .execute import compile_jobs
+
+    jobs = max(1, min(jobs or compile_jobs(), len(todo)))
     n_kernels = sum(map(len, todo.values()))
     report(f"{prefix}: compiling {n_kernels} kernels of {len(todo)} methods, {jobs} at a time ...")
     done = {}

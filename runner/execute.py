@@ -149,8 +149,9 @@ def compile_memory(cold):
 
 
 def compile_estimate(grid):
-    """(seconds, [(method, path)] cold, [(method, path)] counted before): the CPU seconds of compiling
-    the kernels of ``grid`` that numba's cache does not hold (``compile_seconds`` each) and that no earlier
+    """(seconds, [(method, path)] cold, [(method, path)] counted before): the wall seconds of compiling
+    the kernels of ``grid`` that numba's cache does not hold (``compile_seconds`` each, shared out over the
+    cores as ``warm_up`` compiles them: ``compile_wall_seconds``) and that no earlier
     dry run of this process (an earlier job of the same multirun) has counted; which they are; and the
     cold ones an earlier job compiles first."""
     cold = [(m, p) for m, p in warm_up_paths(grid) if not kernel_cached(m, p)]
