@@ -97,7 +97,7 @@ def test_symmetric_free_body_follows_its_closed_form(engine, moments):
     the integrators' O(dt²) (1e-4; measured ≤ 2.5e-5 for both fixes), and the lab L = R I ω it gives is fixed to
     rounding (1e-13; measured 2.6e-15 fix rigid, 5.9e-14 fix rigid/nve): a wrong frame convention would miss both
     by O(1)."""
-    from gyrolab.kernels.real.lammps_engine import matrix_from_quat
+    from gyrolab.kernels.real.pybullet_engine import quat_matrix
 
     body, inertia = Body(*moments, 0.0), np.array(moments)
     w0 = np.array([20.0, -10.0, 60.0])
@@ -108,13 +108,13 @@ def test_symmetric_free_body_follows_its_closed_form(engine, moments):
     e = 2 if moments[0] == moments[1] else 0
     A = moments[(e + 1) % 3]
     omega = (moments[e] - A) * w0[e] / A
-    R0 = matrix_from_quat(q0)
+    R0 = quat_matrix(q0)
     L = R0 @ (inertia * w0)
     for j in range(0, n, 50):
         t = (j + 1) * dt
         R_exact = rotation(L, np.linalg.norm(L) * t / A) @ R0 @ rotation(np.eye(3)[e], -omega * t)
         w_exact = R_exact.T @ L / inertia
-        R = matrix_from_quat(Q[j])
+        R = quat_matrix(Q[j])
         assert np.abs(R - R_exact).max() < 1e-4
         assert np.linalg.norm(W[j] - w_exact) < 1e-4 * np.linalg.norm(w_exact)
         assert np.linalg.norm(R @ (inertia * W[j]) - L) < 1e-13 * np.linalg.norm(L)

