@@ -8,7 +8,7 @@ compiles them one after another in its own process uses one core and keeps every
 takes 0.43 GB).  Here each method compiles in a worker process of its own (``spawn``; a fresh worker
 per method, so its memory goes back when it ends), ``--jobs`` at a time, into the same keyed cache
 directories (kernels/__init__.py) the sweep and the tests load from.  Only kernels the cache does not
-hold compile (runner/execute.py ``kernel_cached``); the real engines (kernels/real/) compile nothing.
+hold compile (``kernel_cached``); the real engines (kernels/real/) compile nothing.
 ``tests/conftest.py`` calls ``compile_methods`` for the methods a test session selects, and a sweep's
 warm-up (runner/execute.py ``warm_up``) ``compile_kernels`` for the two or more cold kernels it runs.
 
@@ -20,19 +20,52 @@ nothing, instead of both compiling everything at once on the same cores.
 import argparse
 import contextlib
 import os
+import signal
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing import get_context
 
 PATHS = ("runs", "blocks", "driven")
+KERNEL_ENTRIES = {"runs": "run_batch", "driven": "run_batch_driven", "blocks": "run_blocks"}
+
+
+def kernel_cached(method, path):
+    """True when numba's cache for this source tree holds ``method``'s kernel of ``path`` (its index
+    file exists and matches the source file: what numba checks before loading instead of compiling)."""
+    from ..kernels.registry import get_method
+
+    dispatcher = getattr(get_method(method), KERNEL_ENTRIES[path], None)
+    try:
+        return bool(dispatcher._cache._cache_file._load_index())
+    except Exception:  # no dispatcher, no cache locator, an unreadable index: numba would compile
+        return False
+
+
+def compile_jobs():
+    """Worker processes a cold warm-up (or gyrolab-compile by default) compiles in: the cores this process
+    may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def die_with_parent():
+    """Linux: ask the kernel to SIGKILL this process when its parent dies (prctl PR_SET_PDEATHSIG),
+    so a ``kill -9`` of the runner never leaves a worker writing behind it."""
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)
+    except (OSError, AttributeError):
+        pass
 
 
 def cold_kernels(names):
     """{method: [path, ...]} of the kernels of ``names`` (method names) that numba's cache lacks."""
     from ..kernels.real import is_real
     from ..kernels.registry import get_method, sees_time, uses_blocks
-    from .execute import kernel_cached
 
     out = {}
     for name in names:
@@ -111,8 +144,6 @@ def compile_methods(names, jobs=None, report=print):
 def compile_kernels(kernels, jobs=None, report=print, prefix="gyrolab"):
     """Compile the kernels ``kernels`` ([(method, path)], e.g. the cold ones a sweep warms up: only the
     paths it runs) in worker processes, as ``compile_methods`` does; lines start with ``prefix``."""
-    from .execute import kernel_cached
-
     with _cache_lock():
         todo = {}
         for method, path in kernels:
@@ -124,12 +155,8 @@ def compile_kernels(kernels, jobs=None, report=print, prefix="gyrolab"):
 def _worker_init():
     """A compile worker: Ctrl-C is its caller's to answer (which then terminates the pool), and it dies
     with its caller (Linux), so an interrupted or killed sweep leaves no compiler running behind it."""
-    import signal
-
-    from .execute import _die_with_parent
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _die_with_parent()
+    die_with_parent()
 
 
 def _compile_task(job):
@@ -144,8 +171,6 @@ def _compile_task(job):
 def _compile(todo, jobs, report, prefix):
     if not todo:
         return {}
-    from .execute import compile_jobs
-
     jobs = max(1, min(jobs or compile_jobs(), len(todo)))
     n_kernels = sum(map(len, todo.values()))
     report(f"{prefix}: compiling {n_kernels} kernels of {len(todo)} methods, {jobs} at a time ...")

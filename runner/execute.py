@@ -25,6 +25,7 @@ import numpy as np
 
 from ..kernels.batch import MIN_BLOCK_RUNS, integrate
 from ..kernels.real import is_real
+from .compile import compile_jobs, compile_kernels, die_with_parent, kernel_cached
 from .grid import plan_chunks, runs_in_blocks, step_rate
 
 # Test hook: seconds to sleep after each stored chunk, so a test can kill a sweep mid-way.
@@ -57,18 +58,8 @@ def warm_up(grid):
     blocks = grid.n_runs // len(grid.methods) >= MIN_BLOCK_RUNS
     cold = [kernel for kernel in warm_up_paths(grid) if not kernel_cached(*kernel)]
     if len(cold) >= 2 and compile_jobs() > 1 and not multiprocessing.current_process().daemon:
-        from .compile import compile_kernels
-
         compile_kernels(cold, compile_jobs(), report=lambda line: print(line, flush=True))
     warm_up_methods(grid.methods, grid.inputs(np.zeros(1, dtype=np.int64)), grid.threshold, blocks)
-
-
-def compile_jobs():
-    """Worker processes a cold warm-up compiles in: the cores this process may use."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        return os.cpu_count() or 1
 
 
 COMPILE_NOTICE_SECONDS = 3.0  # a warm-up still running after this long is compiling: say so on screen
@@ -82,7 +73,6 @@ COMPILE_NOTICE_SECONDS = 3.0  # a warm-up still running after this long is compi
 # 0.6-1.2x of it, the default study's within 1.2x).
 COMPILE_SECONDS = {"runs": 4.0, "driven": 4.0, "blocks": 35.0}
 EXACT_FLOW_SECONDS = {"runs": 6.0, "driven": 10.0, "blocks": 6.0}
-KERNEL_ENTRIES = {"runs": "run_batch", "driven": "run_batch_driven", "blocks": "run_blocks"}
 # Resident memory one kernel compiled in the sweep's process adds and keeps (numba holds every compiled
 # module), measured with benchmarks/peak_rss.py on a fresh NUMBA_CACHE_DIR against the warm run's 0.28 GB:
 # the default study (5 run kernels) 0.56 GB; rk4 + lie_poisson4 with blocks (2 run, 2 block kernels)
@@ -104,18 +94,6 @@ def warm_up_paths(grid):
         if blocks and uses_blocks(get_method(method)):
             out.append((method, "blocks"))
     return out
-
-
-def kernel_cached(method, path):
-    """True when numba's cache for this source tree holds ``method``'s kernel of ``path`` (its index
-    file exists and matches the source file: what numba checks before loading instead of compiling)."""
-    from ..kernels.registry import get_method
-
-    dispatcher = getattr(get_method(method), KERNEL_ENTRIES[path], None)
-    try:
-        return bool(dispatcher._cache._cache_file._load_index())
-    except Exception:  # no dispatcher, no cache locator, an unreadable index: numba would compile
-        return False
 
 
 # (method, path) kernels a dry run in this process has already counted as compiling.  The jobs of a
@@ -313,23 +291,12 @@ class ChunkWorker:
             self.kill()
 
 
-def _die_with_parent():
-    """Linux: ask the kernel to SIGKILL this process when its parent dies (prctl PR_SET_PDEATHSIG),
-    so a ``kill -9`` of the runner never leaves a worker writing behind it."""
-    try:
-        import ctypes
-
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)
-    except (OSError, AttributeError):
-        pass
-
-
 def _worker_main(conn, grid, threads):
     """The worker process: signals are the parent's business (it kills us); compile first, so
     that JIT time stays out of wall_time, then integrate each chunk sent until None."""
     for sig in (signal.SIGINT, signal.SIGHUP, signal.SIGTERM):
         signal.signal(sig, signal.SIG_IGN)
-    _die_with_parent()
+    die_with_parent()
     import numba
 
     numba.set_num_threads(threads)

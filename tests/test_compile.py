@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from helpers import command, environment
+from helpers import _default_signals, command, environment
 
 
 def compile_cli(*args, cache):
@@ -88,7 +88,7 @@ def test_a_cold_sweep_compiles_its_kernels_in_parallel_and_ctrl_c_stops_the_comp
     import signal
     import time
 
-    from gyrolab.runner.execute import compile_jobs
+    from gyrolab.runner.compile import compile_jobs
 
     if compile_jobs() < 2:
         pytest.skip("one core: the warm-up compiles in its own process")
@@ -115,6 +115,7 @@ def test_a_cold_sweep_compiles_its_kernels_in_parallel_and_ctrl_c_stops_the_comp
         text=True,
         env=environment(NUMBA_CACHE_DIR=cache),
         start_new_session=True,  # its own process group, as a terminal's foreground job
+        preexec_fn=_default_signals,  # SIGINT not ignored, even where this test runs with it ignored (CI)
     )
     deadline = time.monotonic() + 120
     while len(_compilers_of(cache)) < 3 and time.monotonic() < deadline:  # gyrolab and its compilers

@@ -113,7 +113,8 @@ def test_dry_run_counts_compiling_from_the_numba_cache(tmp_path):
     methods = ("seed_next", "seed_prev", "rk4", "lie_poisson", "lie_poisson4")  # the default study: no blocks
     assert f"compiling: 5 kernels not in the numba cache: {', '.join(f'{m} (runs)' for m in methods)}" in result.stdout
     # 4 s each (compile_seconds), on this machine's cores as warm_up compiles them (compile_wall_seconds)
-    from gyrolab.runner.execute import compile_jobs, compile_memory, compile_wall_seconds
+    from gyrolab.runner.compile import compile_jobs
+    from gyrolab.runner.execute import compile_memory, compile_wall_seconds
 
     assert f", {compile_wall_seconds([4.0] * 5):.0f} s compiling)" in result.stdout
     _, where = compile_memory([(m, "runs") for m in methods])
