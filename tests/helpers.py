@@ -332,3 +332,39 @@ def free_body_sweep(methods, tmp_path, f="[10]", dt="[1e-3]", t_end=0.2, every=1
         out = ds.load()
     assert list(out.integrator.values) == list(methods)
     return out
+
+
+def check_free_body_refusals(name, partner, degenerate, also=None):
+    """What a free-body-only real engine ``name`` refuses, each in one line: a heavy body (no joint) and the
+    ``degenerate`` body (kernels.body.Body: a moment the engine cannot take), by its backend, by ``integrate``
+    (through ``also`` too, another mode of the same backend, when given) and by the grid check before any work
+    (a sweep of ``partner`` and ``name`` on the heavy top); a driven body by ``integrate``."""
+    import numpy as np
+    import pytest
+    from hydra import compose, initialize_config_module
+
+    from gyrolab.kernels import real
+    from gyrolab.kernels.batch import integrate
+    from gyrolab.kernels.scenes import build_scene
+    from gyrolab.runner.config import ConfigError, register_configs
+    from gyrolab.runner.grid import build_grid
+
+    top = build_scene("heavy_top", 5.0, 30.0)
+    for body, match in ((top.body, "free bodies only"), (degenerate, "positive principal moments")):
+        with pytest.raises(ValueError, match=match) as err:
+            real.check_bodies(name, np.array([body]))
+        assert "\n" not in str(err.value) and name in str(err.value)
+        with pytest.raises(ValueError, match=match):
+            integrate(also or name, np.array([body]), np.array([top.omega0]), np.array([top.q0]), 1e-3, 1, 2)
+    register_configs()
+    with initialize_config_module(config_module="gyrolab.conf", version_base=None):
+        cfg = compose("config", overrides=[f"sweep.method=[{partner},{name}]", "scene=heavy_top"])
+    with pytest.raises(ConfigError, match="free bodies only") as err:
+        build_grid(cfg)
+    assert "\n" not in str(err.value)
+    driven = build_scene("free_asymmetric", 5.0, 30.0)
+    body = np.array([driven.body])
+    body[0, 6], body[0, 10], body[0, 11] = 1e-3, 0.0, 1.0  # tau1 on from t = 0 to 1 s
+    with pytest.raises(ValueError, match="driving torque") as err:
+        integrate(name, body, np.array([driven.omega0]), np.array([driven.q0]), 1e-3, 1, 2)
+    assert "\n" not in str(err.value)

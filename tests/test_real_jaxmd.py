@@ -93,30 +93,9 @@ def test_one_compilation_serves_every_run_and_stride():
 def test_refusals_are_one_line():
     """A heavy body (jax-md has no joint) and a zero moment are refused in one line, by the backend and by the
     grid check before any work; a driven body by integrate."""
-    from hydra import compose, initialize_config_module
+    from helpers import check_free_body_refusals
 
-    from gyrolab.runner.config import ConfigError, register_configs
-    from gyrolab.runner.grid import build_grid
-
-    top = build_scene("heavy_top", 5.0, 30.0)
-    for body, match in ((top.body, "free bodies only"), (Body(1.0, 0.0, 0.5, 0.0), "positive principal moments")):
-        with pytest.raises(ValueError, match=match) as err:
-            real.check_bodies(NAME, np.array([body]))
-        assert "\n" not in str(err.value) and NAME in str(err.value)
-        with pytest.raises(ValueError, match=match):
-            integrate(NAME, np.array([body]), np.array([top.omega0]), np.array([top.q0]), 1e-3, 1, 2)
-    register_configs()
-    with initialize_config_module(config_module="gyrolab.conf", version_base=None):
-        cfg = compose("config", overrides=[f"sweep.method=[no_squish,{NAME}]", "scene=heavy_top"])
-    with pytest.raises(ConfigError, match="free bodies only") as err:
-        build_grid(cfg)
-    assert "\n" not in str(err.value)
-    driven = build_scene("free_asymmetric", 5.0, 30.0)
-    body = np.array([driven.body])
-    body[0, 6], body[0, 10], body[0, 11] = 1e-3, 0.0, 1.0  # tau1 on from t = 0 to 1 s
-    with pytest.raises(ValueError, match="driving torque") as err:
-        integrate(NAME, body, np.array([driven.omega0]), np.array([driven.q0]), 1e-3, 1, 2)
-    assert "\n" not in str(err.value)
+    check_free_body_refusals(NAME, "no_squish", Body(1.0, 0.0, 0.5, 0.0))
 
 
 def test_version_and_defaults_are_declared():
