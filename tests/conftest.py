@@ -49,6 +49,25 @@ def pytest_collection_finish(session):
     compile_methods(sorted(names), report=report)
 
 
+_ENGINE_MISSING = {}
+
+
+def pytest_runtest_setup(item):
+    """``@pytest.mark.engine(name)``: skip where the real engine ``name``'s package does not load here, with
+    kernels/real's one-line reason.  Checked when a marked test is set up, not when its module is collected:
+    a ``skipif`` condition imports the package at collection, and every pytest-xdist worker collects every
+    module, so each held jax, jax-md, MuJoCo, Newton/Warp, Basilisk and LAMMPS (~0.9 GB) whether or not it
+    ran a test of them."""
+    for mark in item.iter_markers("engine"):
+        (name,) = mark.args
+        if name not in _ENGINE_MISSING:
+            from gyrolab.kernels import real
+
+            _ENGINE_MISSING[name] = real.package_missing(name)
+        if _ENGINE_MISSING[name] is not None:
+            pytest.skip(_ENGINE_MISSING[name])
+
+
 def _run_scene(method, scene, dt, t_end, every, threshold=1e9):
     """Raw samples (n_samples, driver.N_FIELDS) of one run through the batch engine; asserts status ok.
 

@@ -26,22 +26,31 @@ numbers in the docstrings state (ulp = max componentwise difference over eps · 
 
 import numpy as np
 import pytest
+from numba import njit
 
-pytest.importorskip("jax_md", reason="jax-md is not installed: the conformance check against it is skipped")
+from gyrolab.kernels.body import Body
+from gyrolab.kernels.free_flow import axis_splitting
+from gyrolab.kernels.real.jaxmd_engine import free_body_nve, initial_state, omega_and_q
+from gyrolab.kernels.registry import METHODS
+from gyrolab.kernels.rotation import body_to_lab, ck_matrix, quat_mul
 
-import jax  # noqa: E402  (after the skip: jax comes with jax-md)
+pytestmark = pytest.mark.engine("real_jaxmd_nve")
+jnp = rigid_body = None  # jax.numpy and jax_md.rigid_body, imported by _jax_md when a test of this file runs
 
-jax.config.update("jax_enable_x64", True)
 
-import jax.numpy as jnp  # noqa: E402
-from jax_md import rigid_body  # noqa: E402
-from numba import njit  # noqa: E402
+@pytest.fixture(autouse=True, scope="module")
+def _jax_md():
+    """jax (in float64) and jax-md, imported when this file's first test runs rather than when pytest collects
+    it: they cost ~0.5 GB, which every pytest-xdist worker held whether or not it ran a test of this file."""
+    global jnp, rigid_body
+    import jax
 
-from gyrolab.kernels.body import Body  # noqa: E402
-from gyrolab.kernels.free_flow import axis_splitting  # noqa: E402
-from gyrolab.kernels.real.jaxmd_engine import free_body_nve, initial_state, omega_and_q  # noqa: E402
-from gyrolab.kernels.registry import METHODS  # noqa: E402
-from gyrolab.kernels.rotation import body_to_lab, ck_matrix, quat_mul  # noqa: E402
+    jax.config.update("jax_enable_x64", True)
+    import jax.numpy
+    import jax_md.rigid_body
+
+    jnp, rigid_body = jax.numpy, jax_md.rigid_body
+
 
 EPS = np.finfo(float).eps
 # one body with its moments in decreasing order, one with them unsorted (jax-md sorts nothing: the labels

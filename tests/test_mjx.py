@@ -24,9 +24,7 @@ from gyrolab.kernels.batch import integrate
 from gyrolab.kernels.driver import FIELDS, STATUS_OK
 from gyrolab.kernels.scenes import build_scene
 
-pytestmark = pytest.mark.skipif(
-    real.package_missing("real_mjx_euler") is not None, reason="needs mujoco-mjx (pip install '.[engines]')"
-)
+pytestmark = pytest.mark.engine("real_mjx_euler")
 
 
 def scene_inputs(name, f=5.0, theta0=30.0, **options):

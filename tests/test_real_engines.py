@@ -28,12 +28,8 @@ from gyrolab.kernels.scenes import build_scene
 
 from helpers import command, environment, gyrolab
 
-needs_mujoco = pytest.mark.skipif(
-    real.package_missing("real_mujoco_euler") is not None, reason="needs mujoco (pip install '.[engines]')"
-)
-needs_pybullet = pytest.mark.skipif(
-    real.package_missing("real_pybullet") is not None, reason="needs pybullet (pip install '.[engines]')"
-)
+needs_mujoco = pytest.mark.engine("real_mujoco_euler")
+needs_pybullet = pytest.mark.engine("real_pybullet")
 REPRODUCTION = {
     "real_mujoco_euler": "mujoco_euler",
     "real_mujoco_implicitfast": "mujoco_implicitfast",

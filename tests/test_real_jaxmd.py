@@ -21,9 +21,7 @@ from gyrolab.kernels.driver import STATUS_OK
 from gyrolab.kernels.real.jaxmd_engine import engine_dt
 from gyrolab.kernels.scenes import build_scene
 
-pytestmark = pytest.mark.skipif(
-    real.package_missing("real_jaxmd_nve") is not None, reason="needs jax-md (pip install '.[engines]')"
-)
+pytestmark = pytest.mark.engine("real_jaxmd_nve")
 NAME = "real_jaxmd_nve"
 
 

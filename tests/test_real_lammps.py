@@ -28,9 +28,7 @@ from gyrolab.kernels.rotation import quat_mul
 from gyrolab.kernels.scenes import build_scene
 
 NAME, NVE, NVE_SMALL = "real_lammps_rigid", "real_lammps_rigid_nve", "real_lammps_rigid_nve_small"
-pytestmark = pytest.mark.skipif(
-    real.package_missing(NAME) is not None, reason=f"needs LAMMPS: {real.package_missing(NAME)}"
-)
+pytestmark = pytest.mark.engine(NAME)
 # The tumbling box of kernels/real/conformance.py: e3 the intermediate axis, |ω| ~ 150 rad/s
 BOX = Body(1e-4, 3e-4, 2e-4, 0.0)
 BOX_W0 = (0.5 * 2 * math.pi * 20, 0.3 * 2 * math.pi * 20, 2 * math.pi * 20)

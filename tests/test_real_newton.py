@@ -18,7 +18,6 @@ import math
 import numpy as np
 import pytest
 
-from gyrolab.kernels import real
 from gyrolab.kernels.batch import integrate
 from gyrolab.kernels.body import Body
 from gyrolab.kernels.driver import FIELDS, STATUS_OK
@@ -28,10 +27,7 @@ from gyrolab.kernels.scenes import build_scene
 
 from helpers import free_body_sweep
 
-pytestmark = pytest.mark.skipif(
-    real.package_missing("real_newton_semi") is not None,
-    reason="needs newton and warp-lang (pip install '.[engines]')",
-)
+pytestmark = pytest.mark.engine("real_newton_semi")
 OMEGA = slice(FIELDS.index("omega_1"), FIELDS.index("omega_3") + 1)
 AXIS = slice(FIELDS.index("axis_x"), FIELDS.index("axis_z") + 1)
 
