@@ -5,14 +5,17 @@ Each kind reads and draws a selection of the grid's runs (analysis/figures/recor
 method, at most ``max_dt`` dt values and ``max_panels`` f × θ0 panels; methods past MAX_METHODS a panel
 take more panels out of MAX_CELLS).  Its time is modelled as
 
-    seconds = base + per_run × runs drawn + per_sample × runs drawn × samples per run
+    seconds = base + own_per_sample × samples per run + runs drawn × (per_run + per_sample × samples per run)
 
 (base: the figure, its layout and PNG; per_run: a slab read and a curve; per_sample: reading, deriving
-and drawing one sample).  One ``Cost`` per kind of registry.FIGURES, in COSTS.  The coefficients are
-fitted by benchmarks/bench_post_steps.py figures: CPU time of the drawing process (the figures are one
-thread; the machine was loaded, so CPU time stands for a quiet machine's wall time), files of 2 to 500
-runs and 1001 to 10001 samples (docs/benchmarks.md "The post-steps' time").  IMPORT_SECONDS is paid once
-per figure step: importing the figure modules and matplotlib.
+and drawing one sample, or for work-precision timing the run again, which the samples stand for; own_per_sample:
+what a kind integrates of its own over a run's span, once: sciml's references).  One ``Cost`` per kind of
+registry.FIGURES, in COSTS.  The coefficients are a non-negative least-squares fit to ``python
+benchmarks/bench_post_steps.py figures`` on the quiet 2-core machine (load average < 1; CPU time of the
+drawing process, one thread), files of 2 to 500 runs and 1001 to 10001 samples (docs/benchmarks.md "The
+post-steps' time").  IMPORT_SECONDS is paid once per figure step: importing the figure modules and
+matplotlib.  An earlier fit, taken on a machine at load average 14–30, was 3–5× these: CPU time is not
+load-free either.
 """
 
 import math
@@ -20,7 +23,7 @@ from dataclasses import dataclass
 
 from .record import MAX_CELLS, MAX_DT, MAX_METHODS, MAX_PANELS
 
-IMPORT_SECONDS = 2.6
+IMPORT_SECONDS = 0.95
 
 
 @dataclass(frozen=True)
@@ -33,6 +36,7 @@ class Cost:
     base: float
     per_run: float
     per_sample: float
+    own_per_sample: float = 0.0
     methods: str = "all"
     max_dt: int = MAX_DT
     max_panels: int = MAX_PANELS
@@ -40,19 +44,17 @@ class Cost:
     f_dt_all: bool = False
 
 
-COSTS = {
-    "nutation": Cost(0.95, 0.023, 2.4e-6, max_dt=2, max_panels=6),
-    "tip": Cost(0.3, 0.29, 0.0, methods="one", max_dt=1),  # a panel per run: its annulus, its trace
-    "energy": Cost(0.76, 0.038, 0.0),
-    "invariants": Cost(1.48, 0.078, 1.9e-6, max_panels=5, rows_each=3),
-    # work-precision: 2.2 s and 18.7 s on 2 and 45 runs drawn (each run timed again against a DOP853 reference)
-    "work-precision": Cost(1.43, 0.38, 0.0, max_dt=None, max_panels=4),
-    # sciml: 68.8 s and 67.4 s on 2 and 45 runs (it integrates its own references: the grid hardly matters)
-    "sciml": Cost(68.0, 0.0, 0.0, max_dt=None, max_panels=1),
-    # stability: 1.17, 1.46, 2.83 s modelled on 2, 45, 250 runs; 0.68, 2.0, 2.7 s measured
-    "stability": Cost(1.16, 0.0067, 0.0, f_dt_all=True),
-    # animation: 24.3 s and 22.5 s on 2 and 45 runs (one run drawn, at most 120 frames)
-    "animation": Cost(23.4, 0.0, 0.0, methods="one", max_dt=1, max_panels=1),
+COSTS = {  # measured (s) on files of 2, 45, 45 (10x the samples) and 500 runs in the comments
+    "nutation": Cost(0.19, 0.0052, 8.8e-7, max_dt=2, max_panels=6),  # 0.22, 0.34, 0.61, 0.57
+    "tip": Cost(0.0, 0.096, 0.0, methods="one", max_dt=1),  # a panel per run: 0.12, 0.26, 0.26, 0.88
+    "energy": Cost(0.18, 0.009, 0.0),  # 0.20, 0.64, 0.54, 0.99
+    "invariants": Cost(0.22, 0.018, 5.1e-7, max_panels=5, rows_each=3),  # 0.26, 1.02, 1.26, 1.18
+    # work-precision times each run again against a DOP853 reference: 0.62, 4.66, 35.4, 5.78
+    "work-precision": Cost(0.50, 0.036, 7.4e-5, max_dt=None, max_panels=4),
+    # sciml integrates references of its own over the run's span, whatever the grid: 17.1, 17.2, 149, 17.1
+    "sciml": Cost(2.4, 0.0, 0.0, own_per_sample=0.0147, max_dt=None, max_panels=1),
+    "stability": Cost(0.38, 0.0014, 7.8e-7, f_dt_all=True),  # 0.25, 0.65, 0.80, 0.90
+    "animation": Cost(5.1, 0.0, 0.0, methods="one", max_dt=1, max_panels=1),  # one run, ≤ 120 frames: 5.1–5.4
 }
 
 
@@ -74,7 +76,7 @@ def figure_seconds(kind, shape, n_samples):
     results file of grid ``shape`` (methods, f, θ0, dt) with ``n_samples`` samples a run."""
     cost = COSTS[kind]
     runs = runs_drawn(kind, shape)
-    return cost.base + runs * (cost.per_run + cost.per_sample * n_samples)
+    return cost.base + cost.own_per_sample * n_samples + runs * (cost.per_run + cost.per_sample * n_samples)
 
 
 def figure_step_seconds(names, shape, n_samples):

@@ -10,8 +10,9 @@ ones it would try; each trial integrates t_end s at the method's steps per secon
 driven)``, which the caller passes: runner/grid.py's ``step_rate`` (the analysis does not import the
 runner; a bisection batch is a handful of runs, so the one-by-one or driven path).  The lowest
 trial, |ω| dt = 1e-3, is most of the steps whatever the threshold is, so the nominal threshold costs
-little accuracy.  The other coefficients are fitted by benchmarks/bench_post_steps.py (CPU time of the
-one process, taken as the quiet machine's wall time; the machine was loaded when they were measured).
+little accuracy.  The other coefficients are fitted by benchmarks/bench_post_steps.py verdict (CPU time of
+the one process on the quiet machine, load average < 1; a first fit on a machine at load 14-30 was 2.4-3x
+these).
 """
 
 import numpy as np
@@ -21,10 +22,11 @@ BISECTION_SAMPLES = 65  # method_stability_threshold's n_samples: steps = 64 × 
 # Fitted by benchmarks/bench_post_steps.py (see docs/benchmarks.md "The post-steps' time"):
 BISECTION_RATE_FACTOR = 1.0  # measured steps/s of the bisection over runner/grid.py's step_rate
 BISECTION_CALL_SECONDS = 0.0  # per integrate call of the bisection (dispatch, tiling, status check)
-READ_SECONDS_PER_FILE = 0.9  # opening a results file, its per-run variables, a ladder's reference (DOP853)
-SECONDS_PER_SAMPLE = 3.4e-5  # reading and classifying one stored sample of one run (the long runs' drifts)
-FIGURE_SECONDS_PER_SCENE = 3.6  # verdict_<scene>.png (3.4 and 3.7 s a scene measured with 5 methods)
-WRITE_SECONDS = 0.05  # verdict.md, verdict.json
+# reading and classifying, 2 scenes x (ladder, long run) of 5 methods: 2.95 s measured
+READ_SECONDS_PER_FILE = 0.38  # opening a results file, its per-run variables, a ladder's reference (DOP853)
+SECONDS_PER_SAMPLE = 1.4e-5  # reading and classifying one stored sample of one run (the long runs' drifts)
+FIGURE_SECONDS_PER_SCENE = 1.15  # verdict_<scene>.png (2.29 s for two scenes of 5 methods)
+WRITE_SECONDS = 0.02  # verdict.md, verdict.json (0.01 s measured)
 
 
 def bisection_trials(omega, t_end, crit=NOMINAL_CRIT, rtol=1e-3, batch=4):
