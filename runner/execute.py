@@ -63,16 +63,17 @@ def warm_up(grid):
 
 
 COMPILE_NOTICE_SECONDS = 3.0  # a warm-up still running after this long is compiling: say so on screen
-# Seconds numba takes to compile one method's kernel of each path on a cold cache (one thread: its wall
-# time is its CPU time on an idle machine), from the warm-up's own lines on a fresh NUMBA_CACHE_DIR,
-# 2026-12-04: the default study's five run kernels 3-6 s each; rk4 / lie_poisson4 run 6 / 12 s, block
-# 26 / 53 s; the verdict study's 38 run and 23 driven kernels 2-3 s each, but for the methods whose step
-# inlines n exact Euler-Poinsot flows (FREE_EXACT, n = len(WEIGHTS): strang_exact 1, strang_exact4 3,
-# suzuki4_exact 5, split6_exact 7), whose run kernels took 8, 26, 44, 79 s and driven 10, 54, 71, 178 s.
-# The model: COMPILE_SECONDS[path] + EXACT_FLOW_SECONDS[path] * n**1.5 (the verdict study's jobs within
-# 0.6-1.2x of it, the default study's within 1.2x).
-COMPILE_SECONDS = {"runs": 4.0, "driven": 4.0, "blocks": 35.0}
-EXACT_FLOW_SECONDS = {"runs": 6.0, "driven": 10.0, "blocks": 6.0}
+# Seconds numba takes to compile one method's kernel of each path on a cold cache, in a compile worker
+# (runner/compile.py: a fresh interpreter per method, where warm_up sends two or more cold kernels), from
+# the workers' own lines on a fresh NUMBA_CACHE_DIR on the quiet 2-core machine, 2026-12-04: the verdict
+# study's 36 plain run and 19 driven kernels 2-3 s each; a 500-run sweep's run + block kernels 16-28 s a
+# method (rk4 22, lie_poisson4 28, seed_next 16); the methods whose step inlines n exact Euler-Poinsot flows
+# (FREE_EXACT, n = len(WEIGHTS): strang_exact 1, strang_exact4 3, suzuki4_exact 5, split6_exact 7) run
+# kernels 6, 17, 29, 43 s and driven 6, 25, 34, 59 s.  The model: COMPILE_SECONDS[path] +
+# EXACT_FLOW_SECONDS[path] * n**1.5.  (Compiled one after another in the sweep's own process, as before
+# the compile workers, the same kernels took 1.5-3x these: numba keeps every module it compiled.)
+COMPILE_SECONDS = {"runs": 3.0, "driven": 3.0, "blocks": 17.0}
+EXACT_FLOW_SECONDS = {"runs": 2.5, "driven": 3.3, "blocks": 2.5}
 # Resident memory one kernel compiled in the sweep's process adds and keeps (numba holds every compiled
 # module), measured with benchmarks/peak_rss.py on a fresh NUMBA_CACHE_DIR against the warm run's 0.28 GB:
 # the default study (5 run kernels) 0.56 GB; rk4 + lie_poisson4 with blocks (2 run, 2 block kernels)
