@@ -13,7 +13,10 @@
 Skipped with a reason where the engine package does not import (``pip install '.[engines]'``).
 """
 
+import json
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -262,7 +265,6 @@ def test_engine_versions_in_provenance():
 def test_sweep_with_real_engines_reads_everywhere(tmp_path):
     """The issue's command at a small size: one file holding the real engines and their reproductions side by
     side (the engine versions in its attrs); gyrolab-verdict and gyrolab-plot standard read it."""
-    import subprocess
 
     methods = "real_mujoco_implicitfast,mujoco_implicitfast,real_pybullet,bullet_implicit_body,lie_poisson4"
     res = gyrolab(
@@ -313,15 +315,33 @@ def test_sweep_with_real_engines_reads_everywhere(tmp_path):
 
 @needs_mujoco
 @needs_pybullet
-def test_conformance_rows_at_a_short_length():
+def test_conformance_rows_at_a_short_length(tmp_path):
     """python -m gyrolab.kernels.real.conformance at 200 steps: the isolated updates agree to 1e-12 on the
     tumbling box and the top (no amplification that early), PyBullet's default body is not
-    bullet_implicit_body (it differs from step 1), and the table has a row per (case, dt, pair); the rows not
-    run are the free-body-only engines' (PyBullet's rigid body, jax-md) on a pivot."""
-    from gyrolab.kernels.real import conformance
+    bullet_implicit_body (it differs from step 1), and the table and its JSON have a row per (case, dt, pair)
+    of every engine that loads; the rows not run are the free-body-only engines' (PyBullet's rigid body,
+    jax-md, ...) on a pivot.  Run as the command, in a subprocess: it loads every engine package (~0.5 GB),
+    which this test worker then does not hold for the rest of the suite."""
+    from gyrolab.kernels.real import conformance  # the module only: it imports no engine
 
-    rows = conformance.rows(200)
-    assert len(rows) == len(conformance.cases()) * len(conformance.DTS) * len(conformance.PAIRS)
+    out = tmp_path / "conformance.md"
+    run = subprocess.run(
+        [sys.executable, "-m", "gyrolab.kernels.real.conformance", "--steps", "200", "--out", str(out)],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        env=environment(),
+    )
+    assert run.returncode == 0, run.stderr
+    doc = json.loads(out.with_suffix(".json").read_text())
+    assert doc["steps"] == 200
+    loaded = {p["engine"] for p in doc["pairs"] if doc["engines"][real.PACKAGES[p["engine"]]] is not None}
+    assert {"real_mujoco_euler", "real_pybullet"} <= loaded
+    rows = doc["rows"]
+    assert [p["engine"] for p in doc["pairs"]] == [engine for _, engine, _ in conformance.PAIRS]
+    assert {r["case"] for r in rows} == set(conformance.cases())
+    n_pairs = sum(p["engine"] in loaded for p in doc["pairs"])
+    assert len(rows) == len(conformance.cases()) * len(conformance.DTS) * n_pairs
     for r in rows:
         if "note" in r:  # unbuilt pivots (PyBullet); Basilisk, Newton, jax-md, LAMMPS: free bodies only (their tests)
             engines = ("real_pybullet", "real_basilisk", "real_newton", "real_jaxmd", "real_lammps")
@@ -332,8 +352,8 @@ def test_conformance_rows_at_a_short_length():
             assert r["dw"] < 1e-12 and r["dq"] < 1e-12, r
         if r["engine"] == "real_pybullet" and r["damping"] is None:
             assert r["dw"] > 1e-3 and r["first_over"] == 1, r
-    text = conformance.table(rows)
-    assert text.count("\n") == len(rows) + 2
+    table = [line for line in out.read_text().splitlines() if line.startswith("|")]
+    assert len(table) == len(rows) + 2  # header, rule, a line per row
 
 
 @needs_pybullet
