@@ -24,7 +24,7 @@ import signal
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from multiprocessing import get_context
+from multiprocessing import get_context, resource_tracker
 
 PATHS = ("runs", "blocks", "driven")
 KERNEL_ENTRIES = {"runs": "run_batch", "driven": "run_batch_driven", "blocks": "run_blocks"}
@@ -177,11 +177,27 @@ def _compile(todo, jobs, report, prefix):
     done = {}
     context = get_context("spawn")  # a fresh interpreter: no numba state or memory inherited
     fresh = {"max_tasks_per_child": 1} if sys.version_info >= (3, 11) else {}  # 3.10: workers are reused
+    # A Ctrl-C reaches the terminal's whole process group, the compile workers too.  _worker_init ignores
+    # it, but only once a worker has started, and a spawned worker spends a second importing first: a
+    # Ctrl-C then printed its KeyboardInterrupt traceback under our one line.  So the workers start with
+    # SIGINT blocked (a mask is inherited through fork and exec): the pool's first workers are spawned here
+    # by submit, the later ones (one per method) by its manager thread, which submit starts and which
+    # inherits this thread's mask.  This thread unblocks it after submitting; a Ctrl-C that came in the
+    # meantime was held pending, not lost, and is raised then.  multiprocessing's resource tracker unblocks
+    # SIGINT in the calling thread after starting itself, so it is started first.
+    masked = hasattr(signal, "pthread_sigmask")
+    if masked:
+        resource_tracker.ensure_running()
+        before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     pool = ProcessPoolExecutor(jobs, mp_context=context, initializer=_worker_init, **fresh)
     try:
         # longest first, so that no worker is left alone with a 5-minute method at the end (LPT scheduling)
         order = sorted(todo, key=compile_weight, reverse=True)
-        futures = {pool.submit(_compile_task, (name, todo[name])): name for name in order}
+        try:
+            futures = {pool.submit(_compile_task, (name, todo[name])): name for name in order}
+        finally:
+            if masked:
+                signal.pthread_sigmask(signal.SIG_SETMASK, before)
         for k, future in enumerate(as_completed(futures), 1):
             name, seconds, error = future.result()
             if error:

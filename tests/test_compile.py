@@ -78,6 +78,17 @@ def _compilers_of(cache):
     return pids
 
 
+def _sigint_held_off(pid):
+    """Whether process ``pid`` blocks or ignores SIGINT (Linux /proc: SigBlk and SigIgn bit masks); True for a
+    process that has exited meanwhile."""
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            masks = dict(line.split(":\t", 1) for line in f if line.startswith(("SigBlk", "SigIgn")))
+    except OSError:
+        return True
+    return any(int(masks[key], 16) >> (2 - 1) & 1 for key in ("SigBlk", "SigIgn"))  # SIGINT is signal 2
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_a_cold_sweep_compiles_its_kernels_in_parallel_and_ctrl_c_stops_the_compilers(tmp_path):
@@ -121,6 +132,8 @@ def test_a_cold_sweep_compiles_its_kernels_in_parallel_and_ctrl_c_stops_the_comp
     while len(_compilers_of(cache)) < 3 and time.monotonic() < deadline:  # gyrolab and its compilers
         time.sleep(0.2)
     assert len(_compilers_of(cache)) >= 3, "the compile workers never started"
+    for pid in set(_compilers_of(cache)) - {slow.pid}:  # every worker holds SIGINT off from its first instruction
+        assert _sigint_held_off(pid), pid
     time.sleep(1.0)
     os.killpg(slow.pid, signal.SIGINT)
     start = time.monotonic()
