@@ -74,6 +74,9 @@ iterations a step, and Kynema's precession test to 6.7e-16.
 
 import numpy as np
 
+from transcribe import qmul as quat_compose  # the Hamilton product, scalar first
+from transcribe import rot as quat_to_matrix  # R(q), Kynema's quadratic form too (not renormalised)
+
 # ---------------------------------------------------------------------------------------------
 # Problem data of Kynema's heavy-top test
 # ---------------------------------------------------------------------------------------------
@@ -126,37 +129,11 @@ def tilde(v):
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
-def quat_compose(q1, q2):
-    """Hamilton product q1 (x) q2, scalar first."""
-    w1, x1, y1, z1 = q1
-    w2, x2, y2, z2 = q2
-    return np.array(
-        [
-            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-        ]
-    )
-
-
 def rotvec_to_quat(phi):
     """Exponential map of a rotation vector (Kynema zeroes the vector part below 1e-12 rad)."""
     angle = np.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
     factor = 0.0 if abs(angle) < 1.0e-12 else np.sin(angle / 2.0) / angle
     return np.array([np.cos(angle / 2.0), phi[0] * factor, phi[1] * factor, phi[2] * factor])
-
-
-def quat_to_matrix(q):
-    """Rotation matrix of a quaternion, Kynema's quadratic form (not renormalised)."""
-    w, x, y, z = q
-    return np.array(
-        [
-            [w * w + x * x - y * y - z * z, 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)],
-            [2.0 * (x * y + w * z), w * w - x * x + y * y - z * z, 2.0 * (y * z - w * x)],
-            [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), w * w - x * x - y * y + z * z],
-        ]
-    )
 
 
 def tangent_operator(h, q_delta):

@@ -1,6 +1,6 @@
-"""Numpy arithmetic the engine transcriptions share (tests/test_presets*.py, test_md_lammps_dlpoly.py):
-quaternions scalar first, R(q) body → lab, and the lab torque of the weight.  Written out here, apart
-from gyrolab's kernels, so that a transcription checks a kernel against arithmetic not its own."""
+"""Numpy arithmetic the engine transcriptions share (tests/test_presets*.py, test_md_lammps_dlpoly.py,
+kynema_genalpha.py): quaternions scalar first, R(q) body → lab, and the lab torque of the weight.  Written
+out here, apart from gyrolab's kernels, so that a transcription checks a kernel against arithmetic not its own."""
 
 import numpy as np
 
