@@ -141,3 +141,13 @@ def single_run_file(tmp_path_factory):
     path = tmp_path_factory.mktemp("analysis1") / "results.h5"
     build_dataset(path, {"integrator": ["lie_poisson"], "f": [20.0], "dt": [1e-3]}, t_end=0.5)
     return path
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _free_jax_caches():
+    """After a module that ran JAX (jax-md, MJX), drop its compiled executables, so the next one reuses that
+    memory instead of adding to the test worker's peak."""
+    yield
+    jax = sys.modules.get("jax")
+    if jax is not None:
+        jax.clear_caches()
