@@ -339,6 +339,7 @@ def test_conformance_rows_at_a_short_length(tmp_path):
         capture_output=True,
         text=True,
         env=environment(),
+        timeout=900,  # 74 s in CI on a loaded machine
     )
     assert run.returncode == 0, run.stderr
     doc = json.loads(out.with_suffix(".json").read_text())
