@@ -33,7 +33,9 @@ def pytest_configure(config):
         return
     Path(directory).mkdir(parents=True, exist_ok=True)
     worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
-    _state["file"] = open(Path(directory) / f"{worker}-{os.getpid()}.jsonl", "a")  # noqa: SIM115
+    path = Path(directory) / f"{worker}-{os.getpid()}.jsonl"  # never through a link planted at that name
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND | os.O_NOFOLLOW, 0o644)
+    _state["file"] = os.fdopen(fd, "a")
     _state["worker"] = worker
 
 
@@ -56,7 +58,11 @@ def pytest_runtest_logfinish(nodeid, location):
 def summarise(directory, top=12):
     """Per process: its peak (GiB), its collection's share and the tests that raised the peak most."""
     for path in sorted(Path(directory).glob("*.jsonl")):
-        records = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+        try:
+            records = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+        except (OSError, UnicodeDecodeError, ValueError) as err:
+            print(f"rss_per_test: {path}: not a record this plugin wrote ({err})", file=sys.stderr)
+            sys.exit(2)
         if not records:
             continue
         rises, modules = [], {}
