@@ -53,7 +53,17 @@ def sample_schedule(dt, every, t_end):
 
 
 def integrate(
-    method, bodies, omega0, q0, dt, stride, n_samples, threshold=DEFAULT_DIVERGENCE_THRESHOLD, *, path="auto"
+    method,
+    bodies,
+    omega0,
+    q0,
+    dt,
+    stride,
+    n_samples,
+    threshold=DEFAULT_DIVERGENCE_THRESHOLD,
+    *,
+    path="auto",
+    final_state=False,
 ):
     """Integrate a batch of runs with one method, in parallel over runs.
 
@@ -79,14 +89,19 @@ def integrate(
     out = np.empty((n, int(n_samples), N_FIELDS))
     status = np.zeros(n, dtype=np.int8)
     n_steps = np.zeros(n, dtype=np.int64)
+    if final_state and is_driven(bodies):
+        raise ValueError("final_state: a driven body runs one by one, not in blocks")
     if is_driven(bodies):
         # A torque that depends on time: only a step that sees time integrates it (never the blocks).
         if not sees_time(module):
             raise ValueError(f"method {method!r} {DRIVEN_REFUSAL}; methods that do: {', '.join(driven_methods())}")
         module.run_batch_driven(omega0, q0, bodies, dt, stride, float(threshold), out, status, n_steps)
-    elif path == "runs" or not uses_blocks(module) or (path == "auto" and n < MIN_BLOCK_RUNS):
+    elif not final_state and (path == "runs" or not uses_blocks(module) or (path == "auto" and n < MIN_BLOCK_RUNS)):
         module.run_batch(omega0, q0, bodies, dt, stride, float(threshold), out, status, n_steps)
     else:
         plan = plan_blocks(stride, numba.get_num_threads(), BLOCK_LANES)
-        module.run_blocks(omega0, q0, bodies, dt, stride, float(threshold), out, status, n_steps, *plan)
+        state = np.empty((n, 7))
+        module.run_blocks(omega0, q0, bodies, dt, stride, float(threshold), out, status, n_steps, *plan, state)
+        if final_state:
+            return out, status, n_steps, state
     return out, status, n_steps

@@ -166,13 +166,15 @@ def _make_pass(fast, mode):
 
 
 def make_advance_block(step):
-    """``advance_block(runs, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)``
+    """``advance_block(runs, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, state)``
     for one method: integrates the runs listed in ``runs`` (int64 indices into the
-    batch arrays) exactly as driver.make_advance's ``advance_run`` does each of them."""
+    batch arrays) exactly as driver.make_advance's ``advance_run`` does each of them.
+    ``state`` (n, 7): each run's (ω, q) when it left the block (its last sample, or where it
+    diverged), from which a later call continues it bit for bit (the runner's time segments)."""
     steps = make_block_steps(step)
 
     @njit(error_model="numpy")
-    def advance_block(runs, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
+    def advance_block(runs, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, state):
         n = runs.size
         size = -(-n // VECTOR) * VECTOR  # lanes n .. size − 1 are parked
         W, Q, B = np.empty((3, size)), np.empty((4, size)), np.empty((N_BODY, size))
@@ -191,6 +193,7 @@ def make_advance_block(step):
                 W[c, j] = w0[i, c]
             for c in range(4):
                 Q[c, j] = q0[i, c]
+            _save_state(state, i, W, Q, j)
             DT[j] = dts[i]
             LEFT[j] = max(strides[i], 0)
             w = (W[0, j], W[1, j], W[2, j])
@@ -216,6 +219,7 @@ def make_advance_block(step):
                 _record(out, i, k, (W[0, j], W[1, j], W[2, j]), (Q[0, j], Q[1, j], Q[2, j], Q[3, j]), body_lane(B, j))
                 n_steps[i] += strides[i]
                 if _diverged(out, i, k, TOL[j], status) or k == out.shape[1] - 1:
+                    _save_state(state, i, W, Q, j)
                     active -= 1
                     _swap_lanes(j, active, W, Q, B, DT, TOL, RUN, LEFT, K)
                     _park(W, Q, DT, active)
@@ -229,17 +233,26 @@ def make_advance_block(step):
 
 def make_advance_queue(step):
     """``advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status,
-    n_steps)``: the blocks of queue t (see plan_blocks), one after another, with make_advance_block."""
+    n_steps, state)``: the blocks of queue t (see plan_blocks), one after another, with make_advance_block."""
     advance_block = make_advance_block(step)
 
     @njit(error_model="numpy")
-    def advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
+    def advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, state):
         for b in range(queues[t], queues[t + 1]):
             advance_block(
-                runs[starts[b] : starts[b + 1]], w0, q0, bodies, dts, strides, threshold, out, status, n_steps
+                runs[starts[b] : starts[b + 1]], w0, q0, bodies, dts, strides, threshold, out, status, n_steps, state
             )
 
     return advance_queue
+
+
+@njit(cache=True, error_model="numpy")
+def _save_state(state, i, W, Q, j):
+    """state[i] = lane j's (ω_1..3, q_0..3)."""
+    for c in range(3):
+        state[i, c] = W[c, j]
+    for c in range(4):
+        state[i, 3 + c] = Q[c, j]
 
 
 @njit(cache=True, error_model="numpy")

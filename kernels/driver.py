@@ -93,6 +93,17 @@ def _start(i, w0, q0, bodies, threshold, out, status):
     return body, w, q, threshold * (kinetic_energy(w, body) + potential_scale(body))
 
 
+@njit(cache=True, error_model="numpy")
+def tolerances(w0, bodies, threshold):
+    """Each run's bound on |E − E0| (J): ``threshold`` × (T0 + |M g c|), as ``_start`` computes it
+    (the same bits), for a check of samples integrated on from a saved state (runner/segments.py)."""
+    out = np.empty(w0.shape[0])
+    for i in range(w0.shape[0]):
+        body = body_row(bodies, i)
+        out[i] = threshold * (kinetic_energy((w0[i, 0], w0[i, 1], w0[i, 2]), body) + potential_scale(body))
+    return out
+
+
 def make_advance(step):
     """``advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)``
     specialised to one method's ``step``.

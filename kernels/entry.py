@@ -5,8 +5,9 @@ methods/README.md); ``add_entry_points(module)`` gives it
 
 - ``run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps)``:
   one ``prange`` over runs, each run by driver.make_advance's ``advance_run``;
-- ``run_blocks(..., runs, starts, queues)``: one ``prange`` over threads, each
-  running its queue of vectorised blocks (block.py); not made for a method that
+- ``run_blocks(..., runs, starts, queues, state)``: one ``prange`` over threads, each
+  running its queue of vectorised blocks (block.py), and each run's final (ω, q) in
+  ``state`` (n, 7) to continue it from (the runner's time segments); not made for a method that
   declares ``BLOCKS = False`` (its steps do not vectorise: ``uses_blocks`` below);
 - for a method that sees time (``step_driven``), ``run_batch_driven`` with
   ``run_batch``'s arguments: driven bodies, one run after another
@@ -37,9 +38,9 @@ def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
 """
 _BLOCKS_TEMPLATE = """
 @_njit(cache=True, parallel=True, error_model="numpy")
-def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts, queues):
+def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts, queues, state):
     for t in _prange(queues.size - 1):
-        _advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
+        _advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, state)
 """
 _DRIVEN_TEMPLATE = """
 @_njit(cache=True, parallel=True, error_model="numpy")

@@ -367,10 +367,10 @@ class DaskCluster:
         threads = self.chunk_threads
         target = CHUNKS_PER_WORKER * max(len(self.workers), 1)
         seconds = float(chunk_seconds)
-        chunks = plan_chunks(grid, runs, threads, seconds)
+        chunks = plan_chunks(grid, runs, threads, seconds, in_time=False)
         while chunks and len(chunks) < target and max(len(c) for c in chunks) > threads:
             seconds /= 2
-            chunks = plan_chunks(grid, runs, threads, seconds)
+            chunks = plan_chunks(grid, runs, threads, seconds, in_time=False)
         return chunks
 
     remote = True  # the sweep says where it runs

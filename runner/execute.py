@@ -12,6 +12,10 @@ ISOLATE_SECONDS (a long run) is integrated in a worker process
 of POLL_SECONDS, so an interrupt is answered at once: the worker is killed and
 the journal keeps every chunk stored before.  Same kernels, same inputs: the
 worker's results are the same bits.
+
+A chunk of long runs keeps MIN_BLOCK_RUNS runs on the block path (grid.plan_chunks) and is cut in
+time instead (runner/segments.py): segments of about ``chunk_seconds``, each journaled with the
+runs' state, so that a crash loses one segment and a resume goes on from the last one.
 """
 
 import contextlib
@@ -19,6 +23,7 @@ import math
 import multiprocessing
 import os
 import signal
+import sys
 import time
 
 import numpy as np
@@ -27,6 +32,7 @@ from ..kernels.batch import MIN_BLOCK_RUNS, integrate
 from ..kernels.real import is_real
 from .compile import compile_jobs, compile_kernels, die_with_parent, kernel_cached
 from .grid import plan_chunks, runs_in_blocks, step_rate
+from .segments import SegmentedChunk, integrate_segment, segment_length, segmentable
 
 # Test hook: seconds to sleep after each stored chunk, so a test can kill a sweep mid-way.
 DELAY_ENV = "GYROLAB_TEST_CHUNK_DELAY"
@@ -262,10 +268,17 @@ class ChunkWorker:
         child.close()
 
     def run(self, runs):
+        return self._ask(np.asarray(runs, dtype=np.int64))
+
+    def run_segment(self, *args):
+        """segments.integrate_segment(*args, threads) in the worker."""
+        return self._ask(("segment", args))
+
+    def _ask(self, task):
         if self.process is None:
             self.start()
         try:
-            self.conn.send(np.asarray(runs, dtype=np.int64))
+            self.conn.send(task)
             while not self.conn.poll(POLL_SECONDS):
                 if not self.process.is_alive():
                     raise RuntimeError(f"the chunk worker (pid {self.process.pid}) died (exit {self.process.exitcode})")
@@ -303,10 +316,13 @@ def _worker_main(conn, grid, threads):
     numba.set_num_threads(threads)
     warm_up(grid)
     while True:
-        runs = conn.recv()
-        if runs is None:
+        task = conn.recv()
+        if task is None:
             return
-        conn.send(run_chunk(grid, runs, threads))
+        if isinstance(task, tuple):  # ("segment", integrate_segment's arguments)
+            conn.send(integrate_segment(*task[1], threads))
+        else:
+            conn.send(run_chunk(grid, task, threads))
 
 
 def run_missing(grid, journal, todo, threads, chunk_seconds, first_number, progress=None):
@@ -331,9 +347,26 @@ def _run_missing(grid, journal, todo, threads, chunk_seconds, first_number, prog
     path_rates = {}  # the same by (method, block path?), for chunk_estimate
     number = first_number
     remaining = np.sort(np.asarray(todo, dtype=np.int64))
+    resumed, rejected = journal.open_segments(remaining, grid.n_runs, grid.n_samples)
+    for name, reason in rejected:
+        message = f"{name} moved aside to {journal.rejected_dir}: {reason}; its runs are computed again"
+        print(f"gyrolab: journal: {message}", file=sys.stderr)
     while remaining.size:
-        runs = plan_chunks(grid, remaining, threads, chunk_seconds, rates)[0]
-        if chunk_estimate(grid, runs, threads, path_rates) > limit:
+        if resumed:  # a chunk a killed sweep left part-way in time: go on from its last segment
+            chunk_number, arrays = resumed.pop(0)
+            runs = arrays["runs"]
+            chunk = SegmentedChunk(grid, chunk_number, runs, arrays)
+            if progress is not None:
+                progress(0, chunk.steps_done())
+        else:
+            runs, chunk_number, chunk = plan_chunks(grid, remaining, threads, chunk_seconds, rates)[0], number, None
+            number += 1
+        estimate = chunk_estimate(grid, runs, threads, path_rates)
+        if chunk is None and estimate > 2 * chunk_seconds and segmentable(grid, runs):
+            chunk = SegmentedChunk(grid, chunk_number, runs)
+        if chunk is not None:
+            result = _run_segments(chunk, journal, estimate, chunk_seconds, limit, threads, worker, progress, delay)
+        elif estimate > limit:
             result = worker.run(runs)
         else:
             result = run_chunk(grid, runs, threads)
@@ -342,10 +375,30 @@ def _run_missing(grid, journal, todo, threads, chunk_seconds, first_number, prog
         if wall > 0 and steps == int(grid.steps(runs).sum()):  # diverged runs stop early: no speed sample
             key = rate_key(grid, runs)
             rates[key[0]] = path_rates[key] = steps / wall / min(threads, len(runs))
-        journal.write_chunk(number, **result)
-        number += 1
+        journal.write_chunk(chunk_number, **result)
+        if chunk is not None:
+            journal.remove_segment(chunk_number)
         remaining = np.setdiff1d(remaining, runs, assume_unique=True)
         if progress is not None:
-            progress(len(runs), int(grid.steps(runs).sum()))
+            progress(len(runs), 0 if chunk is not None else int(grid.steps(runs).sum()))
         if delay:
             time.sleep(delay)
+
+
+def _run_segments(chunk, journal, estimate, chunk_seconds, limit, threads, worker, progress, delay):
+    """Integrate ``chunk`` (segments.SegmentedChunk) segment by segment, each journaled, in the chunk
+    worker when a segment is estimated longer than ``limit`` s; returns the whole chunk's arrays."""
+    grid = chunk.grid
+    while not chunk.finished:
+        n = segment_length(grid, chunk.runs, estimate, chunk_seconds, chunk.done)
+        here = estimate * n / (grid.n_samples - 1) <= limit
+
+        def run(*args):
+            return integrate_segment(*args, threads) if here else worker.run_segment(*args)
+
+        steps = chunk.next(journal, n, run)
+        if progress is not None:
+            progress(0, steps)
+        if delay and not chunk.finished:
+            time.sleep(delay)
+    return chunk.chunk()

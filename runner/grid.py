@@ -236,16 +236,20 @@ def _prefix_sweep(message):
     return message
 
 
-def chunk_size(steps_per_run, rate, threads, chunk_seconds, bytes_per_run, max_bytes=MAX_CHUNK_BYTES, speedup=1.0):
+def chunk_size(
+    steps_per_run, rate, threads, chunk_seconds, bytes_per_run, max_bytes=MAX_CHUNK_BYTES, speedup=1.0, in_time=False
+):
     """Runs per chunk: about ``chunk_seconds`` of work at ``rate`` steps/s per thread,
     a multiple of ``threads`` (so every thread gets equal work), within ``max_bytes``.
 
     Raised to the batch kernels' MIN_BLOCK_RUNS when that many runs would take at
     most ``chunk_seconds`` in vectorised blocks (``speedup`` times faster per
-    run than one by one: the method's BLOCK_SPEEDUP); the measured rate then sizes the next chunks."""
+    run than one by one: the method's BLOCK_SPEEDUP); the measured rate then sizes the next chunks.
+    ``in_time``: the runner cuts a longer chunk in time (runner/segments.py), so a method with blocks
+    (``speedup`` > 1) gets MIN_BLOCK_RUNS runs however long they are."""
     by_time = chunk_seconds * rate * threads / max(int(steps_per_run), 1)
     k = max(threads, int(by_time // threads) * threads)
-    if by_time * speedup >= MIN_BLOCK_RUNS:
+    if by_time * speedup >= MIN_BLOCK_RUNS or (in_time and speedup > 1):
         k = max(k, MIN_BLOCK_RUNS)
     by_memory = max(1, int(max_bytes // max(bytes_per_run, 1)))
     if k > by_memory:
@@ -253,14 +257,17 @@ def chunk_size(steps_per_run, rate, threads, chunk_seconds, bytes_per_run, max_b
     return k
 
 
-def plan_chunks(grid, runs, threads, chunk_seconds, rates=None, max_bytes=MAX_CHUNK_BYTES):
+def plan_chunks(grid, runs, threads, chunk_seconds, rates=None, max_bytes=MAX_CHUNK_BYTES, in_time=True):
     """Split ``runs`` (flat numbers) into chunks of one method each, in method order.
 
     Runs of one dt fill chunks of ``chunk_size`` equal runs (every thread gets
     the same work); what is left of each dt, less than a chunk, is pooled with
     the other dts' leftovers of that method into chunks of about
     ``chunk_seconds``, so a grid of many small dt groups does not become many
-    tiny chunks.
+    tiny chunks.  ``in_time`` (this machine's runner, runner/execute.py): a dt group of
+    MIN_BLOCK_RUNS runs or more keeps MIN_BLOCK_RUNS runs a chunk on the block path however long
+    they are, and the runner cuts a long chunk in time (runner/segments.py); the Dask backend,
+    which journals whole chunks only, plans with ``in_time=False``.
     """
     rates = rates or {}
     runs = np.sort(np.asarray(runs, dtype=np.int64))
@@ -277,7 +284,8 @@ def plan_chunks(grid, runs, threads, chunk_seconds, rates=None, max_bytes=MAX_CH
             if group.size == 0:
                 continue
             steps = int(grid.steps(group[:1])[0])
-            k = chunk_size(steps, rate, threads, chunk_seconds, grid.bytes_per_run(), max_bytes, speedup)
+            long_block = in_time and group.size >= MIN_BLOCK_RUNS
+            k = chunk_size(steps, rate, threads, chunk_seconds, grid.bytes_per_run(), max_bytes, speedup, long_block)
             full = group.size // k * k
             chunks.extend(group[i : i + k] for i in range(0, full, k))
             leftovers.append(group[full:])

@@ -67,13 +67,18 @@ CHUNK_KEYS = ("runs", "samples", "status", "n_steps", "wall_time")
 PROOF_KEYS = ("binding", "mac")
 KEY_FILE = "key"
 JOURNAL_NAME = re.compile(r"chunk-(\d{5,9})\.npz")
+# A chunk integrated in time segments (runner/segments.py) keeps its samples so far in
+# ``segment-NNNNN.npz`` (NNNNN: the chunk's number): a chunk's arrays with samples 0..k only, plus
+# ``state`` (n, 7), each run's (ω, q) at sample k, from which a resume goes on bit for bit.
+SEGMENT_NAME = re.compile(r"segment-(\d{5,9})\.npz")
+SEGMENT_KEYS = (*CHUNK_KEYS, "state")
 
 
-def chunk_mac(key, name, binding, arrays):
-    """HMAC-SHA256 (hex) under ``key`` of a chunk's file name, binding and CHUNK_KEYS arrays."""
+def chunk_mac(key, name, binding, arrays, keys=CHUNK_KEYS):
+    """HMAC-SHA256 (hex) under ``key`` of a chunk's file name, binding and ``keys`` arrays."""
     mac = hmac.new(key, digestmod=hashlib.sha256)
     mac.update(f"{name}\0{binding}\0".encode())
-    for k in CHUNK_KEYS:
+    for k in keys:
         value = np.ascontiguousarray(arrays[k])
         mac.update(f"{k}:{value.dtype.str}:{value.shape}\0".encode())
         mac.update(value.tobytes())
@@ -171,9 +176,9 @@ class Journal:
                 continue
             if p.name == "rejected" and p.is_dir() and not p.is_symlink():
                 continue
-            if p.name.startswith((".chunk-", ".manifest.json.", f".{KEY_FILE}.")):
+            if p.name.startswith((".chunk-", ".segment-", ".manifest.json.", f".{KEY_FILE}.")):
                 continue  # a killed writer's temporary: clean_temporaries
-            if JOURNAL_NAME.fullmatch(p.name) and _is_regular(p):
+            if (JOURNAL_NAME.fullmatch(p.name) or SEGMENT_NAME.fullmatch(p.name)) and _is_regular(p):
                 continue
             odd.append((p.name, _what(p)))
         return odd
@@ -193,7 +198,8 @@ class Journal:
 
     def clean_temporaries(self):
         """Remove half-written chunk and manifest files a killed process left behind."""
-        for tmp in [*self.dir.glob(".chunk-*.tmp*"), *self.dir.glob(".manifest.json.tmp*")]:
+        temporaries = (".chunk-*.tmp*", ".segment-*.tmp*", ".manifest.json.tmp*")
+        for tmp in [p for pattern in temporaries for p in self.dir.glob(pattern)]:
             remove_entry(tmp)  # a file, a private directory of safe_files.atomic_replace, or a link
 
     def write_chunk(self, number, runs, samples, status, n_steps, wall_time):
@@ -213,6 +219,55 @@ class Journal:
         atomic_write(path, write)
         self.record_chunk(path, len(runs))
         self.write_seconds += time.perf_counter() - start
+
+    def write_segment(self, number, runs, samples, status, n_steps, wall_time, state):
+        """Store durably the samples so far of chunk ``number``, which is integrated in time segments
+        (runner/segments.py): ``write_chunk``'s arrays with samples (n, k + 1, RAW_PER_SAMPLE) of
+        samples 0..k, and ``state`` (n, 7).  Each segment replaces the last; ``write_chunk`` of the
+        whole chunk, then ``remove_segment``, end it."""
+        start = time.perf_counter()
+        path = self.dir / f"segment-{number:05d}.npz"
+        arrays = dict(runs=runs, samples=samples, status=status, n_steps=n_steps, wall_time=wall_time, state=state)
+        arrays = {k: np.asarray(v) for k, v in arrays.items()}
+        binding = self.binding()
+        mac = chunk_mac(self.key(), path.name, binding, arrays, SEGMENT_KEYS)
+        atomic_write(path, lambda fh: np.savez(fh, **arrays, binding=np.array(binding), mac=np.array(mac)))
+        self.write_seconds += time.perf_counter() - start
+
+    def remove_segment(self, number):
+        remove_entry(self.dir / f"segment-{number:05d}.npz")
+
+    def segment_files(self):
+        """The regular files named ``segment-NNNNN.npz``."""
+        return sorted(p for p in self.dir.glob("segment-*.npz") if SEGMENT_NAME.fullmatch(p.name) and _is_regular(p))
+
+    def open_segments(self, todo, n_runs, n_samples):
+        """The chunks a killed sweep left part-way in time, to go on with: [(number, arrays)] of each
+        segment file that passes a chunk's checks (its proof, shapes, finite samples and state of the
+        runs still going) and whose runs are all in ``todo``; and [(file name, reason)] of the ones
+        moved aside into ``rejected/`` (their runs are computed again).  A segment file whose runs are
+        all done (its chunk was stored just before a kill) is removed."""
+        todo, open_, rejected, seen = np.asarray(todo, dtype=np.int64), [], [], set()
+        for path in self.segment_files():
+            try:
+                with np.load(path, allow_pickle=False) as data:
+                    runs = np.asarray(data["runs"]).ravel()
+                going = np.isin(runs, todo)
+            except Exception:  # unreadable: _chunk_problem says why
+                runs = going = np.zeros(0, dtype=bool)
+            if runs.size and not going.any():
+                remove_entry(path)
+                continue
+            problem = _chunk_problem(path, None, n_runs, n_samples, seen, self.key(), self.binding(), segment=True)
+            if problem is None and not going.all():
+                problem = "some of its runs are stored in chunks already"
+            if problem:
+                rejected.append((path.name, problem))
+                self._reject(path)
+                continue
+            with np.load(path, allow_pickle=False) as data:
+                open_.append((int(SEGMENT_NAME.fullmatch(path.name).group(1)), {k: data[k] for k in SEGMENT_KEYS}))
+        return open_, rejected
 
     def record_chunk(self, path, n_runs):
         """Add a chunk file written by this or another process to the manifest."""
@@ -269,6 +324,7 @@ class Journal:
                 runs.append(data["runs"])
         done = np.concatenate(runs) if runs else np.empty(0, dtype=np.int64)
         numbers = [int(JOURNAL_NAME.fullmatch(p.name).group(1)) for p in files]
+        numbers += [int(SEGMENT_NAME.fullmatch(p.name).group(1)) for p in self.segment_files()]
         numbers += [
             int(p.stem.split("-")[1].split(".")[0])
             for p in self.rejected_dir.glob("chunk-*.npz")
@@ -323,8 +379,10 @@ def _what(path):
     return "a special file"
 
 
-def _chunk_problem(path, listed, n_runs, n_samples, seen, key, binding):
-    """Why the chunk file ``path`` cannot be used, or None (then its runs are added to ``seen``)."""
+def _chunk_problem(path, listed, n_runs, n_samples, seen, key, binding, segment=False):
+    """Why the chunk file ``path`` cannot be used, or None (then its runs are added to ``seen``).
+    ``segment``: a segment file (SEGMENT_KEYS, samples 0..k of n_samples)."""
+    keys = SEGMENT_KEYS if segment else CHUNK_KEYS
     # A chunk missing from the manifest was renamed into place just before a kill, ahead of its
     # manifest entry: whole (atomic rename, fsync), so it is judged by its content alone.
     listed = listed if listed is not None and path.name in listed else None
@@ -332,17 +390,17 @@ def _chunk_problem(path, listed, n_runs, n_samples, seen, key, binding):
         return "checksum differs from the manifest's (damaged file)"
     try:
         with np.load(path, allow_pickle=False) as data:
-            missing = [k for k in CHUNK_KEYS if k not in data.files]
+            missing = [k for k in keys if k not in data.files]
             if missing:
                 return f"not a gyrolab chunk (no array {missing[0]!r})"
             if any(k not in data.files for k in PROOF_KEYS):
                 return "no proof of its sweep (a chunk of an older gyrolab or not one of this journal's)"
-            arrays = {k: data[k] for k in (*CHUNK_KEYS, *PROOF_KEYS)}
+            arrays = {k: data[k] for k in (*keys, *PROOF_KEYS)}
     except Exception as err:  # zipfile, numpy and zlib raise many kinds on damaged input
         return f"unreadable ({_reason(err)})"
     if str(arrays["binding"]) != binding:
         return "made by another sweep or other kernel code (its config or kernel-source hash differs)"
-    if not hmac.compare_digest(str(arrays["mac"]), chunk_mac(key, path.name, binding, arrays)):
+    if not hmac.compare_digest(str(arrays["mac"]), chunk_mac(key, path.name, binding, arrays, keys)):
         return "does not prove it belongs to this journal (its HMAC does not match: foreign, made up or altered)"
     runs = arrays["runs"]
     if runs.ndim != 1 or runs.size == 0 or runs.dtype.kind not in "iu":
@@ -354,15 +412,20 @@ def _chunk_problem(path, listed, n_runs, n_samples, seen, key, binding):
         return f"run numbers outside 0..{n_runs - 1}"
     if len(set(runs.tolist())) != n or seen.intersection(runs.tolist()):
         return "runs stored twice"
+    shape = arrays["samples"].shape
     expected = (n, n_samples, RAW_PER_SAMPLE)
-    if arrays["samples"].shape != expected or arrays["samples"].dtype != np.float64:
-        return f"samples have shape {arrays['samples'].shape}, expected {expected}"
+    if segment and len(shape) == 3 and 1 <= shape[1] <= n_samples:
+        expected = (n, shape[1], RAW_PER_SAMPLE)
+    if shape != expected or arrays["samples"].dtype != np.float64:
+        return f"samples have shape {shape}, expected {expected}"
     for key in ("status", "n_steps", "wall_time"):
         if arrays[key].shape != (n,):
             return f"{key} has shape {arrays[key].shape}, expected ({n},)"
     finished = arrays["status"] == 0
     if not np.isfinite(arrays["samples"][finished]).all():
         return "non-finite samples in runs marked finished (status 0)"
+    if segment and (arrays["state"].shape != (n, 7) or not np.isfinite(arrays["state"][finished]).all()):
+        return f"state has shape {arrays['state'].shape} or is not finite where its run goes on"
     seen.update(runs.tolist())
     return None
 

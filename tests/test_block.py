@@ -63,6 +63,7 @@ def run_blocks(method, inputs, n_samples, runs, starts, threshold=10.0):
         np.asarray(runs, np.int64),
         np.asarray(starts, np.int64),
         np.array([0, n_blocks // 2, n_blocks], np.int64),
+        np.empty((n, 7)),
     )
     return out, status, n_steps
 

@@ -1,0 +1,172 @@
+"""Long runs in blocks: a chunk cut in time, journaled segment by segment, resumed bit for bit.
+
+The block kernels (kernels/block.py) integrate a chunk of MIN_BLOCK_RUNS runs or more several times
+faster per step than one run after another, but a chunk is the journal's unit: while it runs nothing
+of it is saved.  A chunk of long runs (a 1000 s run at dt = 1e-4 s is 1e7 steps) sized to
+``chunk_seconds`` of work would hold a handful of runs and leave the block path.  So such a chunk
+keeps its MIN_BLOCK_RUNS runs and is integrated a slice of its samples at a time ("segments" of
+about ``chunk_seconds`` each): after each segment its samples so far and each run's state (ω, q)
+go to the journal (``Journal.write_segment``), and the next segment starts the block kernel from
+that state.  A step depends on (ω, q, dt, body) alone, so the samples are the bits one long call
+gives.
+
+Only the divergence test needs care: the kernel compares |E − E0| with the run's bound, where E0 is
+the energy of the call's first sample.  A continuing segment is run with the largest bound a double
+holds (it still stops at a non-finite state) and its samples are then tested here against the
+run's own E0 and bound (``kernels.driver.tolerances``: the bits the kernel computes), with the
+kernel's consequences: the status, NaN after the failing sample, the steps counted to it.
+"""
+
+import time
+
+import numpy as np
+
+from ..kernels.batch import MIN_BLOCK_RUNS, integrate
+from ..kernels.driver import ENERGY, STATUS_ENERGY, STATUS_NONFINITE, STATUS_OK, tolerances
+from ..kernels.real import is_real
+from .grid import JOURNAL_RATE, runs_in_blocks
+
+# The bound a continuing segment runs with: no finite energy error passes it.
+NO_BOUND = float(np.finfo(np.float64).max)
+# A segment is long enough that rewriting the samples so far (the segment file) costs at most
+# 1/WRITE_SHARE of its integration.
+WRITE_SHARE = 4
+
+
+def segmentable(grid, runs):
+    """Whether the chunk ``runs`` can be cut in time: its method's block kernel runs it (an own
+    method with blocks, MIN_BLOCK_RUNS runs or more, an undriven body) and it has two sample
+    intervals or more."""
+    method = grid.methods[int(grid.index(runs[:1])[0][0])]
+    return (
+        not is_real(method)
+        and len(runs) >= MIN_BLOCK_RUNS
+        and runs_in_blocks(method, len(runs), grid.driven)
+        and grid.n_samples > 2
+    )
+
+
+def segment_length(grid, runs, estimate_seconds, chunk_seconds, done):
+    """Sample intervals of the next segment of the chunk ``runs`` whose whole integration is estimated
+    at ``estimate_seconds``, with samples 0..``done`` integrated: about ``chunk_seconds`` of work, and
+    no less than WRITE_SHARE times the time of writing the samples so far, at least 1."""
+    left = grid.n_samples - 1 - done
+    per_interval = estimate_seconds / max(grid.n_samples - 1, 1)
+    written = len(runs) * (done + 1) * grid.bytes_per_run() / grid.n_samples / JOURNAL_RATE
+    seconds = max(chunk_seconds, WRITE_SHARE * written)
+    return max(1, min(left, int(seconds / max(per_interval, 1e-12))))
+
+
+def integrate_segment(method, inputs, state, n_intervals, threshold, bound, e0, threads):
+    """Integrate ``n_intervals`` sample intervals of runs with kernel ``inputs`` (Grid.inputs), from
+    the start (``state`` None) or on from ``state`` (n, 7) (ω, q) with each run's E0 ``e0`` (J) and
+    divergence ``bound`` (J).  Returns the journal's arrays for these samples: samples
+    (n, n_intervals + 1, ·) (the first row is the starting sample), status, n_steps, wall_time
+    (s, as execute.integrate_chunk shares it), state."""
+    bodies, omega0, q0, dt, stride = inputs
+    if state is not None:
+        omega0, q0 = np.ascontiguousarray(state[:, :3]), np.ascontiguousarray(state[:, 3:])
+    start = time.perf_counter()
+    samples, status, n_steps, final = integrate(
+        method,
+        bodies,
+        omega0,
+        q0,
+        dt,
+        stride,
+        n_intervals + 1,
+        threshold if state is None else NO_BOUND,
+        path="blocks",
+        final_state=True,
+    )
+    wall = time.perf_counter() - start
+    if state is not None:
+        status, n_steps = _diverged(samples, status, n_steps, stride, e0, bound)
+    share = n_steps / max(int(n_steps.sum()), 1)
+    return {
+        "samples": samples,
+        "status": status,
+        "n_steps": n_steps,
+        "wall_time": wall * min(threads, len(bodies)) * share,
+        "state": final,
+    }
+
+
+def _diverged(samples, status, n_steps, stride, e0, bound):
+    """The kernel's divergence test (driver._diverged) on samples 1.. of a continuing segment against
+    each run's own E0 and bound: at the first sample that fails, status energy (non-finite if a field
+    is), NaN after it, steps counted up to it.  Returns (status, n_steps)."""
+    status = np.full_like(status, STATUS_OK)
+    failed = ~(np.abs(samples[:, 1:, ENERGY] - e0[:, None]) <= bound[:, None])  # True for NaN too
+    for i in np.flatnonzero(failed.any(axis=1)):
+        k = int(np.argmax(failed[i])) + 1
+        status[i] = STATUS_ENERGY if np.isfinite(samples[i, k]).all() else STATUS_NONFINITE
+        samples[i, k + 1 :] = np.nan
+        n_steps[i] = k * stride[i]
+    return status, n_steps
+
+
+class SegmentedChunk:
+    """One chunk integrated in segments: ``next(run)`` integrates and journals one more segment with
+    ``run(method, inputs, state, n_intervals, threshold, bound, e0)`` (here or in the chunk worker),
+    ``done`` when every sample is in; ``arrays()`` the whole chunk for ``Journal.write_chunk``.
+    ``arrays`` (a segment file's, to go on from) or None for a fresh start."""
+
+    def __init__(self, grid, number, runs, arrays=None):
+        self.grid, self.number = grid, number
+        self.method = grid.methods[int(grid.index(runs[:1])[0][0])]
+        self.runs = np.asarray(runs, dtype=np.int64)
+        self.inputs = grid.inputs(self.runs)
+        self.bound = tolerances(self.inputs[1], self.inputs[0], float(grid.threshold))
+        self.arrays = arrays
+
+    @property
+    def done(self):
+        """Sample intervals integrated so far."""
+        return 0 if self.arrays is None else self.arrays["samples"].shape[1] - 1
+
+    @property
+    def finished(self):
+        return self.done == self.grid.n_samples - 1
+
+    def steps_done(self):
+        """Steps planned for the sample intervals integrated so far (for the progress bar)."""
+        return int(self.inputs[4].sum()) * self.done
+
+    def next(self, journal, n_intervals, run):
+        """Integrate the next ``n_intervals`` sample intervals of the runs still going, journal the
+        samples so far; returns the steps planned for them (for the progress bar)."""
+        n_intervals = min(n_intervals, self.grid.n_samples - 1 - self.done)
+        if self.arrays is None:
+            part = run(self.method, self.inputs, None, n_intervals, self.grid.threshold, self.bound, None)
+            self.arrays = {"runs": self.runs, **part}
+        else:
+            a = self.arrays
+            going = np.flatnonzero(a["status"] == STATUS_OK)
+            n = len(self.runs)
+            samples = np.full((n, n_intervals, a["samples"].shape[2]), np.nan)
+            status, n_steps, wall = a["status"].copy(), a["n_steps"].copy(), a["wall_time"].copy()
+            state = a["state"].copy()
+            if going.size:
+                inputs = tuple(x[going] for x in self.inputs)
+                e0 = a["samples"][going, 0, ENERGY]
+                part = run(self.method, inputs, a["state"][going], n_intervals, None, self.bound[going], e0)
+                samples[going] = part["samples"][:, 1:]
+                status[going] = part["status"]
+                n_steps[going] += part["n_steps"]
+                wall[going] += part["wall_time"]
+                state[going] = part["state"]
+            self.arrays = {
+                "runs": self.runs,
+                "samples": np.concatenate([a["samples"], samples], axis=1),
+                "status": status,
+                "n_steps": n_steps,
+                "wall_time": wall,
+                "state": state,
+            }
+        journal.write_segment(self.number, **self.arrays)
+        return int(self.inputs[4].sum()) * n_intervals
+
+    def chunk(self):
+        """The finished chunk's arrays for Journal.write_chunk."""
+        return {k: v for k, v in self.arrays.items() if k != "state"}
