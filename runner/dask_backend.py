@@ -37,6 +37,7 @@ import shutil
 import signal
 import socket
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -50,8 +51,9 @@ from numba.core import event
 
 from ..version import __version__
 from .config import ConfigError
-from .execute import BackendError, chunk_delay, integrate_chunk, warm_up_methods
-from .grid import estimate_seconds, plan_chunks
+from .execute import BackendError, chunk_delay, chunk_estimate, integrate_chunk, warm_up_methods
+from .grid import estimate_seconds, plan_chunks, runs_in_blocks
+from .segments import SegmentedChunk, integrate_segment, segment_length, segmentable
 
 LOCAL = "local"  # runner.address that starts a LocalCluster in this process
 CHUNKS_PER_WORKER = 4  # at least this many chunks per worker: balance and small losses on a worker crash
@@ -97,13 +99,25 @@ def run_chunk_task(method, runs, inputs, n_samples, threshold, delay=0.0):
     return result
 
 
+def run_segment_task(task, delay=0.0):
+    """Dask task: integrate one time segment of a chunk (``segments.integrate_segment(*task)``)."""
+    threads = numba_threads(get_worker().state.nthreads)
+    with _CHUNK_LOCK:
+        numba.set_num_threads(threads)
+        result = integrate_segment(*task, threads)
+        STATS["chunks"] += 1
+    if delay:
+        time.sleep(delay)
+    return result
+
+
 class WarmUp(WorkerPlugin):
     """Compiles (or loads) the sweep's kernels when a worker starts or the plugin is registered.
 
     ``inputs`` are one run's kernel inputs (``Grid.inputs``): the argument types of every chunk."""
 
-    def __init__(self, methods, inputs, threshold):
-        self.methods, self.inputs, self.threshold = tuple(methods), inputs, float(threshold)
+    def __init__(self, methods, inputs, threshold, blocks=False):
+        self.methods, self.inputs, self.threshold, self.blocks = tuple(methods), inputs, float(threshold), blocks
 
     async def setup(self, worker):
         # In a thread, so the worker keeps answering the scheduler while numba compiles.
@@ -111,7 +125,7 @@ class WarmUp(WorkerPlugin):
 
     def warm(self):
         with _CHUNK_LOCK:
-            warm_up_methods(self.methods, self.inputs, self.threshold)
+            warm_up_methods(self.methods, self.inputs, self.threshold, self.blocks)
             STATS["warm_ups"] += 1
 
 
@@ -367,10 +381,13 @@ class DaskCluster:
         threads = self.chunk_threads
         target = CHUNKS_PER_WORKER * max(len(self.workers), 1)
         seconds = float(chunk_seconds)
-        chunks = plan_chunks(grid, runs, threads, seconds, in_time=False)
+        chunks = plan_chunks(grid, runs, threads, seconds)
         while chunks and len(chunks) < target and max(len(c) for c in chunks) > threads:
             seconds /= 2
-            chunks = plan_chunks(grid, runs, threads, seconds, in_time=False)
+            finer = plan_chunks(grid, runs, threads, seconds)
+            if len(finer) == len(chunks) and seconds < 1e-6 * chunk_seconds:
+                break  # blocks of MIN_BLOCK_RUNS long runs: no finer in runs (they are cut in time)
+            chunks = finer
         return chunks
 
     remote = True  # the sweep says where it runs
@@ -384,7 +401,8 @@ class DaskCluster:
         self.plugin = f"gyrolab-warm-up-{uuid.uuid4().hex[:8]}"
         inputs = grid.inputs(np.zeros(1, dtype=np.int64))
         try:
-            self.client.register_plugin(WarmUp(grid.methods, inputs, grid.threshold), name=self.plugin)
+            blocks = any(runs_in_blocks(m, grid.n_runs // len(grid.methods), grid.driven) for m in grid.methods)
+            self.client.register_plugin(WarmUp(grid.methods, inputs, grid.threshold, blocks), name=self.plugin)
         except Exception as err:
             raise BackendError(
                 f"the warm-up of the kernels failed on the Dask workers at {self.address}: {type(err).__name__}: {err}"
@@ -392,46 +410,88 @@ class DaskCluster:
 
     def run_missing(self, grid, journal, todo, chunk_seconds, first_number, progress=None):
         """Run the runs in ``todo`` (flat numbers) on the cluster, storing each finished chunk
-        in ``journal`` as it arrives; ``progress(runs, steps)`` after each one.
+        in ``journal`` as it arrives; ``progress(runs, steps)`` after each one.  A long chunk on the
+        block path goes segment by segment (runner/segments.py), as on the local backend: each
+        segment a task, journaled when it arrives, the next submitted then; a chunk a killed sweep
+        left part-way goes on from its last segment.
 
         BackendError when the cluster gives up on a chunk (the journal keeps the rest)."""
-        chunks = self.plan(grid, np.asarray(todo, dtype=np.int64), chunk_seconds)
-        token = uuid.uuid4().hex[:8]
-        method = [grid.methods[int(grid.index(c[:1])[0][0])] for c in chunks]
-        n = len(chunks)
-        futures = self.client.map(
-            run_chunk_task,
-            method,
-            chunks,
-            [grid.inputs(c) for c in chunks],
-            [grid.n_samples] * n,
-            [grid.threshold] * n,
-            [chunk_delay()] * n,
-            key=[f"gyrolab-chunk-{token}-{i}" for i in range(n)],
-            retries=RETRIES,
-            pure=False,
-        )
-        pending = set(futures)
-        number = first_number
+        todo = np.asarray(todo, dtype=np.int64)
+        resumed, rejected = journal.open_segments(todo, grid.n_runs, grid.n_samples)
+        for name, reason in rejected:
+            message = f"{name} moved aside to {journal.rejected_dir}: {reason}; its runs are computed again"
+            print(f"gyrolab: journal: {message}", file=sys.stderr)
+        segmented = [SegmentedChunk(grid, number, arrays["runs"], arrays) for number, arrays in resumed]
+        going_on = np.concatenate([c.runs for c in segmented]) if segmented else todo[:0]
+        chunks = self.plan(grid, np.setdiff1d(todo, going_on), chunk_seconds)
+        threads, token, delay = self.chunk_threads, uuid.uuid4().hex[:8], chunk_delay()
+        futures = as_completed(loop=self.client.loop)
+        what = {}  # future key -> (chunk number, runs) or a SegmentedChunk
+        estimates = {}
+
+        def submit(fn, *args, key):
+            future = self.client.submit(fn, *args, key=key, retries=RETRIES, pure=False)
+            futures.add(future)
+            return future
+
+        def next_segment(chunk):
+            """Submit the chunk's next segment, or store the chunk when it is complete."""
+            while not chunk.finished:
+                n = segment_length(grid, chunk.runs, estimates[chunk.number], chunk_seconds, chunk.done)
+                task = chunk.task(n)
+                if task is not None:
+                    key = f"gyrolab-segment-{token}-{chunk.number}-{chunk.done}"
+                    what[submit(run_segment_task, task, delay, key=key).key] = chunk
+                    return
+                steps = chunk.absorb(journal, None)  # every run diverged: the rest is NaN, nothing to integrate
+                if progress is not None:
+                    progress(0, steps)
+            journal.write_chunk(chunk.number, **chunk.chunk())
+            journal.remove_segment(chunk.number)
+            if progress is not None:
+                progress(len(chunk.runs), 0)
+
+        for chunk in segmented:
+            estimates[chunk.number] = chunk_estimate(grid, chunk.runs, threads, {})
+            if progress is not None:
+                progress(0, chunk.steps_done())
+            next_segment(chunk)
+        for i, runs in enumerate(chunks):
+            number, estimate = first_number + i, chunk_estimate(grid, runs, threads, {})
+            if estimate > 2 * chunk_seconds and segmentable(grid, runs):
+                estimates[number] = estimate
+                next_segment(SegmentedChunk(grid, number, runs))
+                continue
+            method = grid.methods[int(grid.index(runs[:1])[0][0])]
+            args = (method, runs, grid.inputs(runs), grid.n_samples, grid.threshold, delay)
+            what[submit(run_chunk_task, *args, key=f"gyrolab-chunk-{token}-{i}").key] = (number, runs)
         try:
             # Results are fetched one at a time: until the driver has journaled a chunk, the
             # chunks done after it wait in the workers' memory, not in the driver's.
-            for future in as_completed(futures, loop=self.client.loop):
-                pending.discard(future)
+            for future in futures:
                 try:
                     result = future.result()
                 except Exception as error:  # the task raised on every retry, or Dask gave up on it
                     raise BackendError(
                         f"the Dask cluster at {self.address} failed on a chunk: {type(error).__name__}: {error}"
                     ) from None
-                journal.write_chunk(number, **result)
-                number += 1
+                owner = what.pop(future.key)
                 future.release()
+                if isinstance(owner, SegmentedChunk):
+                    steps = owner.absorb(journal, result)
+                    if progress is not None:
+                        progress(0, steps)
+                    next_segment(owner)
+                    continue
+                number, runs = owner
+                journal.write_chunk(number, **result)
                 if progress is not None:
-                    progress(len(result["runs"]), int(grid.steps(result["runs"]).sum()))
+                    progress(len(runs), int(grid.steps(runs).sum()))
         finally:
-            if pending:
-                self.client.cancel(list(pending))
+            left = list(futures.futures)  # submitted, not finished
+            futures.clear()
+            if left:
+                self.client.cancel(left)
 
     def close(self):
         """Unregister the warm-up plugin, disconnect, stop a LocalCluster we started."""

@@ -107,10 +107,10 @@ def _diverged(samples, status, n_steps, stride, e0, bound):
 
 
 class SegmentedChunk:
-    """One chunk integrated in segments: ``next(run)`` integrates and journals one more segment with
-    ``run(method, inputs, state, n_intervals, threshold, bound, e0)`` (here or in the chunk worker),
-    ``done`` when every sample is in; ``arrays()`` the whole chunk for ``Journal.write_chunk``.
-    ``arrays`` (a segment file's, to go on from) or None for a fresh start."""
+    """One chunk integrated in segments: ``next(journal, n, run)`` integrates and journals one more
+    segment with ``run(*task)`` (``integrate_segment`` here, in the chunk worker or on a Dask worker:
+    ``task`` then ``absorb`` apart), ``finished`` when every sample is in; ``chunk()`` the whole
+    chunk for ``Journal.write_chunk``.  ``arrays``: a segment file's, to go on from, or None."""
 
     def __init__(self, grid, number, runs, arrays=None):
         self.grid, self.number = grid, number
@@ -119,6 +119,7 @@ class SegmentedChunk:
         self.inputs = grid.inputs(self.runs)
         self.bound = tolerances(self.inputs[1], self.inputs[0], float(grid.threshold))
         self.arrays = arrays
+        self.pending, self.going = 0, None  # the last task's sample intervals and runs
 
     @property
     def done(self):
@@ -133,24 +134,31 @@ class SegmentedChunk:
         """Steps planned for the sample intervals integrated so far (for the progress bar)."""
         return int(self.inputs[4].sum()) * self.done
 
-    def next(self, journal, n_intervals, run):
-        """Integrate the next ``n_intervals`` sample intervals of the runs still going, journal the
-        samples so far; returns the steps planned for them (for the progress bar)."""
-        n_intervals = min(n_intervals, self.grid.n_samples - 1 - self.done)
+    def task(self, n_intervals):
+        """``integrate_segment``'s arguments (all but ``threads``) for the next ``n_intervals`` sample
+        intervals of the runs still going, or None when none is (``absorb(None)`` then fills in NaN)."""
+        self.pending = n_intervals = min(n_intervals, self.grid.n_samples - 1 - self.done)
         if self.arrays is None:
-            part = run(self.method, self.inputs, None, n_intervals, self.grid.threshold, self.bound, None)
+            return self.method, self.inputs, None, n_intervals, self.grid.threshold, self.bound, None
+        self.going = going = np.flatnonzero(self.arrays["status"] == STATUS_OK)
+        if not going.size:
+            return None
+        inputs = tuple(x[going] for x in self.inputs)
+        e0 = self.arrays["samples"][going, 0, ENERGY]
+        return self.method, inputs, self.arrays["state"][going], n_intervals, None, self.bound[going], e0
+
+    def absorb(self, journal, part):
+        """Add ``part`` (``integrate_segment``'s result for the last ``task``) to the samples so far
+        and journal them; returns the steps planned for the segment (for the progress bar)."""
+        n_intervals = self.pending
+        if self.arrays is None:
             self.arrays = {"runs": self.runs, **part}
         else:
-            a = self.arrays
-            going = np.flatnonzero(a["status"] == STATUS_OK)
-            n = len(self.runs)
-            samples = np.full((n, n_intervals, a["samples"].shape[2]), np.nan)
+            a, going = self.arrays, self.going
+            samples = np.full((len(self.runs), n_intervals, a["samples"].shape[2]), np.nan)
             status, n_steps, wall = a["status"].copy(), a["n_steps"].copy(), a["wall_time"].copy()
             state = a["state"].copy()
-            if going.size:
-                inputs = tuple(x[going] for x in self.inputs)
-                e0 = a["samples"][going, 0, ENERGY]
-                part = run(self.method, inputs, a["state"][going], n_intervals, None, self.bound[going], e0)
+            if part is not None:
                 samples[going] = part["samples"][:, 1:]
                 status[going] = part["status"]
                 n_steps[going] += part["n_steps"]
@@ -166,6 +174,12 @@ class SegmentedChunk:
             }
         journal.write_segment(self.number, **self.arrays)
         return int(self.inputs[4].sum()) * n_intervals
+
+    def next(self, journal, n_intervals, run):
+        """Integrate the next ``n_intervals`` sample intervals of the runs still going with
+        ``run(*task)`` and journal the samples so far; returns the steps planned for them."""
+        task = self.task(n_intervals)
+        return self.absorb(journal, None if task is None else run(*task))
 
     def chunk(self):
         """The finished chunk's arrays for Journal.write_chunk."""

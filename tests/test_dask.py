@@ -212,3 +212,37 @@ def test_bad_cluster_input_is_one_line_status_2_and_no_file(client, no_workers, 
     assert message.format(**values) in lines[0]
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["old.h5", "stale.json"]
     assert existing.read_bytes() == b"an earlier result"
+
+
+def test_long_chunks_go_segment_by_segment_on_the_cluster_and_resume_anywhere(client, tmp_path):
+    from test_segments import SWEEP  # 64 runs of rk4, 30 sample intervals
+
+    cut = ("runner.chunk_seconds=1e-6", "output.figures=false")  # the shortest segments
+    local = tmp_path / "local"
+    assert_ok(gyrolab(*SWEEP, *cut, f"hydra.run.dir={local}", cwd=tmp_path))
+    before = stats(client)
+    whole = tmp_path / "cluster"
+    assert_ok(gyrolab(*SWEEP, *cut, *on_cluster(client), f"hydra.run.dir={whole}", cwd=tmp_path))
+    xr.testing.assert_identical(data(whole / "results.h5"), data(local / "results.h5"))
+    after = stats(client)
+    # one task a segment: more than one (segments lengthen as the samples so far grow: WRITE_SHARE)
+    assert sum(after[w]["chunks"] - before[w]["chunks"] for w in after) >= 3
+
+    run = tmp_path / "run"
+    partial = run / "results.h5.partial"
+    proc = start(*SWEEP, *cut, *on_cluster(client), f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=0.3)
+
+    def segments_done():
+        try:
+            with np.load(partial / "segment-00000.npz") as segment:
+                return segment["samples"].shape[1] >= 4
+        except (OSError, KeyError, ValueError):
+            return False
+
+    wait_for(segments_done, proc)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and "Finish with: gyrolab" in err, err
+    resumed = gyrolab(*SWEEP, *cut, f"hydra.run.dir={run}", "runner.resume=true", cwd=tmp_path)
+    assert_ok(resumed)
+    xr.testing.assert_identical(data(run / "results.h5"), data(local / "results.h5"))

@@ -126,7 +126,7 @@ def test_a_damaged_or_foreign_segment_is_set_aside(tmp_path):
 
 
 SWEEP = ("sweep.method=[rk4]", *LONG[:2], "sweep.dt=[1e-3]", "sweep.t_end=3", "output.every=0.1")
-SEGMENTED = ("runner.chunk_seconds=1e-6", "runner.threads=2", "output.figures=false")  # one sample a segment
+SEGMENTED = ("runner.chunk_seconds=1e-6", "runner.threads=2", "output.figures=false")  # the shortest segments
 
 
 def test_a_sweep_killed_mid_segment_resumes_to_identical_data(tmp_path):
