@@ -10,7 +10,7 @@ for long chunks, the journal) into a scratch journal, on the threads numba has. 
   MIN_BLOCK_RUNS runs per chunk on the block path, a chunk longer than ``chunk_seconds`` is cut in
   time and journaled segment by segment (runner/segments.py);
 - ``whole chunks``: chunks of ``chunk_seconds`` of work with no cutting (``plan_chunks(in_time=False)``,
-  the rule before, which the Dask backend keeps): long runs go a few per chunk, one by one.
+  the rule before): long runs go a few per chunk, one by one.
 
 Prints ns per step (wall time of integrating and journaling over the steps) for each t_end and plan,
 and their ratio to t_end = 10 s.  The kernels are warmed first (numba's cache), so compiling is out.

@@ -264,10 +264,9 @@ def plan_chunks(grid, runs, threads, chunk_seconds, rates=None, max_bytes=MAX_CH
     the same work); what is left of each dt, less than a chunk, is pooled with
     the other dts' leftovers of that method into chunks of about
     ``chunk_seconds``, so a grid of many small dt groups does not become many
-    tiny chunks.  ``in_time`` (this machine's runner, runner/execute.py): a dt group of
-    MIN_BLOCK_RUNS runs or more keeps MIN_BLOCK_RUNS runs a chunk on the block path however long
-    they are, and the runner cuts a long chunk in time (runner/segments.py); the Dask backend,
-    which journals whole chunks only, plans with ``in_time=False``.
+    tiny chunks.  ``in_time`` (both backends): a dt group of MIN_BLOCK_RUNS runs or more keeps
+    MIN_BLOCK_RUNS runs a chunk on the block path however long they are, and the backend cuts a
+    long chunk in time (runner/segments.py); ``in_time=False``: the rule before (benchmarks).
     """
     rates = rates or {}
     runs = np.sort(np.asarray(runs, dtype=np.int64))
