@@ -51,7 +51,8 @@ def grid_for(t_end, runs):
 
 def measure(grid, in_time, threads, chunk_seconds=1.0):
     """(seconds, chunks) of ``execute.run_missing`` on ``grid`` into a scratch journal."""
-    from gyrolab.runner import execute, grid as grid_module
+    from gyrolab.runner import execute
+    from gyrolab.runner import grid as grid_module
     from gyrolab.runner.store import Journal
 
     plan = grid_module.plan_chunks

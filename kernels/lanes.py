@@ -10,8 +10,9 @@ numba function it calls, with three changes and nothing else:
   the loop over lanes (numba's own ``inline="always"`` does the same on its
   IR, but takes ~100 s for lie_poisson4's ~140 nested calls);
 - ``quat_from_rotvec`` and ``half_angle``, the two helpers that branch between
-  the small-angle polynomial and libm, always take the polynomial and return
-  NaN where the original would have called libm (angle ≥ SMALL_ANGLE or NaN).
+  the small-angle polynomial, its doubled form and libm, compute both polynomial
+  forms branch-free and return NaN where the original would have called libm
+  (angle ≥ WIDE_ANGLE or NaN).
 
 So on every lane where the result is finite it is bit for bit what ``step``
 returns (same operations in the same order; numba never contracts a·b + c
@@ -37,27 +38,41 @@ from numba import njit
 from numba.core.dispatcher import Dispatcher
 
 from . import rotation
-from .rotation import SMALL_ANGLE, _cos_sinc_half
+from .rotation import SMALL_ANGLE, WIDE_ANGLE, _cos_sinc_half
 
 _SMALL_ANGLE2 = SMALL_ANGLE * SMALL_ANGLE
+_WIDE_ANGLE2 = WIDE_ANGLE * WIDE_ANGLE
+
+
+@njit
+def _cos_sinc_half_or_nan(angle2):
+    """rotation's _cos_sinc_half below SMALL_ANGLE², _cos_sinc_half_wide (the same operations, in
+    order) up to WIDE_ANGLE², cos = NaN beyond (or for NaN); one polynomial, selects, no branch."""
+    small = angle2 < _SMALL_ANGLE2
+    a2 = angle2 if small else 0.0625 * angle2
+    c, s = _cos_sinc_half(a2)
+    c1, s1 = 1.0 - 2.0 * s * s * a2, s * c
+    a2 = 4.0 * a2
+    c2, s2 = 1.0 - 2.0 * s1 * s1 * a2, s1 * c1
+    if not small:
+        c, s = c2, s2
+    if not angle2 < _WIDE_ANGLE2:
+        c = math.nan
+    return c, s
 
 
 @njit
 def _quat_from_rotvec_or_nan(v0, v1, v2):
-    """rotation.quat_from_rotvec's small-angle branch; a = NaN where it would call libm."""
+    """rotation.quat_from_rotvec's polynomial branches; a = NaN where it would call libm."""
     angle2 = v0 * v0 + v1 * v1 + v2 * v2
-    a, s = _cos_sinc_half(angle2)
-    if not angle2 < _SMALL_ANGLE2:
-        a = math.nan
+    a, s = _cos_sinc_half_or_nan(angle2)
     return a, s * v0, s * v1, s * v2
 
 
 @njit
 def _half_angle_or_nan(phi):
-    """rotation.half_angle's small-angle branch; cos(φ/2) = NaN where it would call libm."""
-    c, s = _cos_sinc_half(phi * phi)
-    if not abs(phi) < SMALL_ANGLE:
-        c = math.nan
+    """rotation.half_angle's polynomial branches; cos(φ/2) = NaN where it would call libm."""
+    c, s = _cos_sinc_half_or_nan(phi * phi)
     return c, s * phi
 
 

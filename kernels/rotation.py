@@ -21,6 +21,12 @@ from numba import njit
 # h^10/11!, are < 3e-17.  A step of any sensible dt turns the body by far less
 # than this, so the hot loop needs no libm call.
 SMALL_ANGLE = 0.2
+# Below this angle (and from SMALL_ANGLE up) the series is taken at a quarter of the angle and doubled
+# twice with cos 2x = 1 − 2 sin²x, sin 2x = 2 sin x cos x (``_cos_sinc_half_wide``): a few ulp
+# (tests/test_small_angle.py), still no libm, so that the substeps of a splitting at a coarse dt
+# (lie_poisson4 at dt = 1e-3 s on the 50 Hz top turns up to ~0.45 rad a substep) stay on the
+# vectorised path of the block kernels (kernels/lanes.py).
+WIDE_ANGLE = 0.8
 
 
 @njit(cache=True, error_model="numpy")
@@ -33,6 +39,19 @@ def _cos_sinc_half(angle2):
 
 
 @njit(cache=True, error_model="numpy")
+def _cos_sinc_half_wide(angle2):
+    """(cos(h), sin(h)/(2h)) with h = √angle2 / 2, for angle2 < WIDE_ANGLE²: the series at angle2/16
+    (< SMALL_ANGLE²), then twice the step from an angle² A to 4A, c ← 1 − 2 s² A, s ← s c (with
+    s = sin(x)/(2x): 2 sin²x = 8 s² x² = 2 s² A, and sin(2x)/(4x) = s cos x).  The factors are powers
+    of two, exact; kernels/lanes.py repeats these operations in this order (the same bits)."""
+    a2 = 0.0625 * angle2
+    c, s = _cos_sinc_half(a2)
+    c, s = 1.0 - 2.0 * s * s * a2, s * c
+    a2 = 4.0 * a2
+    return 1.0 - 2.0 * s * s * a2, s * c
+
+
+@njit(cache=True, error_model="numpy")
 def quat_from_rotvec(v0, v1, v2):
     """CK parameters of the active rotation by |v| (rad) about v/|v|.
 
@@ -41,6 +60,8 @@ def quat_from_rotvec(v0, v1, v2):
     angle2 = v0 * v0 + v1 * v1 + v2 * v2
     if angle2 < SMALL_ANGLE * SMALL_ANGLE:
         a, s = _cos_sinc_half(angle2)  # s = sin(|v|/2)/|v|
+    elif angle2 < WIDE_ANGLE * WIDE_ANGLE:
+        a, s = _cos_sinc_half_wide(angle2)
     else:
         angle = math.sqrt(angle2)
         a = math.cos(0.5 * angle)
@@ -51,8 +72,12 @@ def quat_from_rotvec(v0, v1, v2):
 @njit(cache=True, error_model="numpy")
 def half_angle(phi):
     """(cos(φ/2), sin(φ/2)) for a signed angle φ (rad), without libm when |φ| is small."""
-    if abs(phi) < SMALL_ANGLE:
-        c, s = _cos_sinc_half(phi * phi)
+    phi2 = phi * phi  # the branches test φ² as quat_from_rotvec does (and kernels/lanes.py's copy)
+    if phi2 < SMALL_ANGLE * SMALL_ANGLE:
+        c, s = _cos_sinc_half(phi2)
+        return c, s * phi
+    if phi2 < WIDE_ANGLE * WIDE_ANGLE:
+        c, s = _cos_sinc_half_wide(phi2)
         return c, s * phi
     return math.cos(0.5 * phi), math.sin(0.5 * phi)
 

@@ -1,7 +1,7 @@
 """The block path (block.py, lanes.py) against the one-run-at-a-time path (driver.py): same bits.
 
 Every method × scene, on batches that mix spins (rotation angles per step on
-both sides of SMALL_ANGLE, so the libm fix-up runs), tilts and dt (several
+both sides of WIDE_ANGLE, so the libm fix-up runs), tilts and dt (several
 strides, so step counts differ), with runs that diverge mid-block and drop out.
 """
 
@@ -17,7 +17,7 @@ from gyrolab.kernels.body import is_driven
 from gyrolab.kernels.driver import N_FIELDS, STATUS_ENERGY, STATUS_NONFINITE, STATUS_OK
 from gyrolab.kernels.lanes import _half_angle_or_nan, _quat_from_rotvec_or_nan, ieee_step, lane_step
 from gyrolab.kernels.registry import METHODS, uses_blocks
-from gyrolab.kernels.rotation import SMALL_ANGLE, half_angle, quat_from_rotvec
+from gyrolab.kernels.rotation import SMALL_ANGLE, WIDE_ANGLE, half_angle, quat_from_rotvec
 from gyrolab.kernels.scenes import SCENES, build_scene
 
 EVERY, T_END = 1e-2, 0.2
@@ -91,7 +91,7 @@ def test_blocks_equal_runs_bit_for_bit(method, scene):
     inputs, n_samples = mixed_batch(scene)
     n = len(inputs[0])
     reference = integrate(method, *inputs, n_samples, path="runs")
-    assert (np.abs(inputs[1]).max(axis=1) * inputs[3]).max() > SMALL_ANGLE  # the fix-up path runs
+    assert (np.abs(inputs[1]).max(axis=1) * inputs[3]).max() > WIDE_ANGLE  # the fix-up path runs
     if method in ("seed_next", "seed_prev", "rk4"):  # the batch exercises the lanes' early exit
         assert (reference[1] == STATUS_ENERGY).any() and (reference[1] == STATUS_OK).any()
         assert (reference[2][reference[1] == STATUS_ENERGY] < reference[2].max()).all()
@@ -179,14 +179,16 @@ def test_runs_path_reports_the_overflowing_run():
 
 
 def test_replaced_helpers_switch_exactly_where_rotation_py_does():
-    """Below SMALL_ANGLE the NaN-poisoned helpers are rotation.py's, bit for bit; from the first angle where
-    rotation.py calls libm on, they return NaN."""
-    below, edge = np.nextafter(SMALL_ANGLE, 0.0), SMALL_ANGLE
+    """Below WIDE_ANGLE (the series, and from SMALL_ANGLE on its doubled form) the NaN-poisoned helpers
+    are rotation.py's, bit for bit, on both sides of SMALL_ANGLE; from the first angle where rotation.py
+    calls libm on, they return NaN."""
+    below, edge = np.nextafter(WIDE_ANGLE, 0.0), WIDE_ANGLE
     u = np.array([0.6, -0.48, 0.64])
-    for angle in (0.0, 1e-12, 0.1, below):
+    for angle in (0.0, 1e-12, 0.1, np.nextafter(SMALL_ANGLE, 0.0), SMALL_ANGLE, 0.3, 0.5, below):
         assert _quat_from_rotvec_or_nan(*(angle * u)) == quat_from_rotvec(*(angle * u))
         assert _half_angle_or_nan(-angle) == half_angle(-angle)
-    v = edge * np.array([0.0, 0.0, 1.0])  # angle2 = SMALL_ANGLE² exactly: libm
+        assert _half_angle_or_nan(angle) == half_angle(angle)
+    v = edge * np.array([0.0, 0.0, 1.0])  # angle2 = WIDE_ANGLE² exactly: libm
     assert np.isnan(_quat_from_rotvec_or_nan(*v)[0]) and not np.isnan(quat_from_rotvec(*v)[0])
     for angle in (edge, 1.0, np.inf, np.nan):
         assert np.isnan(_half_angle_or_nan(angle)[0]) and np.isnan(_half_angle_or_nan(-angle)[0])
@@ -194,18 +196,19 @@ def test_replaced_helpers_switch_exactly_where_rotation_py_does():
 
 @pytest.mark.parametrize("method", ["seed_next", "lie_poisson"])
 def test_lane_step_is_step_for_small_rotations_and_nan_for_large(method):
-    """lane_step gives step's bits while every rotation of the step is below SMALL_ANGLE (here ≤ 0.15 rad),
-    and NaN once one is beyond (≥ 0.23 rad), which sends the lane to the fix-up; ieee_step is step."""
+    """lane_step gives step's bits while every rotation of the step is below WIDE_ANGLE (here ≤ 0.5 rad,
+    both sides of SMALL_ANGLE), and NaN once one is beyond (≥ 1.15 rad), which sends the lane to the
+    fix-up; ieee_step is step."""
     step, fast, exact = METHODS[method].step, lane_step(METHODS[method].step), ieee_step(METHODS[method].step)
     body = build_scene("heavy_top", 10.0, 30.0).body
     q, dt = (0.9, 0.1, -0.3, 0.2), 1e-3
-    for angle in (1e-9, 0.05, 0.15, 0.3, 3.0):
+    for angle in (1e-9, 0.05, 0.15, 0.3, 0.5, 1.5, 3.0):
         # |ω| dt = angle; lie_poisson's free flow turns by 0.77 angle about (ω1, ω2, ω3 I3/I1).
         w = (0.6 * angle / dt, -0.48 * angle / dt, 0.64 * angle / dt)
         expected = step(w, q, dt, body)
         assert exact(w, q, dt, body) == expected
         got = fast(w, q, dt, body)
-        if angle < 0.2:
+        if angle < WIDE_ANGLE:
             assert got == expected
         else:
             assert np.isnan(got[1]).all()
@@ -225,14 +228,14 @@ def test_block_loop_is_vectorised():
 
 
 def test_many_large_rotations_switch_the_block_to_the_libm_pass():
-    """seed_next, 8 lanes: 3 turn by < SMALL_ANGLE per step, 5 by more.  steps() redoes the interval with
+    """seed_next, 8 lanes: 3 turn by < WIDE_ANGLE per step, 5 by more.  steps() redoes the interval with
     the vectorised libm pass and asks for it for WIDE_INTERVALS more (returns that count); either way every
     lane ends with the bits of 50 bare steps."""
     step = METHODS["seed_next"].step
     steps = make_block_steps(step)
     sc = build_scene("heavy_top", 50.0, 45.0)
     n, dt = VECTOR, 1e-4
-    spins = np.array([0.5, 1.0, 1.5, 3.0, 6.0, 10.0, 20.0, 40.0]) * SMALL_ANGLE / dt  # |ω| dt / SMALL_ANGLE
+    spins = np.array([0.25, 0.5, 0.75, 1.5, 3.0, 5.0, 10.0, 20.0]) * WIDE_ANGLE / dt  # |ω| dt / WIDE_ANGLE
     W = np.array([[0.0] * n, [0.0] * n, spins])
     Q, B, DT = np.tile(np.array(sc.q0)[:, None], (1, n)), np.tile(np.array(sc.body)[:, None], (1, n)), np.full(n, dt)
     expected = []
