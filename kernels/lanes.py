@@ -10,9 +10,11 @@ numba function it calls, with three changes and nothing else:
   the loop over lanes (numba's own ``inline="always"`` does the same on its
   IR, but takes ~100 s for lie_poisson4's ~140 nested calls);
 - ``quat_from_rotvec`` and ``half_angle``, the two helpers that branch between
-  the small-angle polynomial, its doubled form and libm, compute both polynomial
-  forms branch-free and return NaN where the original would have called libm
-  (angle ≥ WIDE_ANGLE or NaN).
+  the small-angle series, its doubled form (from SMALL_ANGLE) and libm (from
+  WIDE_ANGLE), take the series and return NaN where the original would not
+  (angle ≥ SMALL_ANGLE or NaN).  ``lane_step(step, wide=True)`` takes the series or
+  its doubled form by a select, NaN only where the original calls libm: a few
+  more operations a rotation, for blocks whose lanes turn by more (block.py).
 
 So on every lane where the result is finite it is bit for bit what ``step``
 returns (same operations in the same order; numba never contracts a·b + c
@@ -45,6 +47,26 @@ _WIDE_ANGLE2 = WIDE_ANGLE * WIDE_ANGLE
 
 
 @njit
+def _quat_from_rotvec_or_nan(v0, v1, v2):
+    """rotation.quat_from_rotvec's series branch; a = NaN where it would take another."""
+    angle2 = v0 * v0 + v1 * v1 + v2 * v2
+    a, s = _cos_sinc_half(angle2)
+    if not angle2 < _SMALL_ANGLE2:
+        a = math.nan
+    return a, s * v0, s * v1, s * v2
+
+
+@njit
+def _half_angle_or_nan(phi):
+    """rotation.half_angle's series branch; cos(φ/2) = NaN where it would take another."""
+    phi2 = phi * phi
+    c, s = _cos_sinc_half(phi2)
+    if not phi2 < _SMALL_ANGLE2:
+        c = math.nan
+    return c, s * phi
+
+
+@njit
 def _cos_sinc_half_or_nan(angle2):
     """rotation's _cos_sinc_half below SMALL_ANGLE², _cos_sinc_half_wide (the same operations, in
     order) up to WIDE_ANGLE², cos = NaN beyond (or for NaN); one polynomial, selects, no branch."""
@@ -62,27 +84,32 @@ def _cos_sinc_half_or_nan(angle2):
 
 
 @njit
-def _quat_from_rotvec_or_nan(v0, v1, v2):
-    """rotation.quat_from_rotvec's polynomial branches; a = NaN where it would call libm."""
+def _quat_from_rotvec_wide_or_nan(v0, v1, v2):
+    """rotation.quat_from_rotvec's two polynomial branches; a = NaN where it would call libm."""
     angle2 = v0 * v0 + v1 * v1 + v2 * v2
     a, s = _cos_sinc_half_or_nan(angle2)
     return a, s * v0, s * v1, s * v2
 
 
 @njit
-def _half_angle_or_nan(phi):
-    """rotation.half_angle's polynomial branches; cos(φ/2) = NaN where it would call libm."""
+def _half_angle_wide_or_nan(phi):
+    """rotation.half_angle's two polynomial branches; cos(φ/2) = NaN where it would call libm."""
     c, s = _cos_sinc_half_or_nan(phi * phi)
     return c, s * phi
 
 
 _REPLACED = {rotation.quat_from_rotvec: _quat_from_rotvec_or_nan, rotation.half_angle: _half_angle_or_nan}
+_REPLACED_WIDE = {
+    rotation.quat_from_rotvec: _quat_from_rotvec_wide_or_nan,
+    rotation.half_angle: _half_angle_wide_or_nan,
+}
 
 
-def lane_step(step):
-    """njit ``(w, q, dt, body) -> (w, q)``: ``step`` recompiled as described above;
-    non-finite output means "recompute this lane with ``ieee_step(step)``"."""
-    return _recompile(step, {}, _REPLACED, {"forceinline": True})
+def lane_step(step, wide=False):
+    """njit ``(w, q, dt, body) -> (w, q)``: ``step`` recompiled as described above (``wide``: the
+    doubled series too, NaN only from WIDE_ANGLE); non-finite output means "recompute this lane
+    with ``ieee_step(step)``"."""
+    return _recompile(step, {}, _REPLACED_WIDE if wide else _REPLACED, {"forceinline": True})
 
 
 def ieee_step(step, inline=False):

@@ -15,7 +15,14 @@ from gyrolab.kernels.batch import MIN_BLOCK_RUNS, integrate, sample_schedule
 from gyrolab.kernels.block import VECTOR, WIDE_INTERVALS, make_block_steps, plan_blocks
 from gyrolab.kernels.body import is_driven
 from gyrolab.kernels.driver import N_FIELDS, STATUS_ENERGY, STATUS_NONFINITE, STATUS_OK
-from gyrolab.kernels.lanes import _half_angle_or_nan, _quat_from_rotvec_or_nan, ieee_step, lane_step
+from gyrolab.kernels.lanes import (
+    _half_angle_or_nan,
+    _half_angle_wide_or_nan,
+    _quat_from_rotvec_or_nan,
+    _quat_from_rotvec_wide_or_nan,
+    ieee_step,
+    lane_step,
+)
 from gyrolab.kernels.registry import METHODS, uses_blocks
 from gyrolab.kernels.rotation import SMALL_ANGLE, WIDE_ANGLE, half_angle, quat_from_rotvec
 from gyrolab.kernels.scenes import SCENES, build_scene
@@ -178,28 +185,36 @@ def test_runs_path_reports_the_overflowing_run():
     assert (n_steps[status == STATUS_OK] == (n_samples - 1) * inputs[4][status == STATUS_OK]).all()
 
 
-def test_replaced_helpers_switch_exactly_where_rotation_py_does():
-    """Below WIDE_ANGLE (the series, and from SMALL_ANGLE on its doubled form) the NaN-poisoned helpers
-    are rotation.py's, bit for bit, on both sides of SMALL_ANGLE; from the first angle where rotation.py
-    calls libm on, they return NaN."""
-    below, edge = np.nextafter(WIDE_ANGLE, 0.0), WIDE_ANGLE
+@pytest.mark.parametrize(
+    "quat, half, edge",
+    [
+        (_quat_from_rotvec_or_nan, _half_angle_or_nan, SMALL_ANGLE),
+        (_quat_from_rotvec_wide_or_nan, _half_angle_wide_or_nan, WIDE_ANGLE),
+    ],
+)
+def test_replaced_helpers_switch_exactly_where_rotation_py_does(quat, half, edge):
+    """Below their edge (SMALL_ANGLE for the fast pass's helpers: the series; WIDE_ANGLE for the wide pass's:
+    the series and, from SMALL_ANGLE, its doubled form) the NaN-poisoned helpers are rotation.py's, bit for
+    bit; from the first angle where rotation.py takes another branch on, they return NaN."""
     u = np.array([0.6, -0.48, 0.64])
-    for angle in (0.0, 1e-12, 0.1, np.nextafter(SMALL_ANGLE, 0.0), SMALL_ANGLE, 0.3, 0.5, below):
-        assert _quat_from_rotvec_or_nan(*(angle * u)) == quat_from_rotvec(*(angle * u))
-        assert _half_angle_or_nan(-angle) == half_angle(-angle)
-        assert _half_angle_or_nan(angle) == half_angle(angle)
-    v = edge * np.array([0.0, 0.0, 1.0])  # angle2 = WIDE_ANGLE² exactly: libm
-    assert np.isnan(_quat_from_rotvec_or_nan(*v)[0]) and not np.isnan(quat_from_rotvec(*v)[0])
+    angles = [0.0, 1e-12, 0.1, np.nextafter(SMALL_ANGLE, 0.0), SMALL_ANGLE, 0.3, 0.5, np.nextafter(WIDE_ANGLE, 0.0)]
+    for angle in [a for a in angles if a < edge]:
+        assert quat(*(angle * u)) == quat_from_rotvec(*(angle * u))
+        assert half(-angle) == half_angle(-angle) and half(angle) == half_angle(angle)
+    v = edge * np.array([0.0, 0.0, 1.0])  # angle2 = edge² exactly: the next branch
+    assert np.isnan(quat(*v)[0]) and not np.isnan(quat_from_rotvec(*v)[0])
     for angle in (edge, 1.0, np.inf, np.nan):
-        assert np.isnan(_half_angle_or_nan(angle)[0]) and np.isnan(_half_angle_or_nan(-angle)[0])
+        assert np.isnan(half(angle)[0]) and np.isnan(half(-angle)[0])
 
 
+@pytest.mark.parametrize("wide", [False, True])
 @pytest.mark.parametrize("method", ["seed_next", "lie_poisson"])
-def test_lane_step_is_step_for_small_rotations_and_nan_for_large(method):
-    """lane_step gives step's bits while every rotation of the step is below WIDE_ANGLE (here ≤ 0.5 rad,
-    both sides of SMALL_ANGLE), and NaN once one is beyond (≥ 1.15 rad), which sends the lane to the
-    fix-up; ieee_step is step."""
-    step, fast, exact = METHODS[method].step, lane_step(METHODS[method].step), ieee_step(METHODS[method].step)
+def test_lane_step_is_step_for_small_rotations_and_nan_for_large(method, wide):
+    """lane_step gives step's bits while every rotation of the step is below SMALL_ANGLE (here ≤ 0.15 rad;
+    with wide=True below WIDE_ANGLE, here ≤ 0.5 rad), and NaN once one is beyond (≥ 0.23 rad; wide ≥ 1.15
+    rad), which sends the lane to the fix-up; ieee_step is step."""
+    step, exact = METHODS[method].step, ieee_step(METHODS[method].step)
+    fast = lane_step(step, wide=wide)
     body = build_scene("heavy_top", 10.0, 30.0).body
     q, dt = (0.9, 0.1, -0.3, 0.2), 1e-3
     for angle in (1e-9, 0.05, 0.15, 0.3, 0.5, 1.5, 3.0):
@@ -208,7 +223,7 @@ def test_lane_step_is_step_for_small_rotations_and_nan_for_large(method):
         expected = step(w, q, dt, body)
         assert exact(w, q, dt, body) == expected
         got = fast(w, q, dt, body)
-        if angle < WIDE_ANGLE:
+        if angle < (0.8 if wide else 0.2):
             assert got == expected
         else:
             assert np.isnan(got[1]).all()
@@ -227,15 +242,13 @@ def test_block_loop_is_vectorised():
     assert "fdiv <" in ir and "fmul <" in ir and " x double>" in ir
 
 
-def test_many_large_rotations_switch_the_block_to_the_libm_pass():
-    """seed_next, 8 lanes: 3 turn by < WIDE_ANGLE per step, 5 by more.  steps() redoes the interval with
-    the vectorised libm pass and asks for it for WIDE_INTERVALS more (returns that count); either way every
-    lane ends with the bits of 50 bare steps."""
+def large_rotation_lanes(scale):
+    """seed_next on 8 heavy-top lanes spun so that |ω| dt = scale × (0.25, 0.5, 0.75, 1.5, 3, 5, 10, 20)
+    (dt = 1e-4 s), and each lane's state after 100 bare steps."""
     step = METHODS["seed_next"].step
-    steps = make_block_steps(step)
     sc = build_scene("heavy_top", 50.0, 45.0)
     n, dt = VECTOR, 1e-4
-    spins = np.array([0.25, 0.5, 0.75, 1.5, 3.0, 5.0, 10.0, 20.0]) * WIDE_ANGLE / dt  # |ω| dt / WIDE_ANGLE
+    spins = np.array([0.25, 0.5, 0.75, 1.5, 3.0, 5.0, 10.0, 20.0]) * scale / dt
     W = np.array([[0.0] * n, [0.0] * n, spins])
     Q, B, DT = np.tile(np.array(sc.q0)[:, None], (1, n)), np.tile(np.array(sc.body)[:, None], (1, n)), np.full(n, dt)
     expected = []
@@ -244,10 +257,30 @@ def test_many_large_rotations_switch_the_block_to_the_libm_pass():
         for _ in range(100):
             w, q = step(w, q, dt, sc.body)
         expected.append(w + q)
-    S, BAD = np.empty((7, n)), np.zeros(n, np.uint8)
-    assert steps(W, Q, B, DT, S, BAD, n, 50, True, 0) == WIDE_INTERVALS
-    assert steps(W, Q, B, DT, S, BAD, n, 50, True, WIDE_INTERVALS) == WIDE_INTERVALS - 1
-    np.testing.assert_array_equal(np.vstack([W, Q]).T, np.array(expected))
+    return make_block_steps(step), (W, Q, B, DT, np.empty((7, n)), np.zeros(n, np.uint8), n), np.array(expected)
+
+
+@pytest.mark.parametrize("scale, lanes_on_wide, returned", [(WIDE_ANGLE / 25, 2, (0, 0)), (WIDE_ANGLE / 12, 4, (7, 6))])
+def test_many_rotations_beyond_the_series_switch_the_block_to_the_wide_pass(scale, lanes_on_wide, returned):
+    """A few lanes (2 of 8) turning by SMALL_ANGLE or more a step are redone one by one; more (4 of 8, one of
+    them beyond WIDE_ANGLE) make steps() redo the interval with the wide pass and ask for it for WIDE_INTERVALS
+    more (returns that count, then counts down).  Every lane ends with the bits of 100 bare steps."""
+    steps, (W, Q, B, DT, S, BAD, n), expected = large_rotation_lanes(scale)
+    assert (W[2] * DT >= SMALL_ANGLE).sum() == lanes_on_wide and (W[2] * DT >= WIDE_ANGLE).sum() <= 1
+    first = steps(W, Q, B, DT, S, BAD, n, 50, True, 0)
+    assert (first, steps(W, Q, B, DT, S, BAD, n, 50, True, first)) == returned
+    assert returned[0] in (0, WIDE_INTERVALS)
+    np.testing.assert_array_equal(np.vstack([W, Q]).T, expected)
+
+
+def test_many_large_rotations_switch_the_block_to_the_libm_pass():
+    """5 of 8 lanes turn by WIDE_ANGLE or more per step: steps() redoes the interval with the wide pass, then,
+    as that leaves the 5 lanes non-finite, with the vectorised libm pass, and asks for that for WIDE_INTERVALS
+    more (returns minus that count, then counts up); every lane ends with the bits of 100 bare steps."""
+    steps, (W, Q, B, DT, S, BAD, n), expected = large_rotation_lanes(WIDE_ANGLE)
+    assert steps(W, Q, B, DT, S, BAD, n, 50, True, 0) == -WIDE_INTERVALS
+    assert steps(W, Q, B, DT, S, BAD, n, 50, True, -WIDE_INTERVALS) == -WIDE_INTERVALS + 1
+    np.testing.assert_array_equal(np.vstack([W, Q]).T, expected)
 
 
 def test_plan_blocks():

@@ -107,11 +107,11 @@ def test_tiny_angles_are_exact(angle2):
 
 def test_doubled_form_is_within_a_few_ulp_up_to_the_wide_angle():
     """From SMALL_ANGLE to WIDE_ANGLE (0.2 to 0.8 rad) rotation.py takes the series at a quarter of the angle and
-    doubles it twice (c ← 1 − 2 s² A, s ← s c): |c − cos h| < 1 ulp and |s − sin(h)/(2h)| < 2.5 ulp against
-    the exact rationals, both edges included.  Measured (printed with -s): max 0.71 ulp (c) and 1.93 ulp (s)
-here, 0.69 and 2.08 on another 3000 random angles;
-    libm's cos and sin are within 1 ulp, the quotient sin/angle that quat_from_rotvec formed from them
-    within ~1.5.  Each doubling adds about one rounding of s c to s, hence s's two ulps."""
+        doubles it twice (c ← 1 − 2 s² A, s ← s c): |c − cos h| < 1 ulp and |s − sin(h)/(2h)| < 2.5 ulp against
+        the exact rationals, both edges included.  Measured (printed with -s): max 0.71 ulp (c) and 1.93 ulp (s)
+    here, 0.69 and 2.08 on another 3000 random angles;
+        libm's cos and sin are within 1 ulp, the quotient sin/angle that quat_from_rotvec formed from them
+        within ~1.5.  Each doubling adds about one rounding of s c to s, hence s's two ulps."""
     rng = np.random.default_rng(12)
     lo, hi = SMALL_ANGLE * SMALL_ANGLE, WIDE_ANGLE * WIDE_ANGLE
     samples = np.concatenate([rng.uniform(lo, hi, 1500), [lo, np.nextafter(lo, 1.0), np.nextafter(hi, 0.0)]])
