@@ -67,17 +67,9 @@ def integrate_segment(method, inputs, state, n_intervals, threshold, bound, e0, 
     if state is not None:
         omega0, q0 = np.ascontiguousarray(state[:, :3]), np.ascontiguousarray(state[:, 3:])
     start = time.perf_counter()
+    limit = threshold if state is None else NO_BOUND
     samples, status, n_steps, final = integrate(
-        method,
-        bodies,
-        omega0,
-        q0,
-        dt,
-        stride,
-        n_intervals + 1,
-        threshold if state is None else NO_BOUND,
-        path="blocks",
-        final_state=True,
+        method, bodies, omega0, q0, dt, stride, n_intervals + 1, limit, path="blocks", final_state=True
     )
     wall = time.perf_counter() - start
     if state is not None:

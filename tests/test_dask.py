@@ -215,7 +215,7 @@ def test_bad_cluster_input_is_one_line_status_2_and_no_file(client, no_workers, 
 
 
 def test_long_chunks_go_segment_by_segment_on_the_cluster_and_resume_anywhere(client, tmp_path):
-    from test_segments import SWEEP  # 64 runs of rk4, 30 sample intervals
+    from test_segments import SWEEP, segment_samples  # 64 runs of rk4, 30 sample intervals
 
     cut = ("runner.chunk_seconds=1e-6", "output.figures=false")  # the shortest segments
     local = tmp_path / "local"
@@ -232,14 +232,7 @@ def test_long_chunks_go_segment_by_segment_on_the_cluster_and_resume_anywhere(cl
     partial = run / "results.h5.partial"
     proc = start(*SWEEP, *cut, *on_cluster(client), f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=0.3)
 
-    def segments_done():
-        try:
-            with np.load(partial / "segment-00000.npz") as segment:
-                return segment["samples"].shape[1] >= 4
-        except (OSError, KeyError, ValueError):
-            return False
-
-    wait_for(segments_done, proc)
+    wait_for(lambda: segment_samples(partial) >= 4, proc)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130 and "Finish with: gyrolab" in err, err

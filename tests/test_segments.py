@@ -129,6 +129,15 @@ SWEEP = ("sweep.method=[rk4]", *LONG[:2], "sweep.dt=[1e-3]", "sweep.t_end=3", "o
 SEGMENTED = ("runner.chunk_seconds=1e-6", "runner.threads=2", "output.figures=false")  # the shortest segments
 
 
+def segment_samples(partial, number=0):
+    """Samples journaled so far in the segment file of chunk ``number`` under ``partial`` (0 if none)."""
+    try:
+        with np.load(partial / f"segment-{number:05d}.npz") as segment:
+            return segment["samples"].shape[1]
+    except (OSError, KeyError, ValueError):
+        return 0
+
+
 def test_a_sweep_killed_mid_segment_resumes_to_identical_data(tmp_path):
     reference = tmp_path / "reference"
     assert_ok(gyrolab(*SWEEP, *SEGMENTED, f"hydra.run.dir={reference}", cwd=tmp_path))
@@ -136,14 +145,7 @@ def test_a_sweep_killed_mid_segment_resumes_to_identical_data(tmp_path):
     partial = run / "results.h5.partial"
     proc = start(*SWEEP, *SEGMENTED, f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=0.3)
 
-    def segments_done():
-        try:
-            with np.load(partial / "segment-00000.npz") as segment:
-                return segment["samples"].shape[1] >= 4
-        except (OSError, KeyError, ValueError):
-            return False
-
-    wait_for(segments_done, proc)
+    wait_for(lambda: segment_samples(partial) >= 4, proc)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     assert not list(partial.glob("chunk-*.npz"))
