@@ -6,7 +6,9 @@ either complete or absent; then its sha256 and expected shape are added to
 ``manifest.json`` (written the same way).  A resume verifies every chunk
 (``Journal.verify``: listed, checksum, keys, shapes, run numbers, finite
 samples of finished runs) and moves a bad one aside into
-``<out>.partial/rejected/`` so that its runs are computed again.  The results
+``<out>.partial/rejected/`` so that its runs are computed again.  A chunk cut in
+time keeps its samples so far and its runs' state in ``segment-NNNNN.npz`` (the
+same proof and checks) until the whole chunk is stored (``Journal.open_segments``).  The results
 file is assembled from the journal into a temporary name and renamed into
 place only when complete; then the journal is removed.  Temporaries a killed
 process left (``.<out>.tmp<pid>``) are removed by the next writer
