@@ -37,7 +37,6 @@ import shutil
 import signal
 import socket
 import subprocess
-import sys
 import tempfile
 import threading
 import time
@@ -418,9 +417,7 @@ class DaskCluster:
         BackendError when the cluster gives up on a chunk (the journal keeps the rest)."""
         todo = np.asarray(todo, dtype=np.int64)
         resumed, rejected = journal.open_segments(todo, grid.n_runs, grid.n_samples)
-        for name, reason in rejected:
-            message = f"{name} moved aside to {journal.rejected_dir}: {reason}; its runs are computed again"
-            print(f"gyrolab: journal: {message}", file=sys.stderr)
+        journal.report_set_aside(rejected)
         segmented = [SegmentedChunk(grid, number, arrays["runs"], arrays) for number, arrays in resumed]
         going_on = np.concatenate([c.runs for c in segmented]) if segmented else todo[:0]
         chunks = self.plan(grid, np.setdiff1d(todo, going_on), chunk_seconds)

@@ -23,7 +23,6 @@ import math
 import multiprocessing
 import os
 import signal
-import sys
 import time
 
 import numpy as np
@@ -348,9 +347,7 @@ def _run_missing(grid, journal, todo, threads, chunk_seconds, first_number, prog
     number = first_number
     remaining = np.sort(np.asarray(todo, dtype=np.int64))
     resumed, rejected = journal.open_segments(remaining, grid.n_runs, grid.n_samples)
-    for name, reason in rejected:
-        message = f"{name} moved aside to {journal.rejected_dir}: {reason}; its runs are computed again"
-        print(f"gyrolab: journal: {message}", file=sys.stderr)
+    journal.report_set_aside(rejected)
     while remaining.size:
         if resumed:  # a chunk a killed sweep left part-way in time: go on from its last segment
             chunk_number, arrays = resumed.pop(0)

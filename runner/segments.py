@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from ..kernels.batch import MIN_BLOCK_RUNS, integrate
+from ..kernels.batch import integrate
 from ..kernels.driver import ENERGY, STATUS_ENERGY, STATUS_NONFINITE, STATUS_OK, tolerances
 from ..kernels.real import is_real
 from .grid import JOURNAL_RATE, runs_in_blocks
@@ -38,12 +38,7 @@ def segmentable(grid, runs):
     method with blocks, MIN_BLOCK_RUNS runs or more, an undriven body) and it has two sample
     intervals or more."""
     method = grid.methods[int(grid.index(runs[:1])[0][0])]
-    return (
-        not is_real(method)
-        and len(runs) >= MIN_BLOCK_RUNS
-        and runs_in_blocks(method, len(runs), grid.driven)
-        and grid.n_samples > 2
-    )
+    return not is_real(method) and runs_in_blocks(method, len(runs), grid.driven) and grid.n_samples > 2
 
 
 def segment_length(grid, runs, estimate_seconds, chunk_seconds, done):

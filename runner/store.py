@@ -271,6 +271,15 @@ class Journal:
                 open_.append((int(SEGMENT_NAME.fullmatch(path.name).group(1)), {k: data[k] for k in SEGMENT_KEYS}))
         return open_, rejected
 
+    def report_set_aside(self, rejected):
+        """One line on stderr for each (file name, reason) that ``verify`` or ``open_segments`` moved
+        aside into ``rejected/``."""
+        for name, reason in rejected:
+            print(
+                f"gyrolab: journal: {name} moved aside to {self.rejected_dir}: {reason}; its runs are computed again",
+                file=sys.stderr,
+            )
+
     def record_chunk(self, path, n_runs):
         """Add a chunk file written by this or another process to the manifest."""
         if self._manifest is None:

@@ -159,12 +159,7 @@ def execute(cfg, grid, out, backend, chash, resume, run_dir):
     journal = Journal(out)
     if resume:
         journal.clean_temporaries()
-        for name, reason in journal.verify(grid.n_runs, grid.n_samples):
-            print(
-                f"gyrolab: journal: {name} moved aside to {journal.rejected_dir}: {reason}; "
-                "its runs are computed again",
-                file=sys.stderr,
-            )
+        journal.report_set_aside(journal.verify(grid.n_runs, grid.n_samples))
         done, number = journal.done_runs()
     else:
         try:
