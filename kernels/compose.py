@@ -32,7 +32,7 @@ loads suzuki4_exact's step, step_driven, run_batch and run_batch_driven from the
 nothing (``NUMBA_DEBUG_CACHE=1``: 4 loaded, 0 saved).  Alternatives weighed: a
 ``numba.literal_unroll`` loop over the table needs the base step as an argument (a dispatcher
 passed as a value is lowered to a raw pointer, which makes the caller uncacheable, driver.py);
-generated source would need ``exec`` again, which static readers cannot follow.
+generated source would need ``exec``, which static readers cannot follow (kernels/entry.py avoids it too).
 """
 
 from numba import njit

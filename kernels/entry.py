@@ -1,7 +1,7 @@
-"""The batch entry points of a method, made from one template for every method.
+"""The batch entry points of a method: three functions written once, here, compiled for each method.
 
-A method module defines ``step`` (and its declarations, see
-methods/README.md); ``add_entry_points(module)`` gives it
+A method module defines ``step`` (and its declarations, see methods/README.md);
+``add_entry_points(module)`` gives it its own compiled copy of
 
 - ``run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps)``:
   one ``prange`` over runs, each run by driver.make_advance's ``advance_run``;
@@ -13,41 +13,69 @@ methods/README.md); ``add_entry_points(module)`` gives it
   ``run_batch``'s arguments: driven bodies, one run after another
   (driver.make_advance_driven).  Compiled only when a driven scene runs.
 
-Both must be cached (the block kernel takes seconds to compile), and numba
+So the path from the runner into a method's step reads statically: kernels/batch.py calls
+``module.run_batch`` (``run_blocks``, ``run_batch_driven``), which is the function of that name
+below; its ``_advance_run`` (``_advance_queue``, ``_advance_driven``) is the loop that
+driver.make_advance (block.make_advance_queue, driver.make_advance_driven) builds around the
+method's ``step``.
+
+The copies must be cached (the block kernel takes seconds to compile), and numba
 caches a function by its source file and qualified name, keyed by its
 bytecode.  A closure made by a factory here would be cached under this
 file for every method alike, and its key (the pickled cell contents,
-dispatchers with per-process ids) would never match again.  So the template
-below is compiled once per method *as if it were written in the method's
-own file* (``compile(..., module.__file__)``) and run in the method's
-namespace: numba then caches ``<method>.run_batch`` next to that method's
-other functions, with the method's ``step`` bound as a global, exactly as a
-hand-written copy would be.  Staleness is handled by the cache directory,
-which is keyed by the hash of every kernel source file (kernels/__init__.py).
+dispatchers with per-process ids) would never match again.  So each copy is
+the function below with its code object re-homed in the method's file
+(``co_filename``) and its three loop names bound in globals of its own whose
+``__name__`` is the method's module: numba then caches ``<method>.run_batch`` next
+to that method's other functions, with the method's ``step`` inlined, exactly as a
+hand-written copy in the method file would be, under every cache locator.  Staleness is
+handled by the cache directory, which is keyed by the hash of every kernel source file
+(kernels/__init__.py).  (A compile error of a copy names the method's file with the line
+numbers of this one.)
 """
+
+import types
+
+from numba import njit, prange
 
 from .block import make_advance_queue
 from .driver import make_advance, make_advance_driven
 
-# The line numbers of these defs become part of the cache file names: keep them fixed.
-_TEMPLATE = """
-@_njit(cache=True, parallel=True, error_model="numpy")
+
+def _bound_per_method(factory):
+    """What the functions below call here: each method's copy binds the name to ``factory``'s loop
+    around its own step instead; called on the template itself, one clear error."""
+
+    def unbound(*args):
+        raise TypeError(f"kernels/entry.py holds templates: call a method's own copy (loop: {factory})")
+
+    return unbound
+
+
+_advance_run = _bound_per_method("driver.make_advance(step)")
+_advance_queue = _bound_per_method("block.make_advance_queue(step)")
+_advance_driven = _bound_per_method("driver.make_advance_driven(step_driven)")
+
+# The line numbers of these defs become part of the cache file names (numba's index is named
+# <method>.<function>-<line>); an edit here changes the core key, so no stale copy can load.
+
+
 def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
-    for i in _prange(w0.shape[0]):
+    """Integrate every run one by one, in parallel over runs (driver.make_advance)."""
+    for i in prange(w0.shape[0]):
         _advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
-"""
-_BLOCKS_TEMPLATE = """
-@_njit(cache=True, parallel=True, error_model="numpy")
+
+
 def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts, queues, state):
-    for t in _prange(queues.size - 1):
+    """Integrate the runs in vectorised blocks, one queue of blocks per thread (block.py)."""
+    for t in prange(queues.size - 1):
         _advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, state)
-"""
-_DRIVEN_TEMPLATE = """
-@_njit(cache=True, parallel=True, error_model="numpy")
+
+
 def run_batch_driven(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
-    for i in _prange(w0.shape[0]):
+    """Integrate driven bodies (a torque that depends on time), in parallel over runs."""
+    for i in prange(w0.shape[0]):
         _advance_driven(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
-"""
 
 
 def uses_blocks(module):
@@ -56,19 +84,24 @@ def uses_blocks(module):
     return getattr(module, "BLOCKS", True)
 
 
+def _compiled_copy(function, module, **loops):
+    """``function`` re-homed in ``module`` (its file and module name) with ``loops`` as its globals,
+    compiled, cached and parallel like every entry point."""
+    namespace = {"__name__": module.__name__, "__file__": module.__file__, "prange": prange, **loops}
+    code = function.__code__.replace(co_filename=module.__file__)
+    copy = types.FunctionType(code, namespace, function.__name__)
+    copy.__qualname__, copy.__doc__ = function.__qualname__, function.__doc__
+    return njit(cache=True, parallel=True, error_model="numpy")(copy)
+
+
 def add_entry_points(module):
     """Define ``run_batch``, ``run_blocks`` (unless the module says ``BLOCKS = False``) and
     ``run_batch_driven`` (if it has ``step_driven``) in ``module`` (a method module with ``step``)."""
-    from numba import njit, prange
-
-    namespace = vars(module)
-    namespace["_njit"], namespace["_prange"] = njit, prange
-    namespace["_advance_run"] = make_advance(module.step)
-    exec(compile(_TEMPLATE, module.__file__, "exec"), namespace)
+    module.run_batch = _compiled_copy(run_batch, module, _advance_run=make_advance(module.step))
     if uses_blocks(module):
-        namespace["_advance_queue"] = make_advance_queue(module.step)
-        exec(compile(_BLOCKS_TEMPLATE, module.__file__, "exec"), namespace)
+        module.run_blocks = _compiled_copy(run_blocks, module, _advance_queue=make_advance_queue(module.step))
     if hasattr(module, "step_driven"):
-        namespace["_advance_driven"] = make_advance_driven(module.step_driven)
-        exec(compile(_DRIVEN_TEMPLATE, module.__file__, "exec"), namespace)
+        module.run_batch_driven = _compiled_copy(
+            run_batch_driven, module, _advance_driven=make_advance_driven(module.step_driven)
+        )
     return module

@@ -18,6 +18,7 @@ from numba.core.dispatcher import Dispatcher
 
 import gyrolab
 from gyrolab.analysis.verdicts.classify import fit_order
+from gyrolab.kernels import entry as entry_points
 from gyrolab.kernels.batch import MIN_BLOCK_RUNS, integrate
 from gyrolab.kernels.closed_form import free_symmetric_solution
 from gyrolab.kernels.invariants import INVARIANTS
@@ -93,6 +94,30 @@ def test_registry_contract(name):
     runs, blocks = integrate(name, *args, path="runs"), integrate(name, *args, path="blocks")
     for a, b in zip(runs, blocks):
         np.testing.assert_array_equal(a, b)
+
+
+def test_entry_points_are_the_functions_written_in_entry_py():
+    """The path from kernels/batch.py into a method's step reads statically (issue 21 item 5): each
+    method's run_batch, run_blocks and run_batch_driven is its own compiled copy of the function of that
+    name in kernels/entry.py (same bytecode), homed in the method's module and file so that numba caches
+    it with the method; no kernel, runner or analysis file builds code with exec; and a template called
+    as it is says so in one line."""
+    checked = 0
+    for name, module in METHODS.items():
+        for entry_name in ("run_batch", "run_blocks", "run_batch_driven"):
+            if not hasattr(module, entry_name):
+                continue
+            copy, written = getattr(module, entry_name).py_func, getattr(entry_points, entry_name)
+            assert copy.__code__.co_code == written.__code__.co_code, (name, entry_name)
+            assert copy.__module__ == module.__name__ and copy.__code__.co_filename == module.__file__
+            checked += 1
+    assert checked >= 2 * len(METHODS)
+    package = Path(gyrolab.kernels.__file__).resolve().parents[1]
+    for folder in ("kernels", "runner", "analysis"):
+        for path in (package / folder).rglob("*.py"):
+            assert "exec(compile(" not in path.read_text(), path
+    with pytest.raises(TypeError, match="holds templates"):
+        entry_points.run_batch(np.zeros((1, 3)), *[None] * 8)
 
 
 def test_registry_refuses_a_broken_method_in_one_line():
