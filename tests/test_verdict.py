@@ -298,6 +298,18 @@ def test_a_rounding_level_trend_is_a_rounding_drift_whatever_the_window_calls_it
     assert V.fmt_preserved([dict(rec, amplitude=1e-9, n_steps=1_000_000)]) == "!L declared, not kept"
 
 
+def test_an_invariant_whose_bits_never_move_is_exact_not_bounded_by_zero():
+    """Issue 26: an invariant kept to the last bit (L3 of the heavy top under every method) read
+    'bounded (≤ 0)'; it says exact, and a bound above zero keeps its number."""
+    from gyrolab.analysis.verdicts.cells import fmt_drift
+
+    t = np.linspace(0.0, 10.0, 201)
+    d = classify.classify_drift(t, np.zeros_like(t))
+    assert d.drift_class == "bounded" and d.amplitude == 0
+    assert fmt_drift({"drift_class": "bounded", "amplitude": 0.0}) == "exact (e = 0 at every sample)"
+    assert fmt_drift({"drift_class": "bounded", "amplitude": 6.6e-16}) == "bounded (≤ 6.6e-16)"
+
+
 def test_a_diverged_run_is_diverged_in_every_invariant_derived_or_stored():
     """Issue 26: |L| (derived from L) of a run its kernel stopped was read as 0 after the stop (xarray's sum
     skips NaN), so the verdict called explicit_euler's L_norm 'bounded (≤ 2.5)' beside its diverged

@@ -62,6 +62,8 @@ def fmt_drift(rec, short=False):
         return "—"
     if c == "bounded":
         amp, late = rec.get("amplitude"), rec.get("late_mean")
+        if amp == 0:  # the invariant's bits never moved: "bounded (≤ 0)" would undersell it
+            return "exact (e = 0)" if short else "exact (e = 0 at every sample)"
         settles = (
             f", settles at {late:.2g}" if late is not None and amp and amp > 1e-6 and abs(late) > 0.5 * amp else ""
         )
