@@ -50,9 +50,16 @@ from numba.core import event
 
 from ..version import __version__
 from .config import ConfigError
-from .execute import BackendError, chunk_delay, chunk_estimate, integrate_chunk, warm_up_methods
+from .execute import (
+    BackendError,
+    chunk_delay,
+    chunk_estimate,
+    integrate_chunk,
+    segment_files_seconds,
+    warm_up_methods,
+)
 from .grid import estimate_seconds, plan_chunks, runs_in_blocks
-from .segments import SegmentedChunk, integrate_segment, segment_length, segmentable
+from .segments import SegmentedChunk, cut_in_time, integrate_segment, segment_length
 
 LOCAL = "local"  # runner.address that starts a LocalCluster in this process
 CHUNKS_PER_WORKER = 4  # at least this many chunks per worker: balance and small losses on a worker crash
@@ -374,6 +381,11 @@ class DaskCluster:
         """Estimated compute time (s) of the chunks spread evenly over the workers (no JIT)."""
         return estimate_seconds(grid, chunks, self.chunk_threads) / max(len(self.workers), 1)
 
+    def segment_files_seconds(self, grid, chunks, chunk_seconds):
+        """Estimated wall time (s) of the segment files of the chunks cut in time (written here, by the
+        client, as their segments arrive)."""
+        return segment_files_seconds(grid, chunks, self.chunk_threads, chunk_seconds)
+
     def plan(self, grid, runs, chunk_seconds):
         """Chunks of ``runs`` as the local planner makes them (sized for the smallest worker),
         made finer until there are CHUNKS_PER_WORKER per worker or chunks cannot shrink."""
@@ -455,7 +467,7 @@ class DaskCluster:
             next_segment(chunk)
         for i, runs in enumerate(chunks):
             number, estimate = first_number + i, chunk_estimate(grid, runs, threads, {})
-            if estimate > 2 * chunk_seconds and segmentable(grid, runs):
+            if cut_in_time(grid, runs, estimate, chunk_seconds):
                 estimates[number] = estimate
                 next_segment(SegmentedChunk(grid, number, runs))
                 continue

@@ -31,7 +31,7 @@ from ..kernels.batch import MIN_BLOCK_RUNS, integrate
 from ..kernels.real import is_real
 from .compile import compile_jobs, compile_kernels, die_with_parent, kernel_cached
 from .grid import plan_chunks, runs_in_blocks, step_rate
-from .segments import SegmentedChunk, integrate_segment, segment_length, segmentable
+from .segments import SegmentedChunk, cut_in_time, integrate_segment, segment_length, segment_writing_seconds
 
 # Test hook: seconds to sleep after each stored chunk, so a test can kill a sweep mid-way.
 DELAY_ENV = "GYROLAB_TEST_CHUNK_DELAY"
@@ -250,6 +250,14 @@ def chunk_estimate(grid, runs, threads, rates):
     return max(float(steps.sum()) / min(max(threads, 1), len(runs)), float(steps.max())) / rate
 
 
+def segment_files_seconds(grid, chunks, threads, chunk_seconds):
+    """Estimated wall time (s) of writing the segment files of the ``chunks`` (run indices) that a run
+    on ``threads`` threads cuts in time (runner/segments.py), at the planner's speeds."""
+    return sum(
+        segment_writing_seconds(grid, runs, chunk_estimate(grid, runs, threads, {}), chunk_seconds) for runs in chunks
+    )
+
+
 class ChunkWorker:
     """A spawned process that integrates chunks of one grid; ``run(runs)`` waits for a result
     in slices of POLL_SECONDS, so signals reach this process while the worker computes.
@@ -359,7 +367,7 @@ def _run_missing(grid, journal, todo, threads, chunk_seconds, first_number, prog
             runs, chunk_number, chunk = plan_chunks(grid, remaining, threads, chunk_seconds, rates)[0], number, None
             number += 1
         estimate = chunk_estimate(grid, runs, threads, path_rates)
-        if chunk is None and estimate > 2 * chunk_seconds and segmentable(grid, runs):
+        if chunk is None and cut_in_time(grid, runs, estimate, chunk_seconds):
             chunk = SegmentedChunk(grid, chunk_number, runs)
         if chunk is not None:
             result = _run_segments(chunk, journal, estimate, chunk_seconds, limit, threads, worker, progress, delay)

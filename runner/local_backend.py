@@ -3,8 +3,9 @@
 The backend interface the sweep (runner/sweep.py) speaks, shared with
 runner/dask_backend.py's ``DaskCluster``: ``threads``, ``remote``,
 ``describe()``, ``plan(grid, runs, chunk_seconds)``, ``estimate_seconds(grid,
-chunks)``, ``start()``, ``warm_up(grid)``, ``run_missing(grid, journal, todo,
-chunk_seconds, first_number, progress)``, and use as a context manager.
+chunks)``, ``segment_files_seconds(grid, chunks, chunk_seconds)``, ``start()``,
+``warm_up(grid)``, ``run_missing(grid, journal, todo, chunk_seconds,
+first_number, progress)``, and use as a context manager.
 """
 
 from . import execute
@@ -29,6 +30,10 @@ class LocalBackend:
     def estimate_seconds(self, grid, chunks):
         """Estimated integration time (s) of ``chunks`` on these threads."""
         return estimate_seconds(grid, chunks, self.threads)
+
+    def segment_files_seconds(self, grid, chunks, chunk_seconds):
+        """Estimated wall time (s) of the segment files of the chunks cut in time (runner/segments.py)."""
+        return execute.segment_files_seconds(grid, chunks, self.threads, chunk_seconds)
 
     def start(self):
         """Before the first chunk: numba runs the chunks on ``threads`` threads."""

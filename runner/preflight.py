@@ -232,21 +232,25 @@ def figure_memory(grid):
     return FIGURE_BASE_BYTES + FIGURE_PER_BYTE * grid.bytes_stored()
 
 
-def dry_run(grid, out, chunks, backend, peak, state, figures=True):
+def dry_run(grid, out, chunks, backend, peak, state, figures=True, chunk_seconds=1.0):
     """Print the plan of the sweep of ``grid`` into ``out`` on ``backend`` (runner/local_backend.py's
     interface): sizes, time and memory estimates (the figure step's from analysis/figures/cost.py), what
-    would compile; nothing runs.  ``figures``: the config's output.figures setting."""
+    would compile; nothing runs.  ``figures``: the config's output.figures setting; ``chunk_seconds``:
+    runner.chunk_seconds (the length of the segments of chunks cut in time)."""
     from ..analysis import figure_names, figure_step_seconds
 
     steps = grid.steps(np.arange(grid.n_runs))
     seconds, where = backend.estimate_seconds(grid, chunks), backend.describe()
     print(f"gyrolab dry run: {describe(grid)}")
     print(f"  steps per run: {steps.min():.3g} to {steps.max():.3g}; {len(chunks)} chunks on {where}")
-    writing, loading = estimate_writing_seconds(grid), LOAD_SECONDS * len(grid.methods)
+    segments = backend.segment_files_seconds(grid, chunks, chunk_seconds)  # long chunks' samples so far, rewritten
+    writing, loading = estimate_writing_seconds(grid) + segments, LOAD_SECONDS * len(grid.methods)
     compiling, cold, before = compile_estimate(grid)  # from numba's cache as it is now, per method and path
     print(
         f"  estimated time: {seconds + writing + loading + compiling:.3g} s to the results file "
-        f"({seconds:.3g} s integration, {writing:.3g} s journal and assembly, {loading:.2g} s loading kernels, "
+        f"({seconds:.3g} s integration, {writing:.3g} s journal and assembly"
+        + (f" ({segments:.2g} s of it the segment files of chunks cut in time)" if segments else "")
+        + f", {loading:.2g} s loading kernels, "
         f"{compiling:.0f} s compiling)"
     )
     each, drawing = figure_step_seconds(figure_names(figures), grid.shape, grid.n_samples)

@@ -41,6 +41,26 @@ def segmentable(grid, runs):
     return not is_real(method) and runs_in_blocks(method, len(runs), grid.driven) and grid.n_samples > 2
 
 
+def cut_in_time(grid, runs, estimate_seconds, chunk_seconds):
+    """Whether the chunk ``runs``, estimated at ``estimate_seconds`` of integration, is run in segments:
+    it would take more than two ``chunk_seconds`` and can be cut (``segmentable``)."""
+    return estimate_seconds > 2 * chunk_seconds and segmentable(grid, runs)
+
+
+def segment_writing_seconds(grid, runs, estimate_seconds, chunk_seconds):
+    """Estimated wall time (s) of the segment files of the chunk ``runs`` cut in time: after each segment
+    but the last (whose samples go to the chunk file, grid.estimate_writing_seconds), its samples so far,
+    at JOURNAL_RATE; the segments as ``segment_length`` makes them.  0 for a chunk not cut in time."""
+    if not cut_in_time(grid, runs, estimate_seconds, chunk_seconds):
+        return 0.0
+    seconds, done, last = 0.0, 0, grid.n_samples - 1
+    while True:
+        done += segment_length(grid, runs, estimate_seconds, chunk_seconds, done)
+        if done >= last:
+            return seconds
+        seconds += len(runs) * (done + 1) * grid.bytes_per_run() / grid.n_samples / JOURNAL_RATE
+
+
 def segment_length(grid, runs, estimate_seconds, chunk_seconds, done):
     """Sample intervals of the next segment of the chunk ``runs`` whose whole integration is estimated
     at ``estimate_seconds``, with samples 0..``done`` integrated: about ``chunk_seconds`` of work, and
@@ -136,7 +156,9 @@ class SegmentedChunk:
 
     def absorb(self, journal, part):
         """Add ``part`` (``integrate_segment``'s result for the last ``task``) to the samples so far
-        and journal them; returns the steps planned for the segment (for the progress bar)."""
+        and journal them (not after the last segment: the chunk file, written next, holds them; a sweep
+        killed between the two goes on from the segment before); returns the steps planned for the
+        segment (for the progress bar)."""
         n_intervals = self.pending
         if self.arrays is None:
             self.arrays = {"runs": self.runs, **part}
@@ -159,7 +181,8 @@ class SegmentedChunk:
                 "wall_time": wall,
                 "state": state,
             }
-        journal.write_segment(self.number, **self.arrays)
+        if not self.finished:
+            journal.write_segment(self.number, **self.arrays)
         return int(self.inputs[4].sum()) * n_intervals
 
     def next(self, journal, n_intervals, run):

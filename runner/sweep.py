@@ -103,6 +103,7 @@ def sweep(cfg, run_dir, stack):
             peak,
             state,
             OmegaConf.to_container(figures) if OmegaConf.is_list(figures) else figures,
+            cfg.runner.chunk_seconds,
         )
         return None
     if state == "done":

@@ -13,7 +13,7 @@ from gyrolab.kernels.batch import MIN_BLOCK_RUNS
 from gyrolab.runner import execute
 from gyrolab.runner.config import register_configs
 from gyrolab.runner.execute import run_chunk
-from gyrolab.runner.grid import build_grid, plan_chunks
+from gyrolab.runner.grid import JOURNAL_RATE, build_grid, plan_chunks
 from gyrolab.runner.segments import SegmentedChunk, integrate_segment, segmentable
 from gyrolab.runner.store import Journal
 
@@ -61,7 +61,8 @@ def test_a_chunk_cut_in_time_gives_the_bits_of_one_call(method):
             chunk.next(journal, lengths[k % len(lengths)], lambda *a: integrate_segment(*a, 2))
             k += 1
         cut = chunk.chunk()
-        assert journal.written[-1] == grid.n_samples and len(journal.written) > 1
+        # every segment but the last journaled (the chunk file follows it)
+        assert journal.written and journal.written[-1] < grid.n_samples
         for key in ("samples", "status", "n_steps"):
             np.testing.assert_array_equal(cut[key], whole[key])  # NaN == NaN here
         assert np.array_equal(np.signbit(cut["samples"]), np.signbit(whole["samples"]))
@@ -136,6 +137,27 @@ def segment_samples(partial, number=0):
             return segment["samples"].shape[1]
     except (OSError, KeyError, ValueError):
         return 0
+
+
+def test_the_dry_run_counts_the_segment_files_a_run_writes(tmp_path, monkeypatch):
+    """Issue 22: the segment files (each rewriting a chunk's samples so far) are part of the wait; the
+    estimate execute.segment_files_seconds gives for a plan is what run_missing then writes."""
+    grid = grid_of("sweep.method=[rk4]", *LONG[:2], "sweep.dt=[1e-3]", "sweep.t_end=20", "output.every=0.1")
+    runs = np.arange(grid.n_runs)
+    assert len(runs) == MIN_BLOCK_RUNS
+    chunk_seconds = 1e-3  # 1.3e6 steps, estimated at ~0.01 s: cut into segments
+    rows = []
+    journal = new_journal(tmp_path, grid)
+    write = Journal.write_segment
+    monkeypatch.setattr(
+        Journal, "write_segment", lambda self, n, **a: (rows.append(a["samples"].shape[1]), write(self, n, **a))
+    )
+    execute.run_missing(grid, journal, runs, 2, chunk_seconds, 0)
+    assert len(rows) >= 2 and rows == sorted(rows) and rows[-1] < grid.n_samples
+    written = len(runs) * sum(rows) * grid.bytes_per_run() / grid.n_samples / JOURNAL_RATE
+    estimated = execute.segment_files_seconds(grid, [runs], 2, chunk_seconds)
+    assert estimated == pytest.approx(written, rel=1e-12)
+    assert execute.segment_files_seconds(grid, [runs], 2, 10.0) == 0  # not cut in time: no segment files
 
 
 def test_a_sweep_killed_mid_segment_resumes_to_identical_data(tmp_path):
