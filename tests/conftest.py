@@ -6,7 +6,9 @@ Tests that sweep methods parametrise over ``registry.METHODS``, so a newly
 registered method inherits every one of them.
 """
 
+import ast
 import os
+import subprocess
 import sys
 
 import numpy as np
@@ -47,6 +49,68 @@ def pytest_collection_finish(session):
         reporter = session.config.pluginmanager.get_plugin("terminalreporter")
         report = reporter.write_line if reporter else print
     compile_methods(sorted(names), report=report)
+
+
+# Test modules that run in a pytest process of their own (issue 26: the suite's processes stay under 2 GB):
+# importing jax with jax-md or MJX adds ~0.7 GB that a test worker would otherwise hold to its end.
+OWN_PROCESS = ("test_jaxmd.py", "test_mjx.py", "test_real_jaxmd.py")
+_IN_OWN_PROCESS = "GYROLAB_TEST_OWN_PROCESS"
+
+
+def pytest_pycollect_makemodule(module_path, parent):
+    """An OWN_PROCESS module is collected as one item that runs it in a child pytest (in that child, as
+    a module like any other)."""
+    if module_path.name in OWN_PROCESS and not os.environ.get(_IN_OWN_PROCESS):
+        return OwnProcessModule.from_parent(parent, path=module_path)
+    return None
+
+
+class OwnProcessModule(pytest.File):
+    def collect(self):
+        item = OwnProcessRun.from_parent(self, name="in_its_own_process")
+        # -k with a test's name selects the module's run (the child applies the same -k)
+        tree = ast.parse(self.path.read_text())
+        item.extra_keyword_matches.update(n.name for n in tree.body if isinstance(n, ast.FunctionDef))
+        yield item
+
+
+class OwnProcessRun(pytest.Item):
+    """Run the module's tests in a child pytest (``-n 0``) with this run's -m and -k; fail with the
+    child's report of its failures, skip with its reasons when it ran nothing but skips."""
+
+    def runtest(self):
+        option = self.config.option
+        # as the README's `pytest` runs: the working directory not on sys.path, so the installed package
+        # (and its numba cache) is the one tested, not a checkout's copy of it
+        main = "import sys; del sys.path[0]; import pytest; sys.exit(pytest.main(sys.argv[1:]))"
+        command = [sys.executable, "-c", main, "-q", "-rfEs", "-n", "0", "-p", "no:cacheprovider", "-o"]
+        command += ["addopts=", str(self.path)]
+        command += ["-m", option.markexpr] if option.markexpr else []
+        command += ["-k", option.keyword] if option.keyword else []
+        env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST_XDIST")}
+        env[_IN_OWN_PROCESS] = "1"
+        child = subprocess.run(command, cwd=self.config.rootpath, env=env, capture_output=True, text=True)
+        out = child.stdout.strip()
+        summary = out.splitlines()[-1] if out else ""
+        if child.returncode == 5:
+            pytest.skip(f"no test of {self.path.name} selected")
+        if child.returncode != 0:
+            raise OwnProcessFailure(f"{self.path.name} in its own process: exit {child.returncode}\n{out[-6000:]}")
+        if " passed" not in summary and " skipped" in summary:
+            reasons = sorted({line.split(": ", 1)[-1] for line in out.splitlines() if line.startswith("SKIPPED")})
+            pytest.skip("; ".join(reasons) or summary)
+
+    def repr_failure(self, excinfo):
+        if isinstance(excinfo.value, OwnProcessFailure):
+            return str(excinfo.value)
+        return super().repr_failure(excinfo)
+
+    def reportinfo(self):
+        return self.path, None, f"{self.path.name} in its own process"
+
+
+class OwnProcessFailure(Exception):
+    """A child pytest of an OWN_PROCESS module failed (its report is the message)."""
 
 
 _ENGINE_MISSING = {}
