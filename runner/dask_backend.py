@@ -341,18 +341,25 @@ class DaskCluster:
             signal.signal(signal.SIGINT, previous)
         cluster = cls(Client(local, set_as_default=False, security=security), local, LOCAL, private)
         try:
-            cluster.check_workers(f"runner.address={LOCAL}", 60.0)
+            cluster.check_workers(f"runner.address={LOCAL}", 60.0, n_workers=n)
         except BaseException:
             cluster.close()
             raise
         return cluster
 
-    def check_workers(self, key, timeout):
-        """Wait for a worker; ConfigError unless every worker imports this gyrolab and numba."""
+    def check_workers(self, key, timeout, n_workers=1):
+        """Wait for ``n_workers`` workers (a cluster of our own: all it started, so that the plan and the
+        banner count them; a scheduler of the user's: the first); ConfigError unless every worker imports
+        this gyrolab and numba."""
         try:
-            self.client.wait_for_workers(1, timeout=timeout)
+            self.client.wait_for_workers(n_workers, timeout=timeout)
         except TimeoutError:
-            raise ConfigError(f"{key}: the scheduler has no workers (waited {timeout:g} s)") from None
+            try:
+                seen = len(self.client.scheduler_info().get("workers", {}))
+            except Exception:  # what the scheduler said last is only for the message
+                seen = 0
+            has = "no workers" if seen == 0 else f"{seen} of its {n_workers} workers"
+            raise ConfigError(f"{key}: the scheduler has {has} (waited {timeout:g} s)") from None
         try:
             self.workers = self.client.run(worker_info)
         except Exception as err:
