@@ -58,7 +58,12 @@ def segment_writing_seconds(grid, runs, estimate_seconds, chunk_seconds):
         done += segment_length(grid, runs, estimate_seconds, chunk_seconds, done)
         if done >= last:
             return seconds
-        seconds += len(runs) * (done + 1) * grid.bytes_per_run() / grid.n_samples / JOURNAL_RATE
+        seconds += _samples_so_far_seconds(grid, runs, done)
+
+
+def _samples_so_far_seconds(grid, runs, done):
+    """Estimated seconds of journaling the samples 0..``done`` of the chunk ``runs`` (a segment file)."""
+    return len(runs) * (done + 1) * grid.bytes_per_run() / grid.n_samples / JOURNAL_RATE
 
 
 def segment_length(grid, runs, estimate_seconds, chunk_seconds, done):
@@ -67,8 +72,7 @@ def segment_length(grid, runs, estimate_seconds, chunk_seconds, done):
     no less than WRITE_SHARE times the time of writing the samples so far, at least 1."""
     left = grid.n_samples - 1 - done
     per_interval = estimate_seconds / max(grid.n_samples - 1, 1)
-    written = len(runs) * (done + 1) * grid.bytes_per_run() / grid.n_samples / JOURNAL_RATE
-    seconds = max(chunk_seconds, WRITE_SHARE * written)
+    seconds = max(chunk_seconds, WRITE_SHARE * _samples_so_far_seconds(grid, runs, done))
     return max(1, min(left, int(seconds / max(per_interval, 1e-12))))
 
 
