@@ -52,8 +52,9 @@ def pytest_collection_finish(session):
 
 
 # Test modules that run in a pytest process of their own (issue 26: the suite's processes stay under 2 GB):
-# importing jax with jax-md or MJX adds ~0.7 GB that a test worker would otherwise hold to its end.
-OWN_PROCESS = ("test_jaxmd.py", "test_mjx.py", "test_real_jaxmd.py")
+# importing jax with jax-md or MJX adds ~0.7 GB that a test worker would otherwise hold to its end,
+# Newton/Warp and Basilisk ~0.14 and ~0.09 GB.
+OWN_PROCESS = ("test_jaxmd.py", "test_mjx.py", "test_real_jaxmd.py", "test_real_newton.py", "test_real_basilisk.py")
 _IN_OWN_PROCESS = "GYROLAB_TEST_OWN_PROCESS"
 
 
