@@ -69,6 +69,7 @@ def pytest_pycollect_makemodule(module_path, parent):
 class OwnProcessModule(pytest.File):
     def collect(self):
         item = OwnProcessRun.from_parent(self, name="in_its_own_process")
+        item.add_marker(pytest.mark.slow)  # a child interpreter that imports jax, Warp or Basilisk first
         # -k with a test's name selects the module's run (the child applies the same -k)
         tree = ast.parse(self.path.read_text())
         item.extra_keyword_matches.update(n.name for n in tree.body if isinstance(n, ast.FunctionDef))

@@ -118,6 +118,7 @@ def mujoco_badqacc_step(mujoco, w0, integrator="Euler", dt=1e-3, n=20_000):
     return None
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("w0", [(1e-6, 100.0, 0.0), (1.0, 100.0, 0.0), (0.01, 50.0, 0.01), (1.0, 200.0, 1.0)])
 def test_badqacc_step_of_the_real_mujoco(mujoco, w0):
     """MuJoCo's explicit gyroscopic update (its Euler integrator; implicitfast on a free body whose

@@ -135,6 +135,7 @@ def test_a_run_that_stopped_at_its_first_step_is_not_called_exact(results_file):
     assert not any("exactly conserved" in t.get_text() for ax in drift_figure(ds).axes for t in ax.texts)
 
 
+@pytest.mark.slow
 def test_standard_figures_default_and_single_run(results_file, single_run_file, tmp_path):
     paths = standard_figures(results_file, tmp_path / "a")
     assert [p.name for p in paths] == ["nutation_theta.png", "tip_locus.png", "energy_drift.png", "invariants.png"]

@@ -20,6 +20,7 @@ def close_figures():
     plt.close("all")
 
 
+@pytest.mark.slow
 def test_stability_map_cells_and_diverged_marks(tmp_path):
     # With a tight divergence threshold (|E − E0| > 0.2 (T0 + Mgl)) seed_prev's energy gain at the 10 Hz
     # top stops its runs within 3 s; rk4 stays far below it.
@@ -77,12 +78,14 @@ def seed_dir(tmp_path_factory):
     return root
 
 
+@pytest.mark.slow
 def test_seed_jobs_are_classified_by_regime(seed_dir):
     jobs = load_jobs([seed_dir])
     assert sorted(jobs) == ["cusp", "loop", "steady", "wave"]
     assert jobs["steady"][1] == pytest.approx(22.1) and jobs["loop"][1] == 20.0
 
 
+@pytest.mark.slow
 def test_seed_figures_content(seed_dir, tmp_path):
     jobs = load_jobs([seed_dir])
     fig = regimes_figure(jobs)
@@ -100,6 +103,7 @@ def test_seed_figures_content(seed_dir, tmp_path):
     assert [p.name for p in paths] == ["seed_regimes.png", "seed_remark1.png", "seed_next_vs_prev.png"]
 
 
+@pytest.mark.slow
 def test_work_precision_lines_and_peers(tmp_path):
     path = tmp_path / "work_precision.h5"
     build_dataset(

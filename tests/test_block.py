@@ -88,7 +88,13 @@ def test_driven_bodies_go_one_by_one_whatever_the_path():
     assert_same((out, status, n_steps), runs)
 
 
-@pytest.mark.parametrize("scene", BLOCK_SCENES)
+# `pytest -m "not slow"` keeps the symmetric pass (the top) and the general one (the box) of every method
+FAST_SCENES = ("heavy_top", "free_asymmetric")
+
+
+@pytest.mark.parametrize(
+    "scene", [pytest.param(s, marks=() if s in FAST_SCENES else pytest.mark.slow) for s in BLOCK_SCENES]
+)
 @pytest.mark.parametrize("method", BLOCK_METHODS)
 def test_blocks_equal_runs_bit_for_bit(method, scene):
     """36 runs (not a whole number of 8-lane vectors): 2, 50, 400 Hz x θ0 5°, 60°, 120° x dt 1e-4 .. 1e-2
@@ -207,6 +213,7 @@ def test_replaced_helpers_switch_exactly_where_rotation_py_does(quat, half, edge
         assert np.isnan(half(angle)[0]) and np.isnan(half(-angle)[0])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("wide", [False, True])
 @pytest.mark.parametrize("method", ["seed_next", "lie_poisson"])
 def test_lane_step_is_step_for_small_rotations_and_nan_for_large(method, wide):
@@ -229,6 +236,7 @@ def test_lane_step_is_step_for_small_rotations_and_nan_for_large(method, wide):
             assert np.isnan(got[1]).all()
 
 
+@pytest.mark.slow
 def test_block_loop_is_vectorised():
     """The loop over lanes compiles to packed double arithmetic (SSE2 and up: <2 x double> or wider).
     Guards against a change to a step that LLVM cannot vectorise (a libm call outside the two helpers
@@ -260,6 +268,7 @@ def large_rotation_lanes(scale):
     return make_block_steps(step), (W, Q, B, DT, np.empty((7, n)), np.zeros(n, np.uint8), n), np.array(expected)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scale, lanes_on_wide, returned", [(WIDE_ANGLE / 25, 2, (0, 0)), (WIDE_ANGLE / 12, 4, (7, 6))])
 def test_many_rotations_beyond_the_series_switch_the_block_to_the_wide_pass(scale, lanes_on_wide, returned):
     """A few lanes (2 of 8) turning by SMALL_ANGLE or more a step are redone one by one; more (4 of 8, one of
@@ -273,6 +282,7 @@ def test_many_rotations_beyond_the_series_switch_the_block_to_the_wide_pass(scal
     np.testing.assert_array_equal(np.vstack([W, Q]).T, expected)
 
 
+@pytest.mark.slow
 def test_many_large_rotations_switch_the_block_to_the_libm_pass():
     """5 of 8 lanes turn by WIDE_ANGLE or more per step: steps() redoes the interval with the wide pass, then,
     as that leaves the 5 lanes non-finite, with the vectorised libm pass, and asks for that for WIDE_INTERVALS

@@ -114,6 +114,7 @@ def test_bounded_sine_with_noise():
     assert not d.preserved_to_rounding
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(20))
 def test_bounded_modulated_oscillations(seed):
     """Amplitude-modulated sines and slow beats (periods 10..200 s) are bounded, not a wander."""
@@ -138,6 +139,7 @@ def test_linear_under_an_oscillation(rate):
     assert abs(d.rate - rate) < 5 * d.rate_stderr + 1e-3 * abs(rate)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(10))
 def test_random_walk_from_a_seeded_cumulative_sum(seed):
     """e = σ W(t) (σ = 2e-13 /√s, rounding-sized steps): a wander (issue 25: the class no longer claims
@@ -336,6 +338,7 @@ def test_the_labelled_set_is_large_and_covers_every_class():
     assert {c[3] for c in LABELLED} == set(DRIFT_CLASSES)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", LABELLED, ids=[c[0] for c in LABELLED])
 def test_labelled_drift_series(case):
     """Every labelled series gets its class (100 % of the set)."""
@@ -344,6 +347,7 @@ def test_labelled_drift_series(case):
     assert d.drift_class == expected, (name, d.drift_class, d.reason)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", [c for c in LABELLED if c[3] in ("linear", "collapse")], ids=lambda c: c[0])
 def test_every_fitted_line_lies_on_its_data(case):
     """What a verdict figure draws (``Drift.fitted``) at the record's end is within a factor 2 of the
@@ -520,6 +524,7 @@ def final_state_error(name, sc, reference, dt, t_end=1.0):
     return max(np.max(np.abs(final[:3] - reference[:3])), np.max(np.abs(final[3:6] - reference[3:6])) / sc.omega0[2])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", TRUE_ORDER)
 def test_measured_order_is_the_true_order(name, heavy_top_reference):
     """Heavy top, 50 Hz, θ0 = 45°, released; final state at 1 s against DOP853 (1e-13) for

@@ -42,6 +42,7 @@ def plot(*args):
         return done.code, []
 
 
+@pytest.mark.slow
 def test_a_member_carries_the_attrs_of_its_scene(runs):
     """The slice of a combined file is the one-scene file it came from: the scene, its options, the
     invariants it conserves and its closed form (the attrs that differ between the scenes, which
@@ -62,6 +63,7 @@ def test_a_member_carries_the_attrs_of_its_scene(runs):
     assert conserved["heavy_top"] != conserved["free_symmetric"]
 
 
+@pytest.mark.slow
 def test_plot_a_scene_of_a_combined_file(runs, tmp_path):
     out = tmp_path / "top.png"
     assert plot("energy", runs["combined"], "scene=heavy_top", "-o", out)[0] == 0
@@ -109,6 +111,7 @@ def test_a_scene_selection_on_a_one_scene_file(runs, tmp_path, capsys):
     assert len(err) == 1 and "is not a combined file (one scene, heavy_top)" in err[0]
 
 
+@pytest.mark.slow
 def test_plot_standard_of_a_combined_file_draws_every_scene(runs, tmp_path):
     done = subprocess.run(
         [str(BIN / "gyrolab-plot"), "standard", str(runs["combined"]), "-o", str(tmp_path / "figs")],

@@ -137,6 +137,7 @@ def test_one_changed_value_is_found_with_its_run_and_time(base, pair):
     assert text.splitlines()[-1] == "RESULT: DIFFERENT, energy out of tolerance in 1 of 8 runs"
 
 
+@pytest.mark.slow
 def test_tolerances_default_and_per_variable(pair):
     a, variant = pair
     b = variant(_bump_energy)
@@ -176,6 +177,7 @@ def test_nan_in_both_is_equal_nan_against_number_is_not(pair):
     assert "4/88 (4 NaN)" in report.text()
 
 
+@pytest.mark.slow
 def test_status_and_n_steps_are_exact_wall_time_ignored(pair):
     a, variant = pair
 
@@ -199,6 +201,7 @@ def test_runs_match_by_label_not_position(pair):
     assert compare_files(a, b).ok
 
 
+@pytest.mark.slow
 def test_different_grids_cannot_be_compared(pair):
     a, variant = pair
     fewer = variant(lambda ds: ds.isel(f=[0]), "fewer.h5")
@@ -257,6 +260,7 @@ def test_parse_tolerances():
         parse_tolerances(["-1"], "--rtol")
 
 
+@pytest.mark.slow
 def test_main_exit_status_and_one_line_errors(pair, tmp_path, capsys):
     a, variant = pair
     b = variant(_bump_energy)
@@ -282,6 +286,7 @@ def test_main_exit_status_and_one_line_errors(pair, tmp_path, capsys):
     assert capsys.readouterr().err.count("\n") == 1
 
 
+@pytest.mark.slow
 def test_console_script(pair):
     """The installed command: exit 0 / 1 / 2 as documented."""
     a, variant = pair
@@ -294,6 +299,7 @@ def test_console_script(pair):
     assert codes == [0, 1, 2]
 
 
+@pytest.mark.slow
 def test_a_config_attr_that_is_not_a_gyrolab_config_is_compared_as_text(tmp_path):
     """A file whose ``config`` attr is not a YAML mapping (hand-made, foreign) compares without a
     traceback; two such texts that differ are named as a config difference, not an error."""
@@ -307,6 +313,7 @@ def test_a_config_attr_that_is_not_a_gyrolab_config_is_compared_as_text(tmp_path
     assert report.ok and any("config" in note for note in report.configs), report.text()
 
 
+@pytest.mark.slow
 def test_a_combined_members_provenance_comes_from_its_source_variables(base, tmp_path):
     from gyrolab.analysis.files.combine import main as combine_main
 

@@ -27,6 +27,7 @@ def cached_files(cache):
     return sorted(p.name for p in cache.rglob("*") if p.suffix in (".nbi", ".nbc"))
 
 
+@pytest.mark.slow
 def test_unknown_method_and_bad_jobs_are_one_line(tmp_path):
     for args in (["no_such_method"], ["--jobs", "0", "rk4"]):
         result = compile_cli(*args, cache=tmp_path / "cache")

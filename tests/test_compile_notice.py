@@ -3,9 +3,12 @@ compiles and one when done; nothing for a kernel loaded at once from a warm cach
 
 import time
 
+import pytest
+
 from gyrolab.runner.execute import _compile_notice
 
 
+@pytest.mark.slow
 def test_a_long_warm_up_is_named_while_it_lasts_and_when_done(capsys):
     with _compile_notice("block kernels of lie_poisson4 (3/5)", after=0.01):
         time.sleep(1.0)  # a hundred times the notice's delay: the line is printed inside the block

@@ -48,6 +48,7 @@ def test_every_group_option_composes_and_builds(group):
         build_grid(composed(f"{group}={option}"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("experiment", options("experiment"))
 def test_every_experiment_composes_and_builds(experiment):
     cfg = composed(f"experiment={experiment}")

@@ -68,6 +68,7 @@ def stats(client):
     return client.run(lambda: dict(dask_backend.STATS))
 
 
+@pytest.mark.slow
 def test_cluster_sweep_file_equals_the_local_one(client, reference, tmp_path):
     before = stats(client)
     result = gyrolab(*TINY, *SLOW, *on_cluster(client), f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
@@ -93,6 +94,7 @@ def test_cluster_sweep_file_equals_the_local_one(client, reference, tmp_path):
     )
 
 
+@pytest.mark.slow
 def test_a_worker_killed_mid_sweep_loses_nothing(client, reference, tmp_path):
     run = tmp_path / "run"
     pids = client.run(os.getpid)
@@ -110,6 +112,7 @@ def test_a_worker_killed_mid_sweep_loses_nothing(client, reference, tmp_path):
     assert all(s["jit_in_chunks"] == 0 for s in stats(client).values())
 
 
+@pytest.mark.slow
 def test_interrupted_cluster_sweep_resumes_on_the_local_backend(client, reference, tmp_path):
     run = tmp_path / "run"
     proc = start(*TINY, *SLOW, *on_cluster(client), f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=0.3)
@@ -123,6 +126,7 @@ def test_interrupted_cluster_sweep_resumes_on_the_local_backend(client, referenc
     xr.testing.assert_identical(data(run / "results.h5"), data(reference))
 
 
+@pytest.mark.slow
 def test_address_local_starts_its_own_cluster(reference, tmp_path):
     result = gyrolab(*TINY, "runner=dask", "runner.threads=2", f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
     assert_ok(result)
@@ -130,6 +134,7 @@ def test_address_local_starts_its_own_cluster(reference, tmp_path):
     xr.testing.assert_identical(data(tmp_path / "run" / "results.h5"), data(reference))
 
 
+@pytest.mark.slow
 def test_dry_run_on_a_cluster_plans_several_chunks_per_worker_and_writes_nothing(client, tmp_path):
     result = gyrolab(*TINY, *on_cluster(client), "runner.dry_run=true", cwd=tmp_path)
     assert_ok(result)
@@ -198,6 +203,7 @@ BAD = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args, message", BAD, ids=[" ".join(a)[:50] for a, _ in BAD])
 def test_bad_cluster_input_is_one_line_status_2_and_no_file(client, no_workers, tmp_path, args, message):
     existing = tmp_path / "old.h5"
@@ -214,6 +220,7 @@ def test_bad_cluster_input_is_one_line_status_2_and_no_file(client, no_workers, 
     assert existing.read_bytes() == b"an earlier result"
 
 
+@pytest.mark.slow
 def test_long_chunks_go_segment_by_segment_on_the_cluster_and_resume_anywhere(client, tmp_path):
     from test_segments import SWEEP, segment_samples  # 64 runs of rk4, 30 sample intervals
 

@@ -111,6 +111,7 @@ def test_conformance_json_has_the_rows_nan_as_null(monkeypatch):
     assert set(doc["engines"].values()) == {None}
 
 
+@pytest.mark.slow
 def test_write_then_check_in_a_scratch_copy(tmp_path):
     readme = tmp_path / "README.md"
     shutil.copy(ROOT / "README.md", readme)

@@ -176,6 +176,7 @@ PRESERVE_SCENES = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scene", PRESERVE_SCENES)
 @pytest.mark.parametrize("name", ENGINE_METHODS)
 def test_declared_invariants_are_kept(name, scene):

@@ -122,6 +122,7 @@ def test_t0_reproduces_initial_state_near_separatrix():
     assert ew <= 2e4 and eq <= 2e4
 
 
+@pytest.mark.slow
 def test_forward_then_back():
     """Forward by t then back by −t (two calls of free_flow_exact) on 1e5 random states, t uniform in
     [0, one flip period]: within 1e3 ULP for states at relative distance ≥ 1e-3 from the separatrix.
@@ -150,6 +151,7 @@ def test_forward_then_back():
     assert ew[ok].max() <= 1e3 and eq[ok].max() <= 1e3
 
 
+@pytest.mark.slow
 def test_invariants_over_1e4_periods():
     """200 random bodies, 2000 times each spread over 2e4 flip periods (1e4 full periods of m(t)):
     E, |L| within 32 ULP of their initial values and the lab vector L = R I ω within 32 ULP of |L|.
@@ -321,6 +323,7 @@ def test_splitting_contract(name):
     assert set(module.PRESERVES) <= {"energy", "L", "L_norm", "Lz", "L3"}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", SPLITTINGS)
 def test_splitting_declared_order_on_heavy_asymmetric_body(name):
     """Heavy asymmetric body (I = (1, 1.4, 0.7), mgl = 2, ω0 = (0.4, −0.3, 6), tilted 30°), final state at
@@ -346,6 +349,7 @@ def test_splitting_declared_order_on_heavy_asymmetric_body(name):
     assert abs(slope - module.ORDER) <= 0.3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", SPLITTINGS)
 def test_splitting_exact_on_free_asymmetric_body(name):
     """mgl = 0: the kicks vanish and 40 steps of any dt (1e-3 .. 25 flip periods, and backwards) equal one call
@@ -389,6 +393,7 @@ def test_splitting_box_near_separatrix():
     assert err <= 1e-12
 
 
+@pytest.mark.slow
 def test_lane_step_is_bit_for_bit():
     """lanes.lane_step(strang_exact.step) (the forceinline recompilation of the block path, with the
     small-angle polynomial in place of libm in half_angle/quat_from_rotvec) returns step's bits on the box at
@@ -409,6 +414,7 @@ def test_lane_step_is_bit_for_bit():
         assert a == b
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", SPLITTINGS)
 def test_splitting_invariants_do_not_drift(name):
     """2e5 steps of dt = 1e-4 on the free box (eps = 1e-3, 10 Hz) and on I = (1, 2, 3): |L| and E stay

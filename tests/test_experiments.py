@@ -26,6 +26,7 @@ def test_every_experiment_is_listed():
     assert {"default", "verdict", "verdict_ladder", "verdict_long", "engines", "sciml_rigid_body"} <= set(EXPERIMENTS)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", EXPERIMENTS)
 def test_pinned_experiment_plans_without_error(tmp_path, name):
     result = gyrolab(f"experiment={name}", "runner.dry_run=true", cwd=tmp_path, timeout=600)
@@ -103,6 +104,7 @@ def test_pinned_experiment_runs_at_tiny_size(tmp_path, name):
             assert drawn, f"{path}: figure {figure} ({file_name}) was not drawn"
 
 
+@pytest.mark.slow
 def test_the_verdict_study_plans_every_job_and_its_post_step(tmp_path):
     """A multirun's sweeper params (experiment=verdict: scene=glob(*) x ladder, long) are planned job by job,
     the verdict after them is estimated (analysis/verdicts/cost.py), and nothing reads as a failed step."""

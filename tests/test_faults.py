@@ -87,6 +87,7 @@ def check_interrupted(tmp_path, reference, sig, phase, seed):
     assert stray_files(run) == [], "no journal, lock or temporary left"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "sig, phase",
     [(signal.SIGTERM, "integration"), (signal.SIGKILL, "assembly")],
@@ -103,6 +104,7 @@ def test_signal_matrix(tmp_path, reference, sig, phase, seed):
     check_interrupted(tmp_path, reference, sig, phase, seed)
 
 
+@pytest.mark.slow
 def test_repeated_signals_print_no_traceback(tmp_path):
     run = tmp_path / "run"
     proc = start(*TINY, *SLOW, f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=0.3)
@@ -117,6 +119,7 @@ def test_repeated_signals_print_no_traceback(tmp_path):
     assert proc.returncode == 130 and "Traceback" not in err, err
 
 
+@pytest.mark.slow
 def test_ctrl_c_is_answered_within_seconds_in_a_long_single_run(tmp_path):
     run = tmp_path / "run"
     args = [
@@ -168,6 +171,7 @@ def _cpu_seconds(pid):
     return total
 
 
+@pytest.mark.slow
 def test_chunks_in_the_worker_process_give_the_same_bits(tmp_path, reference):
     run = tmp_path / "run"
     result = gyrolab(
@@ -239,6 +243,7 @@ def test_damaged_manifest_is_one_line(tmp_path, fault):
     assert "\n" not in str(info.value)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fault", ["flipped_byte", "resealed_nan_samples_status_0"])
 def test_resume_over_a_damaged_chunk_finishes_with_identical_data(tmp_path, reference, fault):
     run = tmp_path / "run"
@@ -254,6 +259,7 @@ def test_resume_over_a_damaged_chunk_finishes_with_identical_data(tmp_path, refe
 # --------------------------------------------------------------------------- a full disk
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("phase", ["integration", "assembly"])
 def test_full_disk_is_one_line_and_the_resume_works(tmp_path, reference, phase):
     with small_disk(tmp_path) as disk:
@@ -307,6 +313,7 @@ def made_files(tmp_path_factory):
     return tmp_path_factory.mktemp("made")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command", command_names())
 @pytest.mark.parametrize("bad", [*BAD_FILES, *VALID_FILES])
 def test_bad_file_in_every_analysis_command_is_one_line_and_exit_2(tmp_path, good, made_files, bad, command):
@@ -383,6 +390,7 @@ COMBINE_FAULTS = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", COMBINE_FAULTS)
 def test_each_combine_fault_is_refused_and_touches_no_output(tmp_path, good, case):
     argv, expected = combine_case(tmp_path, good, case)
@@ -396,6 +404,7 @@ def test_each_combine_fault_is_refused_and_touches_no_output(tmp_path, good, cas
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in", "out.h5"]
 
 
+@pytest.mark.slow
 def test_identical_overlap_is_accepted_with_the_flag_and_tiles_method_splits(tmp_path):
     a = make_file(tmp_path / "a.h5", "sweep.f=[10,50]")
     b = make_file(tmp_path / "b.h5", "sweep.f=[50]")

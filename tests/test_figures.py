@@ -119,6 +119,7 @@ def drawn_or_listed(fig, key, value, ds=None):
     return any(run_title(ds, f, th) in text for f, th in points)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", [k for k in FIGURES if FIGURES[k].render is None])
 @pytest.mark.parametrize("shape", list(SHAPES))
 @pytest.mark.parametrize("scene", list(SCENES))
@@ -147,6 +148,7 @@ def test_figure_renders_truthfully(kind, shape, scene, files):
         assert "Euler–Poinsot" in text
 
 
+@pytest.mark.slow
 def test_animation_renders_for_every_scene(files, tmp_path):
     from PIL import Image
 
@@ -203,6 +205,7 @@ def test_energy_refuses_an_invariant_the_scene_lacks(files):
         FIGURES["energy"].draw(open_results(files[("free_asymmetric", "1x1")]), None, quantity="L3")
 
 
+@pytest.mark.slow
 def test_cli_output_dir_rule_and_notes(files, tmp_path, capsys):
     path = files[("heavy_top", "fx6")]
     missing = tmp_path / "nope" / "e.png"
@@ -216,6 +219,7 @@ def test_cli_output_dir_rule_and_notes(files, tmp_path, capsys):
     assert missing.exists() and f"gyrolab-plot nutation {path} dt=0.001" in out
 
 
+@pytest.mark.slow
 def test_figure_step_prints_progress(files, tmp_path):
     lines = []
     paths = standard_figures(files[("heavy_top", "1x1")], tmp_path / "figs", log=lines.append)

@@ -47,6 +47,7 @@ def _study_methods():
     return select_methods(yaml.safe_load((here / ENGINES).read_text())["sweep"]["method"])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["stability", "energy", "invariants"])
 @pytest.mark.parametrize("scene", ["heavy_top", "free_asymmetric"])
 def test_engines_figures_draw_every_method_without_overlap(kind, scene, engines_files):
@@ -66,6 +67,7 @@ def test_engines_figures_draw_every_method_without_overlap(kind, scene, engines_
             assert any(t.startswith(f"f = {float(f):g} Hz") for t in shown), (kind, f)
 
 
+@pytest.mark.slow
 def test_the_figure_step_wrote_the_studys_figures(engines_files):
     for path in engines_files.values():
         names = {p.name for p in (path.parent / "figures").glob("*.png")}

@@ -103,6 +103,7 @@ def test_a_driven_step_without_drive_is_the_step_bit_for_bit(name):
         assert module.step_driven(w, q, float(rng.uniform(0, 10)), dt, body) == module.step(w, q, dt, body)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", driven_methods())
 def test_driven_order_matches_declared(name):
     """The SciML problem to t = 2 s against DOP853 at rtol = atol = 1e-13, dt = 0.5 / 2^k, k = 0..10:
@@ -159,6 +160,7 @@ def test_methods_that_do_not_see_time_are_refused_by_the_kernels():
     assert np.isfinite(final_omega(blind[0], undriven, [1e-2], 0.1)).all()
 
 
+@pytest.mark.slow
 def test_the_command_line_refuses_a_method_that_does_not_see_time(tmp_path):
     """One line, a non-zero exit, nothing written."""
     result = gyrolab(

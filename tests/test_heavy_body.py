@@ -97,6 +97,7 @@ def test_unphysical_moments_are_refused_unless_allowed():
         build_scene("heavy_body", 5.0, 30.0, com=[0.1, 0.2])
 
 
+@pytest.mark.slow
 def test_heavy_body_from_the_command_line_stores_its_com_and_reads_back(tmp_path):
     """``scene=heavy_body scene.com=[...]`` runs, the file stores the vector option and the body,
     and the analysis rebuilds the run's scene from the file."""

@@ -210,6 +210,7 @@ REGIMES = {
 DT = 1e-4
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("regime", REGIMES)
 def test_dop853_matches_closed_form(regime):
     """Two independent references agree: measured 1e-13 .. 9e-11; asserted 1e-8."""

@@ -123,6 +123,7 @@ def _reference_com_at(t_end):
     return quat_to_matrix(q) @ c
 
 
+@pytest.mark.slow
 def test_second_order_against_an_accurate_solution():
     x_ref = _reference_com_at(0.8)
     errors = []

@@ -117,6 +117,7 @@ def test_a_fresh_file_selects_one_integrator_with_sel_and_opens_with_netcdf_c(fr
         )
 
 
+@pytest.mark.slow
 def test_older_layouts_open_with_integrator_not_method(files, layout_1, layout_2, stored_rk4):
     """Every older layout (0, 1, 2 and the stored regression data) reads with the dim ``integrator``:
     the rename happens once, when the file is opened (layout.current)."""
@@ -136,6 +137,7 @@ def test_older_layouts_open_with_integrator_not_method(files, layout_1, layout_2
     assert open_results(stored)["integrator"].values.tolist() == ["rk4"]
 
 
+@pytest.mark.slow
 def test_compare_a_layout_2_file_with_a_layout_3_file(files, layout_2):
     report = compare_files(layout_2, files[0])
     assert report.ok and not report.dropped, report.text()
@@ -145,6 +147,7 @@ def test_compare_a_layout_2_file_with_a_layout_3_file(files, layout_2):
     assert "RESULT: OK" in done.stdout and "2 integrator" in done.stdout
 
 
+@pytest.mark.slow
 def test_selection_by_the_old_name_method_still_works(layout_2, tmp_path):
     done = subprocess.run(
         [str(BIN / "gyrolab-plot"), "energy", str(layout_2), "method=rk4", "-o", str(tmp_path / "e.png")],
@@ -195,6 +198,7 @@ def test_compare_across_layouts_compares_the_shared_variables(files):
     assert any("variable L" in note for note in report.dropped)
 
 
+@pytest.mark.slow
 def test_every_figure_of_a_layout_0_file(files, tmp_path):
     """The standard figures draw from a layout-0 file (invariants it lacks are left out)."""
     done = subprocess.run(

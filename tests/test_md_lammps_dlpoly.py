@@ -251,6 +251,7 @@ def free_energy(name, dt, n_samples=200):
     return rel, np.polyfit(np.arange(len(rel)) * EVERY, rel, 1)[0]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dt", [1e-4, 1e-3])
 def test_richardson_energy_rises_monotonically_in_free_flight_where_no_squish_does_not_drift(dt):
     """1e5 free steps, sampled every 500.  Richardson's energy rises at every sample, at a rate that

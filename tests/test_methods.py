@@ -140,6 +140,7 @@ def test_registry_refuses_a_broken_method_in_one_line():
         assert part in message
 
 
+@pytest.mark.slow
 def test_a_method_written_to_the_contract_runs_on_every_path(tmp_path):
     """A new method file with only step and its declarations (a copy of lie_poisson under another
     name, in a package of its own) gets run_batch and run_blocks from the registry and gives
@@ -211,6 +212,7 @@ def test_free_top_matches_closed_form(name, run_scene):
             assert fine <= 1.3 * coarse / 2 ** METHODS[name].ORDER
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "scene, f, options, name",
     [
@@ -282,6 +284,7 @@ NOT_CONVERGENT = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", ORDER_CASES)
 @pytest.mark.parametrize("name", method_params(NOT_CONVERGENT))
 def test_measured_order_matches_declared(name, case):

@@ -89,6 +89,7 @@ def test_sciml_rigid_body_is_their_problem():
     assert cfg.sweep.t_end == 10.0 and "sciml" in cfg.output.figures
 
 
+@pytest.mark.slow
 def test_sciml_diagram_from_a_small_run(tmp_path):
     """A reduced run of the pinned experiment (rk4 and lie_poisson4 at three dt): the diagram's data has
     each method's error falling ~16x per halving, the peers' errors falling with their tolerance, the

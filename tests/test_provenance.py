@@ -168,6 +168,7 @@ def test_results_record_layout_code_and_library_versions():
     assert attrs["git_source"] in ("build", "work tree")
 
 
+@pytest.mark.slow
 def test_import_gyrolab_from_the_checkout_root():
     """`python -c "import gyrolab; print(gyrolab.methods())"` where the README's install leaves you."""
     done = subprocess.run(

@@ -83,6 +83,7 @@ def test_a_bad_range_is_a_config_error_naming_key_and_expression(override, messa
     assert str(err.value).startswith(message) and "\n" not in str(err.value)
 
 
+@pytest.mark.slow
 def test_ranges_on_the_command_line_and_in_a_config_file(tmp_path):
     (tmp_path / "conf" / "experiment").mkdir(parents=True)
     (tmp_path / "conf" / "experiment" / "ranged.yaml").write_text(
@@ -112,6 +113,7 @@ def test_ranges_on_the_command_line_and_in_a_config_file(tmp_path):
     assert not (tmp_path / "bad").exists()
 
 
+@pytest.mark.slow
 def test_help_shows_the_ranges(tmp_path):
     result = gyrolab("--help", cwd=tmp_path)
     assert_ok(result)

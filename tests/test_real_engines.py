@@ -117,6 +117,7 @@ def test_grid_check_refuses_a_missing_engine_before_any_work(monkeypatch):
         build_grid(cfg)
 
 
+@pytest.mark.slow
 @needs_mujoco
 def test_grid_takes_real_engines_and_the_selector():
     from hydra import compose, initialize_config_module
@@ -321,6 +322,7 @@ def test_sweep_with_real_engines_reads_everywhere(tmp_path):
 # ---------------------------------------------------------------- the conformance table
 
 
+@pytest.mark.slow
 @needs_mujoco
 @needs_pybullet
 def test_conformance_rows_at_a_short_length(tmp_path):

@@ -21,7 +21,8 @@ from gyrolab.kernels.driver import STATUS_OK
 from gyrolab.kernels.real.jaxmd_engine import engine_dt
 from gyrolab.kernels.scenes import build_scene
 
-pytestmark = pytest.mark.engine("real_jaxmd_nve")
+# slow: the module runs in a child pytest (conftest.OWN_PROCESS) that imports its engine first
+pytestmark = [pytest.mark.engine("real_jaxmd_nve"), pytest.mark.slow]
 NAME = "real_jaxmd_nve"
 
 

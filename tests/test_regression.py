@@ -139,6 +139,7 @@ def test_rerun_matches_stored_dataset(fresh_all, name, method):
     check_against_stored(one_method(fresh_all(name), method), name, method)
 
 
+@pytest.mark.slow
 def test_same_machine_rerun_is_bit_identical(fresh, tmp_path):
     """The most sensitive dataset (tennis-racket flip) twice, with 1 thread and with all: identical bits."""
     first = fresh("free_asymmetric", "lie_poisson4")
@@ -147,6 +148,7 @@ def test_same_machine_rerun_is_bit_identical(fresh, tmp_path):
     assert report.ok, report.text()
 
 
+@pytest.mark.slow
 def test_stored_dataset_from_another_config_or_version_is_named_up_front(fresh, tmp_path):
     """A stored file whose recorded config (g) and gyrolab version differ: the check fails on the
     config, and the first lines of its message say what differs."""
@@ -192,6 +194,7 @@ def test_every_regression_config_and_method_has_a_stored_dataset():
     assert not stray, f"stored files of no registered (config, method): {', '.join(stray)}"
 
 
+@pytest.mark.slow
 def test_stored_datasets_open_are_small_and_cover_every_scene_and_method():
     total, scenes, inits, per_method = 0, set(), set(), {}
     for name, method in PAIRS:
@@ -277,6 +280,7 @@ def test_a_pack_reads_back_as_the_results_file_it_stores(tmp_path):
         regen.read_pack(cut)
 
 
+@pytest.mark.slow
 def test_write_keeps_a_stored_pack_of_an_older_layout(capsys):
     """``--write`` on a pack of layout 1 (a fixture of tests/test_layout.py) refuses to move it to
     today's layout without ``--relayout``: the pack's bytes stay, the command says why and exits non-zero."""
@@ -293,6 +297,7 @@ def test_write_keeps_a_stored_pack_of_an_older_layout(capsys):
         regen.main(["--relayout", "heavy_top_release:rk4"])
 
 
+@pytest.mark.slow
 def test_coefficient_change_fails_with_a_readable_message(tmp_path):
     """Yoshida's w1 = 1/(2 − 2^(1/3)) with 2^(1/3) written as 1.26 (a 6e-5 relative change):
     the regression check of a copy of the stored file must fail and name lie_poisson4."""

@@ -28,6 +28,7 @@ def scipy_matrix(q):
     return Rotation.from_quat([b, c, d, a]).as_matrix()
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(vectors)
 def test_quat_from_rotvec_matches_scipy(v):
@@ -103,6 +104,7 @@ def test_tilt_puts_axis_tip_at_minus_y():
 # correlated, so |q| drifts linearly (measured: 2.4e-11 for lie_poisson and
 # 2.9e-10 for lie_poisson4 after 1e6 steps).  Fix: q = quat_normalize(q) at the
 # end of free_flow.free_flow (measured 4e-16 / 1e-16 with it).
+@pytest.mark.slow
 @pytest.mark.parametrize("name", own_methods(CONTROL_FAILURES))
 def test_rotation_stays_orthonormal_over_1e6_steps(name, step_loop):
     """Heavy top f = 50 Hz, θ0 = 45°, dt = 1e-4 s, 1e6 steps: ‖RᵀR − I‖_max ≤ 1e-12, det R = 1 ± 1e-12.

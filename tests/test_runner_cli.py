@@ -37,6 +37,7 @@ def reference(tmp_path_factory):
     return tiny_reference(tmp_path_factory.mktemp("reference"))
 
 
+@pytest.mark.slow
 def test_tiny_sweep_file_opens_with_xarray_and_matches_simulate(reference):
     with xr.open_dataset(reference, engine="h5netcdf") as ds:
         assert {k: ds.sizes[k] for k in GRID_DIMS + ("time", "xyz")} == {
@@ -83,6 +84,7 @@ def test_tiny_sweep_file_opens_with_xarray_and_matches_simulate(reference):
                             np.testing.assert_array_equal(run[name].values, one[name].values, err_msg=name)
 
 
+@pytest.mark.slow
 def test_results_and_where_they_are_printed(tmp_path):
     result = gyrolab("sweep=tiny", "output.figures=false", cwd=tmp_path)
     assert_ok(result)
@@ -91,6 +93,7 @@ def test_results_and_where_they_are_printed(tmp_path):
     assert sorted(p.name for p in path.parent.iterdir()) == ["results.h5"]  # no journal, lock or temp left
 
 
+@pytest.mark.slow
 def test_dry_run_of_the_default_study_estimates_and_writes_nothing(tmp_path):
     result = gyrolab("runner.dry_run=true", cwd=tmp_path)
     assert_ok(result)
@@ -103,6 +106,7 @@ def test_dry_run_of_the_default_study_estimates_and_writes_nothing(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_dry_run_counts_compiling_from_the_numba_cache(tmp_path):
     """An empty numba cache: every kernel the sweep warms up is named and its compile time counted
     (runner/execute.py compile_seconds: COMPILE_SECONDS["runs"] per method's run kernels, in parallel on the
@@ -124,6 +128,7 @@ def test_dry_run_counts_compiling_from_the_numba_cache(tmp_path):
     assert not list(empty.rglob("*.nbi"))  # estimated, not compiled
 
 
+@pytest.mark.slow
 def test_dry_run_of_a_multirun_leaves_nothing_behind(tmp_path):
     result = gyrolab("-m", "scene=heavy_top,free_asymmetric", "sweep.f=[5]", "runner.dry_run=true", cwd=tmp_path)
     assert_ok(result)
@@ -131,6 +136,7 @@ def test_dry_run_of_a_multirun_leaves_nothing_behind(tmp_path):
     assert list(tmp_path.iterdir()) == []  # Hydra's multirun/<date>/<time>/multirun.yaml removed with its dirs
 
 
+@pytest.mark.slow
 def test_dry_run_of_a_multirun_keeps_directories_that_were_there(tmp_path):
     """The user's own empty directories above the sweep directory, and the sweep directory itself when it
     existed, stay: the dry run removes only what Hydra made for it (it removed two such parents)."""
@@ -142,6 +148,7 @@ def test_dry_run_of_a_multirun_keeps_directories_that_were_there(tmp_path):
         assert keep.is_dir() and not (keep / "mr").exists() and not list(keep.iterdir())
 
 
+@pytest.mark.slow
 def test_dry_run_figure_memory_follows_the_file_and_the_setting(tmp_path):
     """The model of docs/benchmarks.md against the sweeps' peak RSS with their figures: 501 MB for the
     8000-run sweep's 1.09 GB file, 518 MB for the 40000-run sweep's 5.45 GB one, each within 10 %;
@@ -157,6 +164,7 @@ def test_dry_run_figure_memory_follows_the_file_and_the_setting(tmp_path):
     assert "figure step: none (output.figures=false)" in result.stdout
 
 
+@pytest.mark.slow
 def test_killed_sweep_resumes_to_identical_data(tmp_path, reference):
     run = tmp_path / "run"
     proc = start(*TINY, *SLOW, f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=0.3)
@@ -177,6 +185,7 @@ def test_killed_sweep_resumes_to_identical_data(tmp_path, reference):
     assert "nothing to do" in again.stdout
 
 
+@pytest.mark.slow
 def test_ctrl_c_prints_the_command_that_finishes_the_sweep(tmp_path, reference):
     run = tmp_path / "run"
     proc = start(*TINY, *SLOW, f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=0.3)
@@ -191,6 +200,7 @@ def test_ctrl_c_prints_the_command_that_finishes_the_sweep(tmp_path, reference):
     xr.testing.assert_identical(data(run / "results.h5"), data(reference))
 
 
+@pytest.mark.slow
 def test_second_writer_to_the_same_output_is_refused(tmp_path, reference):
     run = tmp_path / "run"
     first = start(*TINY, *SLOW, f"hydra.run.dir={run}", cwd=tmp_path, GYROLAB_TEST_CHUNK_DELAY=1.0)
@@ -209,6 +219,7 @@ def test_second_writer_to_the_same_output_is_refused(tmp_path, reference):
     xr.testing.assert_identical(data(run / "results.h5"), data(reference))
 
 
+@pytest.mark.slow
 def test_one_thread_and_two_threads_give_identical_files(tmp_path, reference):
     result = gyrolab(*TINY, f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path, env=environment(NUMBA_NUM_THREADS=1))
     assert_ok(result)
@@ -217,6 +228,7 @@ def test_one_thread_and_two_threads_give_identical_files(tmp_path, reference):
     xr.testing.assert_identical(data(tmp_path / "run" / "results.h5"), data(reference))
 
 
+@pytest.mark.slow
 def test_multirun_writes_one_file_per_job_and_combine_merges_them(tmp_path):
     sweep_dir = tmp_path / "mr"
     result = gyrolab("-m", "scene=heavy_top,free_asymmetric", *TINY, f"hydra.sweep.dir={sweep_dir}", cwd=tmp_path)
@@ -242,6 +254,7 @@ def test_multirun_writes_one_file_per_job_and_combine_merges_them(tmp_path):
         assert ds.sizes["source"] == 2 and "sweep:" in str(ds["source_config"].values[0])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "text, message",
     [
@@ -259,6 +272,7 @@ def test_bad_experiment_yaml_is_one_line_naming_the_file_and_key(tmp_path, text,
     assert line.startswith("gyrolab: error: ") and message in line and "Traceback" not in result.stderr
 
 
+@pytest.mark.slow
 def test_multirun_with_a_bad_job_stops_before_any_job_runs(tmp_path):
     result = gyrolab("-m", "scene.M=1,-1", *TINY, f"hydra.sweep.dir={tmp_path / 'mr'}", cwd=tmp_path)
     assert result.returncode == 2
@@ -309,6 +323,7 @@ BAD_INPUTS = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args, message", BAD_INPUTS, ids=[" ".join(a)[:40] for a, _ in BAD_INPUTS])
 def test_bad_input_is_refused_in_one_line_with_status_2_and_no_file(tmp_path, args, message):
     existing = tmp_path / "old.h5"

@@ -13,6 +13,7 @@ def strip(ds):
     return ds.drop_vars([v for v in ds.variables if str(v).startswith("source_")] + ["wall_time"])
 
 
+@pytest.mark.slow
 def test_tiles_of_one_grid_join_along_its_axes(tmp_path):
     a = make_file(tmp_path / "a.h5", "sweep.f=[10]")
     b = make_file(tmp_path / "b.h5", "sweep.f=[50]")
@@ -68,6 +69,7 @@ def test_cli_writes_the_file_and_refuses_bad_arguments(tmp_path, capsys):
     assert "exists" in errors[0] and "no such file" in errors[1] and "-o/--output" in errors[2]
 
 
+@pytest.mark.slow
 def test_files_of_an_older_layout_combine_into_todays(tmp_path):
     """A layout-2 file (dim ``method``) joins a layout-3 tile: the combined file is layout 3, dim
     ``integrator``."""

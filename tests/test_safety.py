@@ -114,6 +114,7 @@ def test_the_lock_holds_its_owner_and_a_stale_one_is_taken_over(tmp_path):
 # --------------------------------------------------------------------------- the commands
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("planted", ["results.h5.lock", "results.h5"])
 def test_gyrolab_refuses_a_link_where_it_would_write(tmp_path, victim, planted):
     run = tmp_path / "run"
@@ -202,6 +203,7 @@ def files_under(root):
     return sorted(str(p.relative_to(root)) for p in root.rglob("*") if p.is_file())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["standard", "energy"])
 def test_plot_labels_cannot_write_outside(evil, kind):
     top = evil.parent.parent.parent
@@ -468,6 +470,7 @@ for attempt in (address, address.replace("tls://", "tcp://")):
 """
 
 
+@pytest.mark.slow
 def test_another_local_process_cannot_submit_work_to_the_embedded_cluster(tmp_path):
     pytest.importorskip("distributed")
     from gyrolab.runner.dask_backend import DaskCluster

@@ -47,6 +47,7 @@ class Segments:
         self.written.append(arrays["samples"].shape[1])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method", ["rk4", "lie_poisson4", "seed_next"])
 def test_a_chunk_cut_in_time_gives_the_bits_of_one_call(method):
     grid = grid_of(f"sweep.method=[{method}]", *LONG)
@@ -160,6 +161,7 @@ def test_the_dry_run_counts_the_segment_files_a_run_writes(tmp_path, monkeypatch
     assert execute.segment_files_seconds(grid, [runs], 2, 10.0) == 0  # not cut in time: no segment files
 
 
+@pytest.mark.slow
 def test_a_sweep_killed_mid_segment_resumes_to_identical_data(tmp_path):
     reference = tmp_path / "reference"
     assert_ok(gyrolab(*SWEEP, *SEGMENTED, f"hydra.run.dir={reference}", cwd=tmp_path))

@@ -67,6 +67,7 @@ def test_series_alternate_with_decreasing_terms_and_small_tail():
     assert float(sinc_terms[5] / Fraction(float(np.spacing(float(s))))) < 0.03
 
 
+@pytest.mark.slow
 def test_polynomial_is_faithfully_rounded_over_the_whole_range():
     """Every angle² in [0, SMALL_ANGLE²): |c − cos h| and |s − sin(h)/(2h)| < 1 ulp, measured against the exact
     rationals.  Measured: max 0.75 ulp (c) and 0.52 ulp (s); both correctly rounded at 92 % of the angles.

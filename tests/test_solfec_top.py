@@ -65,6 +65,7 @@ def test_simo_wong_keeps_solfec_energy_bound():
         assert 7.0 < coarse / fine < 11.0, errors  # 3² = 9
 
 
+@pytest.mark.slow
 def test_energy_table_of_every_method():
     """Every registered method's max |ΔH|/H at Solfec's three h (printed with pytest -s): a row per
     method, simo_wong's within Solfec's bound; a diverged run reads "diverged"."""

@@ -7,6 +7,8 @@ analysis (figures, verdicts, file tools, reports) never imports the runner, and
 the runner reaches the analysis only through its public figure step.
 """
 
+import pytest
+
 import import_graph
 
 
@@ -16,10 +18,12 @@ def test_no_back_edge_between_layers():
     assert import_graph.back_edges(edges) == []
 
 
+@pytest.mark.slow
 def test_no_import_cycle():
     assert import_graph.cycles(import_graph.edges()) == []
 
 
+@pytest.mark.slow
 def test_the_runner_reaches_the_analysis_only_through_its_public_figure_step():
     reached = {b for a, b, _ in import_graph.edges() if a.startswith("runner") and b.startswith("analysis")}
     assert reached <= {"analysis"}, reached

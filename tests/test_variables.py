@@ -42,6 +42,7 @@ def test_unknown_or_repeated_names_are_refused(value, message):
     assert str(err.value).startswith(message)
 
 
+@pytest.mark.slow
 def test_a_bad_name_on_the_command_line_is_one_line_before_any_work(tmp_path):
     result = gyrolab(*SMALL, "output.variables=[energy,Energy]", f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
     assert result.returncode == 2
@@ -58,6 +59,7 @@ def files(tmp_path_factory):
     return root / "chosen" / "results.h5", root / "full" / "results.h5"
 
 
+@pytest.mark.slow
 def test_the_file_holds_the_chosen_variables_and_the_per_run_ones(files):
     chosen, full = files
     with xr.open_dataset(chosen, engine="h5netcdf") as a, xr.open_dataset(full, engine="h5netcdf") as b:
@@ -69,6 +71,7 @@ def test_the_file_holds_the_chosen_variables_and_the_per_run_ones(files):
     assert chosen.stat().st_size < full.stat().st_size / 2
 
 
+@pytest.mark.slow
 def test_a_figure_that_needs_a_missing_variable_is_one_line(files, tmp_path):
     from gyrolab.analysis.figures.registry import FIGURES, standard_figures
     from gyrolab.analysis.io import MissingVariableError
@@ -102,6 +105,7 @@ def gyrolab_plot(*args, cwd):
     )
 
 
+@pytest.mark.slow
 def test_compare_compares_the_variables_both_hold_and_says_which_it_left_out(files):
     from gyrolab.analysis.files.compare import compare_files
 

@@ -75,6 +75,7 @@ def test_orders_of_the_ladder(ladder_file, tmp_path):
     assert all(abs(r["order"] - 4) <= 0.15 for r in summ)
 
 
+@pytest.mark.slow
 def test_dop853_reference_gives_the_same_orders(ladder_file, tmp_path):
     recs = records([ladder_file], tmp_path, "--reference", "dop853")
     for r in (r for r in recs if r["kind"] == "order"):
@@ -119,6 +120,7 @@ def test_markdown_states_the_conditions(ladder_file, drift_files, tmp_path):
     assert "dt = 0.001 s, t_end = 100 s" in text
 
 
+@pytest.mark.slow
 def test_cli_prints_a_table(ladder_file, tmp_path):
     result = run_cli(ladder_file, tmp_path=tmp_path)
     assert result.returncode == 0, result.stderr
@@ -142,6 +144,7 @@ def _bad_inputs(tmp_path, ladder_file):
     }
 
 
+@pytest.mark.slow
 def test_bad_input_exits_2_with_one_line(ladder_file, tmp_path):
     (tmp_path / "sub").mkdir()
     for name, files in _bad_inputs(tmp_path, ladder_file).items():
@@ -153,6 +156,7 @@ def test_bad_input_exits_2_with_one_line(ladder_file, tmp_path):
         assert not out.exists(), name
 
 
+@pytest.mark.slow
 def test_bad_flags_exit_2(ladder_file, tmp_path):
     for args in (["--stability", "-1"], ["--json", str(tmp_path / "no" / "dir" / "v.json")]):
         result = run_cli(ladder_file, *args, tmp_path=tmp_path)
@@ -204,6 +208,7 @@ def two_f_file(tmp_path_factory):
     return write(make_dataset(grid, t_end=0.5, every=1e-2), tmp_path_factory.mktemp("two") / "results.h5")
 
 
+@pytest.mark.slow
 def test_one_verdict_per_method_f_and_theta0(two_f_file, tmp_path):
     """Issue 26: every (method, f, θ0) group with a ladder gets its own verdict, labelled; the terminal
     table fits 120 columns, names each group and words the ladder from its steps (decades, not halving)."""
@@ -226,6 +231,7 @@ def test_one_verdict_per_method_f_and_theta0(two_f_file, tmp_path):
     assert "| method | f (Hz) | θ0 (°) |" in md.read_text()
 
 
+@pytest.mark.slow
 def test_at_picks_one_group_and_refuses_one_not_held(two_f_file, tmp_path):
     recs = records([two_f_file], tmp_path, "--at", "f=50")
     assert {r["f"] for r in recs if r["kind"] in ("summary", "order", "run")} == {50.0}
