@@ -55,15 +55,17 @@ def flops_of(mnemonic):
 
 def hottest_loop(asm):
     """The lines of the innermost loop with the most zmm instructions: each backward jump to a label
-    closes a loop from that label to the jump."""
+    closes a loop from that label to the jump; a loop that holds another is not innermost."""
     lines = asm.splitlines()
     labels = {LABEL.match(line).group(1): i for i, line in enumerate(lines) if LABEL.match(line)}
-    loops = []
+    loops = set()
     for i, line in enumerate(lines):
         jump = JUMP.match(line)
         if jump and jump.group(1) in labels and labels[jump.group(1)] < i:
-            loops.append(lines[labels[jump.group(1)] : i + 1])
-    return max(loops, key=lambda body: sum("zmm" in line for line in body))
+            loops.add((labels[jump.group(1)], i))
+    innermost = [(a, b) for a, b in loops if not any(a <= c and d <= b and (c, d) != (a, b) for c, d in loops)]
+    a, b = max(sorted(innermost), key=lambda ab: sum("zmm" in line for line in lines[ab[0] : ab[1] + 1]))
+    return lines[a : b + 1]
 
 
 def count(body):
