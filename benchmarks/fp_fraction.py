@@ -23,7 +23,6 @@ them cannot reach the FMA peak.
 """
 
 import argparse
-import importlib
 import re
 import time
 
@@ -33,6 +32,7 @@ from numba import njit
 from profile_block import _plain_loop, block, timed
 
 from gyrolab.kernels.lanes import lane_step
+from gyrolab.kernels.registry import METHODS, uses_blocks
 
 PEAK_FLOP_PER_CYCLE = 16  # Zen 4: 2 FMA pipes x 4 doubles (256 bit) x 2 FLOPs; zmm ops take both halves
 FADD_LATENCY_CYCLES = 3
@@ -122,6 +122,11 @@ def main():
     parser.add_argument("--steps", type=int, default=20000)
     parser.add_argument("--repeat", type=int, default=7)
     args = parser.parse_args()
+    names = args.methods.split(",")
+    for name in names:
+        if name not in METHODS or not uses_blocks(METHODS[name]):
+            lane = sorted(n for n, module in METHODS.items() if uses_blocks(module))
+            parser.exit(2, f"fp_fraction: {name!r} is not a method with a block kernel; one of {', '.join(lane)}\n")
     numba.set_num_threads(1)
     ghz = clock_ghz()
     n, m = args.lanes, args.steps
@@ -133,8 +138,8 @@ def main():
         "| ns per lane-step | FLOP floor (ns) | GFLOP/s | fraction of peak |"
     )
     print("|---|---:|---|---:|---:|---:|---:|")
-    for name in args.methods.split(","):
-        step = importlib.import_module(f"gyrolab.kernels.methods.{name}").step
+    for name in names:
+        step = METHODS[name].step
         loop = _plain_loop(lane_step(step))
         W, Q, B, DT, _, _ = block(n)
         ns = timed(lambda k: loop(W, Q, B, DT, n, k), n, m, args.repeat)
