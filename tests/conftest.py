@@ -66,10 +66,18 @@ def pytest_pycollect_makemodule(module_path, parent):
     return None
 
 
+@pytest.hookimpl(tryfirst=True)  # before -m deselects
+def pytest_collection_modifyitems(items):
+    """An OWN_PROCESS module is slow (a child interpreter that imports jax, Warp or Basilisk first): its one
+    item here, and each of its tests in the child, so that the child's -m selects what this run's did."""
+    for item in items:
+        if item.path.name in OWN_PROCESS:
+            item.add_marker(pytest.mark.slow)
+
+
 class OwnProcessModule(pytest.File):
     def collect(self):
         item = OwnProcessRun.from_parent(self, name="in_its_own_process")
-        item.add_marker(pytest.mark.slow)  # a child interpreter that imports jax, Warp or Basilisk first
         # -k with a test's name selects the module's run (the child applies the same -k)
         tree = ast.parse(self.path.read_text())
         item.extra_keyword_matches.update(n.name for n in tree.body if isinstance(n, ast.FunctionDef))

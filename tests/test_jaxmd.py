@@ -34,8 +34,7 @@ from gyrolab.kernels.real.jaxmd_engine import free_body_nve, initial_state, omeg
 from gyrolab.kernels.registry import METHODS
 from gyrolab.kernels.rotation import body_to_lab, ck_matrix, quat_mul
 
-# slow: the module runs in a child pytest (conftest.OWN_PROCESS) that imports its engine first
-pytestmark = [pytest.mark.engine("real_jaxmd_nve"), pytest.mark.slow]
+pytestmark = pytest.mark.engine("real_jaxmd_nve")
 jnp = rigid_body = None  # jax.numpy and jax_md.rigid_body, imported by _jax_md when a test of this file runs
 
 

@@ -24,8 +24,7 @@ from gyrolab.kernels.batch import integrate
 from gyrolab.kernels.driver import FIELDS, STATUS_OK
 from gyrolab.kernels.scenes import build_scene
 
-# slow: the module runs in a child pytest (conftest.OWN_PROCESS) that imports its engine first
-pytestmark = [pytest.mark.engine("real_mjx_euler"), pytest.mark.slow]
+pytestmark = pytest.mark.engine("real_mjx_euler")
 
 
 def scene_inputs(name, f=5.0, theta0=30.0, **options):

@@ -24,8 +24,7 @@ from gyrolab.kernels.scenes import build_scene
 from helpers import free_body_sweep
 
 NAME = "real_basilisk_rk4"
-# slow: the module runs in a child pytest (conftest.OWN_PROCESS) that imports its engine first
-pytestmark = [pytest.mark.engine(NAME), pytest.mark.slow]
+pytestmark = pytest.mark.engine(NAME)
 # The tumbling box of kernels/real/conformance.py: e3 the intermediate axis, |ω| ~ 140 rad/s
 BOX = Body(1e-4, 3e-4, 2e-4, 0.0)
 BOX_W0 = (0.5 * 2 * math.pi * 20, 0.3 * 2 * math.pi * 20, 2 * math.pi * 20)

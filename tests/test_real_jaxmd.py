@@ -21,8 +21,7 @@ from gyrolab.kernels.driver import STATUS_OK
 from gyrolab.kernels.real.jaxmd_engine import engine_dt
 from gyrolab.kernels.scenes import build_scene
 
-# slow: the module runs in a child pytest (conftest.OWN_PROCESS) that imports its engine first
-pytestmark = [pytest.mark.engine("real_jaxmd_nve"), pytest.mark.slow]
+pytestmark = pytest.mark.engine("real_jaxmd_nve")
 NAME = "real_jaxmd_nve"
 
 

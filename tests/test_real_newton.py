@@ -27,8 +27,7 @@ from gyrolab.kernels.scenes import build_scene
 
 from helpers import free_body_sweep
 
-# slow: the module runs in a child pytest (conftest.OWN_PROCESS) that imports its engine first
-pytestmark = [pytest.mark.engine("real_newton_semi"), pytest.mark.slow]
+pytestmark = pytest.mark.engine("real_newton_semi")
 OMEGA = slice(FIELDS.index("omega_1"), FIELDS.index("omega_3") + 1)
 AXIS = slice(FIELDS.index("axis_x"), FIELDS.index("axis_z") + 1)
 
