@@ -129,10 +129,11 @@ def main():
             parser.exit(2, f"fp_fraction: {name!r} is not a method with a block kernel; one of {', '.join(lane)}\n")
     numba.set_num_threads(1)
     ghz = clock_ghz()
+    peak = PEAK_FLOP_PER_CYCLE * ghz  # GFLOP/s per core
     n, m = args.lanes, args.steps
     print(f"# heavy top (50 Hz, 45 deg, dt = 1e-4 s), {n} lanes, {m} steps, 1 thread, medians of {args.repeat}")
     print(f"# clock {ghz:.2f} GHz (dependent additions, {FADD_LATENCY_CYCLES} cycles each); peak ", end="")
-    print(f"{PEAK_FLOP_PER_CYCLE} FLOP/cycle = {PEAK_FLOP_PER_CYCLE * ghz:.1f} GFLOP/s per core\n")
+    print(f"{PEAK_FLOP_PER_CYCLE} FLOP/cycle = {peak:.1f} GFLOP/s per core\n")
     print(
         "| method | FLOPs per lane-step | fma / add-sub-mul / div-sqrt / other (of them spills) per 8 lanes "
         "| ns per lane-step | FLOP floor (ns) | GFLOP/s | fraction of peak |"
@@ -146,14 +147,14 @@ def main():
         flops, kinds, width = count(hottest_loop(loop.inspect_asm(loop.signatures[0])))
         per_step = flops / width
         achieved = per_step / ns  # GFLOP/s
-        floor = per_step / (PEAK_FLOP_PER_CYCLE * ghz)
+        floor = per_step / peak
         mix = (
             " / ".join(str(kinds[k]) for k in ("fma", "add/sub/mul", "div/sqrt"))
             + f" / {kinds['other']} ({kinds['spill']})"
         )
         print(
             f"| {name} | {per_step:.0f} | {mix} | {ns:.2f} | {floor:.2f} | {achieved:.1f} "
-            f"| {achieved / (PEAK_FLOP_PER_CYCLE * ghz):.0%} |"
+            f"| {achieved / peak:.0%} |"
         )
 
 
