@@ -152,10 +152,7 @@ def main():
             " / ".join(str(kinds[k]) for k in ("fma", "add/sub/mul", "div/sqrt"))
             + f" / {kinds['other']} ({kinds['spill']})"
         )
-        print(
-            f"| {name} | {per_step:.0f} | {mix} | {ns:.2f} | {floor:.2f} | {achieved:.1f} "
-            f"| {achieved / peak:.0%} |"
-        )
+        print(f"| {name} | {per_step:.0f} | {mix} | {ns:.2f} | {floor:.2f} | {achieved:.1f} | {achieved / peak:.0%} |")
 
 
 if __name__ == "__main__":
