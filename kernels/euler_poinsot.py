@@ -48,13 +48,18 @@ corrections.  Our own choices on top of it:
   continuous (no sign flips);
 - P(t) m(t) = G e exactly up to rounding, so the lab angular momentum
   R m = G R0 P0ᵀ e is conserved to rounding whatever the error of ψ;
-- a short step (|λh| < 1) needs neither K nor F: the half-period count
-  changes exactly when cn changes sign, so it costs two Carlson R_J and one
-  atan2; a very short one (|λh| < 0.01 and below 1/40 of the analyticity
-  half-width of the integrand, every step of a splitting at a sensible dt on
-  a body not close to symmetric) integrates Π − F by 5-point Gauss–Legendre
-  with sn from its Maclaurin series: no AGM, no R_J, more accurate than the
-  difference of two R_J and ~2x cheaper (benchmarks/bench_free_body.py);
+- a short step (|λh| < 1, every step of a splitting at a sensible dt)
+  needs neither K nor F nor a half-period count: by the addition theorem
+  of the third-kind integral (DLMF 19.26.9, Legendre form), the increment
+  of Π − F from am u0 to am(u0 + λh) is (Π − F)(am λh) minus an R_C of sn
+  at u0, λh and u0 + λh, and (Π − F)(am λh) comes with sn, cn, dn(λh) from
+  halving λh to ≤ 0.01 (Maclaurin series there) and doubling back, one R_C
+  per doubling: no R_J of the endpoints, whose difference cancels.
+  Against mpmath at 30 digits (tests/test_euler_poinsot.py
+  ::test_short_step_third_kind_increment) it is within 4 eps of the
+  increment; the two R_J and the 5-point Gauss–Legendre rule it replaced
+  (for |λh| < 0.01) lost up to 320 and 860 eps, and it is faster than both
+  (docs/benchmarks.md, "The exact free flow's short step");
 - m(h) is rescaled to |m(0)| (a scaling keeps the orbit's shape, so no
   phase accuracy is lost) to remove a 0.3 eps/step drift of |L| and E that
   the per-step recomputation of the B's would otherwise leave.
@@ -69,16 +74,10 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .elliptic import ellipk, rf, rj, series_coefficients, sncndn, sncndn_series
+from .elliptic import ellipk, rc1, rf, rj, series_coefficients, sncndn, sncndn_series
 from .rotation import half_angle, quat_mul, quat_normalize, rotate_body_step
 
 _PI = math.pi
-# 5-point Gauss–Legendre nodes and weights on (−1, 1), used for steps with |λh| < _GL_U and
-# |λh| _GL_RATIO below the analyticity half-width of the third-kind integrand.
-_GL_X = (-0.90617984593866399, -0.53846931010568309, 0.0, 0.53846931010568309, 0.90617984593866399)
-_GL_W = (0.23692688505618909, 0.47862867049936647, 128.0 / 225.0, 0.47862867049936647, 0.23692688505618909)
-_GL_U = 0.01
-_GL_RATIO = 40.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -183,12 +182,75 @@ def _reduced(s, c, S, C):
 
 
 @njit(cache=True, error_model="numpy")
+def _addition_defect(su, sv, suv, a, m):
+    """G(u) + G(v) − G(u + v) for G(u) = (Π − F)(am u, n|m), n = −a ≤ 0, from su, sv, suv = sn at u, v, u + v.
+
+    The addition theorem of the third-kind integral (DLMF 19.26.9 in Legendre form): with S = su sv suv,
+    P = Π_k (1 + a sn_k²) and δ = a(1 + a)(a + m), the defect is a S R_C(P − δS², P).  P − δS² =
+    1 + a(Σ sn² − m S²) + a²(Σ sn_i² sn_j² − (1 + m) S²) ≥ 1 is formed without the cancellation of its a³
+    terms (near-symmetric bodies have a ≫ 1), and R_C(x, x + y) = R_C(1, 1 + y/x)/√x."""
+    s2u = su * su
+    s2v = sv * sv
+    s2uv = suv * suv
+    S = su * sv * suv
+    SS = S * S
+    x = 1.0 + a * (s2u + s2v + s2uv - m * SS) + a * a * (s2u * s2v + s2u * s2uv + s2v * s2uv - (1.0 + m) * SS)
+    return a * S * rc1(a * (1.0 + a) * (a + m) * SS / x) / math.sqrt(x)
+
+
+@njit(cache=True, error_model="numpy")
+def _short_step(v, mc, n):
+    """(sn, cn, dn)(v) and G(v) = (Π − F)(am v, n|m) for |v| < 1, by halving v to |w| ≤ 0.01 and doubling
+    back.
+
+    At w: sn, cn, dn from their Maclaurin series (exact to rounding) and G(w) from one R_J whose arguments
+    differ by a w² at most (its duplication loop runs only for a ≳ 1e2).  Each doubling: sn(2w) = 2 s c d/D,
+    1 − cn(2w) = 2 s² d²/D, 1 − dn(2w) = 2 m s² c²/D with D = 1 − m s⁴ (1 − cn and 1 − dn carried instead
+    of cn and dn, which near 1 keep few of w's digits), and G(2w) = 2 G(w) − defect(w, w).  The half-
+    and double-argument transformations T. Fukushima uses for incomplete elliptic integrals, applied to the
+    step: ~1.5x faster than Bulirsch's sncndn and an R_J of v (docs/benchmarks.md), to a few eps
+    (tests/test_euler_poinsot.py::test_short_step_third_kind_increment).  |v| < 1 keeps every doubling
+    well conditioned (its input has sn ≤ sn(1/2) < 0.47: D ≥ 0.95, cn and dn ≥ 0.88); run up to K it lost
+    1e-9 in sn near the separatrix, where D = 1 − m s⁴ cancels as sn → 1."""
+    m = 1.0 - mc
+    a = -n
+    w = abs(v)
+    k = 0
+    while w > 0.01:
+        w *= 0.5  # exact
+        k += 1
+    s, c, d = sncndn_series(w, series_coefficients(m))
+    ss = s * s
+    g = -(a / 3.0) * ss * s * rj(c * c, c * c + mc * ss, 1.0, 1.0 + a * ss)
+    e = 1.0 - c
+    f = 1.0 - d
+    for _ in range(k):
+        r = 1.0 / (1.0 - m * ss * ss)
+        c = 1.0 - e
+        d = 1.0 - f
+        s2 = 2.0 * s * c * d * r
+        e = 2.0 * ss * d * d * r
+        f = 2.0 * m * ss * c * c * r
+        g = 2.0 * g - _addition_defect(s, s, s2, a, m)
+        s = s2
+        ss = s * s
+    if v < 0.0:  # sn and G are odd, cn and dn even
+        return -s, 1.0 - e, 1.0 - f, -g
+    return s, 1.0 - e, 1.0 - f, g
+
+
+@njit(cache=True, error_model="numpy")
 def _elliptic_case(s0, c0, d0, lam, h, mc, n, S, C, cpi):
     """(sn, cn, dn) at u1 = u0 + λh and the non-linear part of ψ:
     cpi·[(Π − F)(am u1) − (Π − F)(am u0)] + (θ(am u1) − θ(am u0)) (θ continuous)."""
     m = 1.0 - mc
     v = lam * h
-    s2, c2, d2 = sncndn(v, mc)
+    short = abs(v) < 1.0
+    if short:
+        s2, c2, d2, g_v = _short_step(v, mc, n)
+    else:
+        s2, c2, d2 = sncndn(v, mc)
+        g_v = 0.0
     s1, c1, d1 = _add_sncndn(s0, c0, d0, s2, c2, d2, m)
     if s2 != 0.0:
         # restore sn² + cn² = 1 and dn² + m sn² = 1 to rounding (energy and |L| to a few ULP)
@@ -196,39 +258,10 @@ def _elliptic_case(s0, c0, d0, lam, h, mc, n, S, C, cpi):
         s1 *= r
         c1 *= r
         d1 = math.sqrt(c1 * c1 + mc * s1 * s1)
-    if abs(v) < _GL_U and (n == 0.0 or abs(v) * _GL_RATIO < math.atan(1.0 / math.sqrt(-n))):
-        # Very short step: ∫ n sn²/(1 − n sn²) du over [u0, u0 + v] by 5-point Gauss–Legendre, sn at the
-        # nodes by the addition theorem from the series of sn, cn, dn (|t| < 0.01).  The integrand is
-        # analytic within |Im u| < y* = arcsc(1/√−n | mc) ≥ atan(1/√−n) (the zeros of 1 − n sn²; the
-        # poles of sn are not singular), so for |v| ≤ y*/_GL_RATIO the Bernstein-ellipse bound gives an
-        # error below eps |v g| (Trefethen, ATAP ch. 19): more accurate than the difference of two R_J.
-        half = 0.5 * v
-        s02 = s0 * s0
-        acc = 0.0
-        coeffs = series_coefficients(m)
-        for k in range(5):
-            t = half * (1.0 + _GL_X[k])
-            st, ct, dt_ = sncndn_series(t, coeffs)
-            sk = (s0 * ct * dt_ + st * c0 * d0) / (1.0 - m * s02 * st * st)
-            sk2 = sk * sk
-            acc += _GL_W[k] * (sk2 / (1.0 - n * sk2))
-        d_pf = n * half * acc
+    if short:
+        # Short step (|v| < 1 < K: no half-period count, no K, no F): G(u1) − G(u0) = G(v) − defect(u0, v).
         d_theta = math.atan2(C * S * (c0 * s1 - s0 * c1), C * C * c0 * c1 + S * S * s0 * s1)
-        return s1, c1, d1, cpi * d_pf, d_theta
-    if abs(v) < 1.0:
-        # Short step: am moves by less than |v| < π/2 (d am/du = dn ≤ 1), so the half-period count
-        # changes by sign(v) exactly when cn changes sign, and θ moves by less than π: no K, no F.
-        sr0 = s0 if c0 >= 0.0 else -s0
-        sr1 = s1 if c1 >= 0.0 else -s1
-        cc0 = c0 * c0
-        cc1 = c1 * c1
-        pf1 = sr1 * sr1 * sr1 * rj(cc1, cc1 + mc * sr1 * sr1, 1.0, 1.0 - n * sr1 * sr1)
-        pf0 = sr0 * sr0 * sr0 * rj(cc0, cc0 + mc * sr0 * sr0, 1.0, 1.0 - n * sr0 * sr0)
-        d_pf = pf1 - pf0
-        if (c0 >= 0.0) != (c1 >= 0.0):
-            d_pf += (2.0 if v > 0.0 else -2.0) * rj(0.0, mc, 1.0, 1.0 - n)
-        d_theta = math.atan2(C * S * (c0 * s1 - s0 * c1), C * C * c0 * c1 + S * S * s0 * s1)
-        return s1, c1, d1, cpi * (n / 3.0) * d_pf, d_theta
+        return s1, c1, d1, cpi * (g_v - _addition_defect(s0, s2, s1, -n, m)), d_theta
     sr0, cc0, phr0, thr0 = _reduced(s0, c0, S, C)
     sr1, cc1, phr1, thr1 = _reduced(s1, c1, S, C)
     # half periods: J0 from the quadrant, J1 from u1 = u0 + λh (|am u − πu/2K| < π/2)
