@@ -1,11 +1,14 @@
 """Cost of the exact free rigid-body flow (kernels/euler_poinsot.py) and of the exact Strang splitting.
 
-Run:  python benchmarks/bench_free_body.py [--runs 256] [--steps 2000] [--repeat 5] [--no-lanes]
+Run:  python benchmarks/bench_free_body.py [--runs 256] [--steps 2000] [--repeat 5] [--no-lanes] [--baseline REV]
 
 Prints, from one process (ratios are taken under the same machine load):
 1. ns per step of one exact free-flow step (free_flow_exact as a step) against one rk4 step, both in the
    same batched njit prange harness (runs × steps, each run its own (ω, q), aggregate wall time / steps),
    1 and 2 threads, on generic asymmetric bodies (random moments and rates);
+   then the same at ‖ω‖dt from 0.005 to 1.5 rad (|ω| = 10 rad/s, dt scaled), where the step's |λh| goes
+   from the very short to past the short-step branch (|λh| < 1); with --baseline REV, the exact flow of
+   kernels/euler_poinsot.py at git revision REV timed in the same process, alternating with today's;
 2. the exact Strang splitting (strang_exact) against lie_poisson (axis sub-splitting) on the asymmetric
    box of the free_asymmetric scene, I = (1e-4, 3e-4, 2e-4), ω = (1e-3 ω3, 0, ω3), f = 10 Hz ± 5 %,
    dt = 1e-4, in the same harness;
@@ -15,9 +18,13 @@ Times are medians of --repeat repeats after a warm-up call.
 """
 
 import argparse
+import importlib.util
 import math
 import os
+import subprocess
+import tempfile
 import time
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -75,6 +82,27 @@ def generic_inputs(n, seed=0):
     return W, Q / np.linalg.norm(Q, axis=1, keepdims=True), B
 
 
+def baseline_free_flow(rev):
+    """free_flow_exact of kernels/euler_poinsot.py at git revision rev, its relative imports pointed at
+    today's installed package (they must still exist there), as a step function."""
+    repo = Path(__file__).resolve().parent.parent
+    text = subprocess.run(
+        ["git", "-C", str(repo), "show", f"{rev}:kernels/euler_poinsot.py"], check=True, capture_output=True, text=True
+    ).stdout
+    path = Path(tempfile.mkdtemp(prefix="bench_free_body_")) / "baseline_euler_poinsot.py"
+    path.write_text(text.replace("from .", "from gyrolab.kernels."))
+    spec = importlib.util.spec_from_file_location("baseline_euler_poinsot", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    flow = module.free_flow_exact
+
+    @njit(error_model="numpy")
+    def step(w, q, dt, body):
+        return flow(w, q, dt, body)
+
+    return step
+
+
 def box_inputs(n):
     spins = 10.0 * (1.0 + 0.1 * (np.arange(n) / max(n - 1, 1) - 0.5))
     om3 = 2 * math.pi * spins
@@ -121,6 +149,7 @@ def main():
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--no-lanes", action="store_true")
+    parser.add_argument("--baseline", metavar="REV", help="also time the exact flow of this git revision")
     args = parser.parse_args()
     threads = [1, 2] if numba.config.NUMBA_NUM_THREADS >= 2 else [1]
     print(
@@ -142,6 +171,33 @@ def main():
         + " | ".join(f"{a / b:.1f}x" for a, b in zip(table["exact free flow"], table["rk4"]))
         + " |"
     )
+
+    print("\n## 1b. exact free flow / rk4 per step against ‖ω‖dt (|ω| = 10 rad/s, 1 thread)\n")
+    W, Q, B = generic_inputs(args.runs)
+    inputs = (10.0 * W / np.linalg.norm(W, axis=1, keepdims=True), Q, B)
+    steps = {"rk4": rk4.step, "exact": exact_free_step}
+    if args.baseline:
+        steps[f"exact at {args.baseline}"] = baseline_free_flow(args.baseline)
+    harnesses = {name: make_harness(step) for name, step in steps.items()}
+    names = list(steps)
+    print(
+        "| ‖ω‖dt (rad) | "
+        + " | ".join(f"{name} ns/step" for name in names)
+        + " | "
+        + " | ".join(f"{name} / rk4" for name in names[1:])
+        + " |"
+    )
+    print("|---:|" + "---:|" * (2 * len(names) - 1))
+    for wdt in (0.005, 0.02, 0.05, 0.1, 0.15, 0.3, 0.6, 0.9, 1.5):
+        ns = {name: ns_per_step(harnesses[name], inputs, wdt / 10.0, args.steps, 1, args.repeat) for name in names}
+        print(
+            f"| {wdt} | "
+            + " | ".join(f"{ns[name]:.1f}" for name in names)
+            + " | "
+            + " | ".join(f"{ns[name] / ns['rk4']:.1f}x" for name in names[1:])
+            + " |",
+            flush=True,
+        )
 
     print("\n## 2. asymmetric box, f = 10 Hz, dt = 1e-4\n")
     print("| method | " + " | ".join(f"{t} thread(s) ns/step" for t in threads) + " |")
