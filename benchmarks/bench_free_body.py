@@ -82,19 +82,27 @@ def generic_inputs(n, seed=0):
     return W, Q / np.linalg.norm(Q, axis=1, keepdims=True), B
 
 
-def baseline_free_flow(rev):
+def baseline_free_flow(rev, workdir):
     """free_flow_exact of kernels/euler_poinsot.py at git revision rev, its relative imports pointed at
-    today's installed package (they must still exist there), as a step function."""
+    today's installed package (they must still exist there), as a step function; the file goes in workdir.
+    Raises ValueError with one line when the revision or its file cannot be read or imported."""
     repo = Path(__file__).resolve().parent.parent
-    text = subprocess.run(
-        ["git", "-C", str(repo), "show", f"{rev}:kernels/euler_poinsot.py"], check=True, capture_output=True, text=True
-    ).stdout
-    path = Path(tempfile.mkdtemp(prefix="bench_free_body_")) / "baseline_euler_poinsot.py"
-    path.write_text(text.replace("from .", "from gyrolab.kernels."))
+    shown = subprocess.run(
+        ["git", "-C", str(repo), "show", f"{rev}:kernels/euler_poinsot.py"], capture_output=True, text=True
+    )
+    if shown.returncode != 0:
+        raise ValueError(
+            f"--baseline {rev}: {shown.stderr.strip().splitlines()[-1] if shown.stderr else 'git show failed'}"
+        )
+    path = Path(workdir) / "baseline_euler_poinsot.py"
+    path.write_text(shown.stdout.replace("from .", "from gyrolab.kernels."))
     spec = importlib.util.spec_from_file_location("baseline_euler_poinsot", path)
     module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    flow = module.free_flow_exact
+    try:
+        spec.loader.exec_module(module)
+        flow = module.free_flow_exact
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f"--baseline {rev}: its euler_poinsot.py does not load against today's package: {exc}")
 
     @njit(error_model="numpy")
     def step(w, q, dt, body):
@@ -151,6 +159,13 @@ def main():
     parser.add_argument("--no-lanes", action="store_true")
     parser.add_argument("--baseline", metavar="REV", help="also time the exact flow of this git revision")
     args = parser.parse_args()
+    workdir = tempfile.TemporaryDirectory(prefix="bench_free_body_")
+    baseline = None
+    if args.baseline:  # before any timing: a bad revision is one line, not a traceback after minutes
+        try:
+            baseline = baseline_free_flow(args.baseline, workdir.name)
+        except ValueError as exc:
+            parser.exit(2, f"bench_free_body: {exc}\n")
     threads = [1, 2] if numba.config.NUMBA_NUM_THREADS >= 2 else [1]
     print(
         f"# bench_free_body: {args.runs} runs x {args.steps} steps, medians of {args.repeat}; "
@@ -176,8 +191,8 @@ def main():
     W, Q, B = generic_inputs(args.runs)
     inputs = (10.0 * W / np.linalg.norm(W, axis=1, keepdims=True), Q, B)
     steps = {"rk4": rk4.step, "exact": exact_free_step}
-    if args.baseline:
-        steps[f"exact at {args.baseline}"] = baseline_free_flow(args.baseline)
+    if baseline is not None:
+        steps[f"exact at {args.baseline}"] = baseline
     harnesses = {name: make_harness(step) for name, step in steps.items()}
     names = list(steps)
     print(
