@@ -86,6 +86,8 @@ def baseline_free_flow(rev, workdir):
     """free_flow_exact of kernels/euler_poinsot.py at git revision rev, its relative imports pointed at
     today's installed package (they must still exist there), as a step function; the file goes in workdir.
     Raises ValueError with one line when the revision or its file cannot be read or imported."""
+    if rev.startswith("-"):  # git would read it as an option (--output=FILE writes a file)
+        raise ValueError(f"--baseline {rev}: not a revision")
     repo = Path(__file__).resolve().parent.parent
     shown = subprocess.run(
         ["git", "-C", str(repo), "show", f"{rev}:kernels/euler_poinsot.py"], capture_output=True, text=True
