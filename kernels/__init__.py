@@ -17,7 +17,8 @@ method that inlines it.  Here every cached function is stored under a key
   editing a scene or adding a method compiles nothing that already ran.
 
 Any edit of what a kernel compiles selects a fresh directory: nothing stale
-can run, and nothing needs clearing by hand.  ``SOURCE_HASH``, the hash of
+can run, and nothing needs clearing by hand.  The same source anywhere (a
+second clone, another venv, a reinstall) finds the same directory.  ``SOURCE_HASH``, the hash of
 every file under this folder, names the code that ran in a results file's
 provenance.  ``NUMBA_CACHE_DIR``, when set, is the parent of the key
 directories (default: ``$XDG_CACHE_HOME/gyrolab/numba`` or
@@ -133,12 +134,18 @@ _UserLocator = getattr(caching, "UserProvidedCacheLocator", None) or caching._Us
 
 
 class KeyedCacheLocator(_UserLocator):
-    """numba's user-directory locator, with the directory ``CACHE_ROOT/<key of the file>/``."""
+    """numba's user-directory locator, with the directory ``CACHE_ROOT/<key of the file>/kernels[/methods]``.
+
+    numba's own subdirectory is named by a hash of the file's absolute folder, so every clone, venv or
+    reinstall elsewhere compiled everything again; the key already names the source's content, and numba
+    checks a hash of the file's bytes before it loads (its source stamp), so the folder relative to
+    kernels/ is all the path needed: any copy of the same source at any place finds the same cache."""
 
     def __init__(self, py_func, py_file):
         super().__init__(py_func, py_file)
-        key = COMPILE_KEYS[str(Path(py_file).resolve())]
-        self._cache_path = os.path.join(CACHE_ROOT, key, self.get_suitable_cache_subpath(py_file))
+        path = Path(py_file).resolve()
+        key = COMPILE_KEYS[str(path)]
+        self._cache_path = os.path.join(CACHE_ROOT, key, "kernels", *path.parent.relative_to(ROOT).parts)
 
     @classmethod
     def from_function(cls, py_func, py_file):

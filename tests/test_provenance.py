@@ -42,7 +42,8 @@ def test_editing_a_kernel_helper_never_runs_stale_machine_code(tmp_path):
     """A copy of the source tree runs lie_poisson (cache filled), then its kick in free_flow.py, a helper
     that numba inlines into lie_poisson's cached kernels, is doubled: the next run, with the same cache
     directory and nothing cleared, gives the doubled kick's result, the same bits as a run on an empty
-    cache.  (Plain numba caching checks only the kernel's own file and ran the old kick.)"""
+    cache.  (Plain numba caching checks only the kernel's own file and ran the old kick.)  Between the two,
+    an edit of a scene and a copy of the tree at another path each compile nothing."""
     tree = tmp_path / "tree"
     for name in ("gyrolab", "kernels", "runner", "analysis", "conf"):
         shutil.copytree(CHECKOUT / name, tree / name, ignore=shutil.ignore_patterns("__pycache__"))
@@ -57,6 +58,11 @@ def test_editing_a_kernel_helper_never_runs_stale_machine_code(tmp_path):
     scene.write_text(scene.read_text() + "\n# an edit of a scene file\n")
     _, edited_hash, edited = probe(tree, cache)
     assert edited == before and edited_hash != before_hash  # provenance names the edit; the bits are the same
+    assert cached_files(cache) == filled
+    # The same source at another path (a second clone, another venv, a reinstall) compiles nothing either.
+    elsewhere = tmp_path / "another_clone"
+    shutil.copytree(tree, elsewhere, ignore=shutil.ignore_patterns("__pycache__"))
+    assert probe(elsewhere, cache)[2] == before
     assert cached_files(cache) == filled
     free_flow = tree / "kernels" / "free_flow.py"
     text = free_flow.read_text()
