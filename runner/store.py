@@ -2,9 +2,9 @@
 
 Crash safety: each finished chunk goes to ``<out>.partial/chunk-NNNNN.npz``
 through a temporary name, fsync and ``os.replace``, so a chunk file is
-either complete or absent; then its sha256 and expected shape are added to
-``manifest.json`` (written the same way).  A resume verifies every chunk
-(``Journal.verify``: listed, checksum, keys, shapes, run numbers, finite
+either complete or absent; then its HMAC (below, ``chunk_mac``) and number of runs are
+added to ``manifest.json`` (written the same way).  A resume verifies every chunk
+(``Journal.verify``: listed, proof, keys, shapes, run numbers, finite
 samples of finished runs) and moves a bad one aside into
 ``<out>.partial/rejected/`` so that its runs are computed again.  A chunk cut in
 time keeps its samples so far and its runs' state in ``segment-NNNNN.npz`` (the
@@ -83,8 +83,28 @@ def chunk_mac(key, name, binding, arrays, keys=CHUNK_KEYS):
     for k in keys:
         value = np.ascontiguousarray(arrays[k])
         mac.update(f"{k}:{value.dtype.str}:{value.shape}\0".encode())
-        mac.update(value.tobytes())
+        mac.update(_bytes_view(value))  # the array's bytes in place: no copy of ~0.7 GB a big sweep
     return mac.hexdigest()
+
+
+def _bytes_view(array):
+    """The bytes of a C-contiguous array as a flat memoryview (the bytes ``tobytes`` would copy)."""
+    return memoryview(array.reshape(-1)).cast("B") if array.size else b""
+
+
+def save_npz(fh, arrays):
+    """Write ``arrays`` (name -> array) to the open binary file ``fh`` as ``np.savez`` does (an
+    uncompressed zip of .npy members that ``np.load`` reads), without its copy: np.savez passes each
+    array to the zip member through 16 MiB ``tobytes`` copies; here each member is the .npy header and
+    the array's own bytes (one CRC-32 pass in zipfile, one write)."""
+    import zipfile
+
+    with zipfile.ZipFile(fh, mode="w", compression=zipfile.ZIP_STORED, allowZip64=True) as zf:
+        for name, value in arrays.items():
+            value = np.asarray(value, order="C")  # (not ascontiguousarray, which makes a 0-d array 1-d)
+            with zf.open(f"{name}.npy", mode="w", force_zip64=True) as member:
+                np.lib.format.write_array_header_1_0(member, np.lib.format.header_data_from_array_1_0(value))
+                member.write(_bytes_view(value))
 
 
 def sha256(path):
@@ -97,7 +117,7 @@ def sha256(path):
 
 class Journal:
     """Finished chunks of one sweep in ``<out>.partial/``; ``manifest.json`` names the config
-    hash, the grid (n_runs, shape, n_samples) and each chunk's sha256 and number of runs."""
+    hash, the grid (n_runs, shape, n_samples) and each chunk's HMAC and number of runs."""
 
     def __init__(self, out):
         self.dir = partial_dir(out)
@@ -206,7 +226,7 @@ class Journal:
 
     def write_chunk(self, number, runs, samples, status, n_steps, wall_time):
         """Store one finished chunk durably: runs (flat numbers), raw samples (n, time, RAW_PER_SAMPLE),
-        per-run arrays; then record its checksum in the manifest."""
+        per-run arrays; then record its HMAC in the manifest."""
 
         start = time.perf_counter()
         path = self.dir / f"chunk-{number:05d}.npz"
@@ -215,11 +235,8 @@ class Journal:
         binding = self.binding()
         mac = chunk_mac(self.key(), path.name, binding, arrays)
 
-        def write(fh):
-            np.savez(fh, **arrays, binding=np.array(binding), mac=np.array(mac))
-
-        atomic_write(path, write)
-        self.record_chunk(path, len(runs))
+        atomic_write(path, lambda fh: save_npz(fh, {**arrays, "binding": np.array(binding), "mac": np.array(mac)}))
+        self.record_chunk(path, len(runs), mac)
         self.write_seconds += time.perf_counter() - start
 
     def write_segment(self, number, runs, samples, status, n_steps, wall_time, state):
@@ -233,7 +250,7 @@ class Journal:
         arrays = {k: np.asarray(v) for k, v in arrays.items()}
         binding = self.binding()
         mac = chunk_mac(self.key(), path.name, binding, arrays, SEGMENT_KEYS)
-        atomic_write(path, lambda fh: np.savez(fh, **arrays, binding=np.array(binding), mac=np.array(mac)))
+        atomic_write(path, lambda fh: save_npz(fh, {**arrays, "binding": np.array(binding), "mac": np.array(mac)}))
         self.write_seconds += time.perf_counter() - start
 
     def remove_segment(self, number):
@@ -280,11 +297,12 @@ class Journal:
                 file=sys.stderr,
             )
 
-    def record_chunk(self, path, n_runs):
-        """Add a chunk file written by this or another process to the manifest."""
+    def record_chunk(self, path, n_runs, mac):
+        """Add a chunk file written by this or another process to the manifest, with its HMAC ``mac``
+        (hex; the one the file carries)."""
         if self._manifest is None:
             self._manifest = self.manifest()
-        self._manifest.setdefault("chunks", {})[Path(path).name] = {"sha256": sha256(path), "runs": int(n_runs)}
+        self._manifest.setdefault("chunks", {})[Path(path).name] = {"mac": str(mac), "runs": int(n_runs)}
         self._write_manifest()
 
     def chunks(self):
@@ -308,7 +326,7 @@ class Journal:
                 changed |= listed.pop(path.name, None) is not None
             elif path.name not in listed:  # killed before its manifest entry, or a journal without checksums
                 with np.load(path, allow_pickle=False) as data:
-                    listed[path.name] = {"sha256": sha256(path), "runs": int(data["runs"].size)}
+                    listed[path.name] = {"mac": str(data["mac"]), "runs": int(data["runs"].size)}
                 changed = True
         have = {p.name for p in self.chunk_files()}
         for name in [n for n in listed if n not in have]:
@@ -362,9 +380,9 @@ def _manifest_problem(manifest):
         if not isinstance(chunks, dict):
             return "chunks is not a JSON object"
         for name, entry in chunks.items():
-            if not (
-                isinstance(entry, dict) and isinstance(entry.get("sha256"), str) and isinstance(entry.get("runs"), int)
-            ):
+            # "mac" (the chunk's HMAC), or "sha256" (the file's, as gyrolab wrote before 2026-12-05)
+            proof = entry.get("mac", entry.get("sha256")) if isinstance(entry, dict) else None
+            if not (isinstance(proof, str) and isinstance(entry.get("runs"), int)):
                 return f"bad entry for {name}"
     return None
 
@@ -397,7 +415,12 @@ def _chunk_problem(path, listed, n_runs, n_samples, seen, key, binding, segment=
     # A chunk missing from the manifest was renamed into place just before a kill, ahead of its
     # manifest entry: whole (atomic rename, fsync), so it is judged by its content alone.
     listed = listed if listed is not None and path.name in listed else None
-    if listed is not None and sha256(path) != listed[path.name]["sha256"]:
+    # The manifest entry names the chunk by its HMAC ("mac"), which the file carries and which is
+    # checked against the arrays below: one hash of the samples, not a second one of the file.  (zip's
+    # CRC-32 of each member, which np.load checks as it reads one whole, covers the .npy headers.)  An
+    # entry of an older gyrolab names the file's sha256 instead.
+    entry = listed[path.name] if listed is not None else None
+    if entry is not None and "mac" not in entry and sha256(path) != entry["sha256"]:
         return "checksum differs from the manifest's (damaged file)"
     try:
         with np.load(path, allow_pickle=False) as data:
@@ -409,6 +432,8 @@ def _chunk_problem(path, listed, n_runs, n_samples, seen, key, binding, segment=
             arrays = {k: data[k] for k in (*keys, *PROOF_KEYS)}
     except Exception as err:  # zipfile, numpy and zlib raise many kinds on damaged input
         return f"unreadable ({_reason(err)})"
+    if entry is not None and "mac" in entry and not hmac.compare_digest(str(arrays["mac"]), entry["mac"]):
+        return "not the chunk the manifest lists (its HMAC differs from the manifest's: replaced or damaged)"
     if str(arrays["binding"]) != binding:
         return "made by another sweep or other kernel code (its config or kernel-source hash differs)"
     if not hmac.compare_digest(str(arrays["mac"]), chunk_mac(key, path.name, binding, arrays, keys)):

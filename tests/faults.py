@@ -221,15 +221,19 @@ def _rewrite(journal, path, **changes):
 
 
 def reseal(journal, path):
+    """Make the manifest's entry agree with the chunk file as it now is: the HMAC the file carries
+    ("mac"), or, for a file that no longer has one, the file's sha256 as an older gyrolab listed it."""
     manifest = json.loads(journal.manifest_path.read_text())
     entry = manifest["chunks"][path.name]
-    entry["sha256"] = sha256(path)
+    entry.pop("mac", None)
+    entry.pop("sha256", None)
     try:
         with np.load(path) as data:
             if "runs" in data.files:
                 entry["runs"] = int(data["runs"].size)
-    except Exception:  # a file damaged on purpose
-        pass
+            entry["mac"] = str(data["mac"])
+    except Exception:  # a file damaged on purpose, or one without a proof
+        entry["sha256"] = sha256(path)
     journal.manifest_path.write_text(json.dumps(manifest))
 
 

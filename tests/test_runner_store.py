@@ -111,6 +111,62 @@ def test_a_journal_without_checksums_is_verified_by_content_and_then_sealed(tmp_
     assert list(journal.manifest()["chunks"]) == ["chunk-00000.npz"]
 
 
+def test_chunk_files_load_as_np_savez_writes_them(tmp_path):
+    """save_npz (the journal's writer, without np.savez's copies) gives what np.savez gives back:
+    same names, dtypes, shapes (0-d kept) and bytes, Fortran-ordered input included."""
+    from gyrolab.runner.store import save_npz
+
+    rng = np.random.default_rng(5)
+    arrays = {
+        "samples": rng.standard_normal((3, 7, 13)),
+        "runs": np.array([4, 0, 9]),
+        "status": np.array([0, 1, 2], dtype=np.int8),
+        "empty": np.empty((0, 4)),
+        "fortran": np.asfortranarray(rng.standard_normal((4, 5))),
+        "binding": np.array("cfg-hash kernel-hash"),
+        "mac": np.array("0f" * 32),
+    }
+    with open(tmp_path / "ours.npz", "wb") as fh:
+        save_npz(fh, arrays)
+    with open(tmp_path / "numpy.npz", "wb") as fh:
+        np.savez(fh, **arrays)
+    with np.load(tmp_path / "ours.npz") as ours, np.load(tmp_path / "numpy.npz") as ref:
+        assert ours.files == ref.files == list(arrays)
+        for name in arrays:
+            assert ours[name].dtype == ref[name].dtype and ours[name].shape == ref[name].shape, name
+            assert ours[name].tobytes() == ref[name].tobytes(), name
+
+
+def test_the_manifest_lists_each_chunk_by_its_hmac(tmp_path, grid):
+    """One hash per chunk: the manifest names a chunk by the HMAC it carries (no second hash of the
+    file); a chunk whose HMAC is not the manifest's is set aside, and an older gyrolab's entries (the
+    file's sha256) are still honoured."""
+    from gyrolab.runner.store import sha256
+
+    journal = Journal(tmp_path / "results.h5")
+    journal.create({"config_hash": "abc"})
+    journal.write_chunk(0, **run_chunk(grid, np.array([0, 2]), threads=1))
+    journal.write_chunk(1, **run_chunk(grid, np.array([1, 3]), threads=1))
+    entries = journal.manifest()["chunks"]
+    for name, entry in entries.items():
+        with np.load(journal.dir / name) as data:
+            assert entry == {"mac": str(data["mac"]), "runs": 2}
+
+    manifest = journal.manifest()
+    older = manifest["chunks"]["chunk-00001.npz"] = {"sha256": sha256(journal.dir / "chunk-00001.npz"), "runs": 2}
+    manifest["chunks"]["chunk-00000.npz"]["mac"] = "ab" * 32  # listed under another HMAC
+    journal.manifest_path.write_text(json.dumps(manifest))
+    rejected = Journal(tmp_path / "results.h5").verify(grid.n_runs, grid.n_samples)
+    assert [name for name, _ in rejected] == ["chunk-00000.npz"]
+    assert "HMAC differs from the manifest's" in rejected[0][1]
+    assert Journal(tmp_path / "results.h5").manifest()["chunks"] == {"chunk-00001.npz": older}
+
+    older["sha256"] = "0" * 64  # an older entry whose file changed since
+    journal.manifest_path.write_text(json.dumps(manifest | {"chunks": {"chunk-00001.npz": older}}))
+    rejected = Journal(tmp_path / "results.h5").verify(grid.n_runs, grid.n_samples)
+    assert rejected == [("chunk-00001.npz", "checksum differs from the manifest's (damaged file)")]
+
+
 def test_stale_result_temporaries_are_removed(tmp_path):
     from gyrolab.safe_files import remove_stale_temporaries
 
