@@ -53,7 +53,7 @@ corrections.  Our own choices on top of it:
   of the third-kind integral (DLMF 19.26.9, Legendre form), the increment
   of Π − F from am u0 to am(u0 + λh) is (Π − F)(am λh) minus an R_C of sn
   at u0, λh and u0 + λh, and (Π − F)(am λh) comes with sn, cn, dn(λh) from
-  halving λh to ≤ 0.01 (Maclaurin series there) and doubling back, one R_C
+  halving λh to ≤ 0.03 (Maclaurin series there) and doubling back, one R_C
   per doubling: no R_J of the endpoints, whose difference cancels.
   Against mpmath at 30 digits (tests/test_euler_poinsot.py
   ::test_short_step_third_kind_increment) it is within 4 eps of the
@@ -188,25 +188,69 @@ def _addition_defect(su, sv, suv, a, m):
     The addition theorem of the third-kind integral (DLMF 19.26.9 in Legendre form): with S = su sv suv,
     P = Π_k (1 + a sn_k²) and δ = a(1 + a)(a + m), the defect is a S R_C(P − δS², P).  P − δS² =
     1 + a(Σ sn² − m S²) + a²(Σ sn_i² sn_j² − (1 + m) S²) ≥ 1 is formed without the cancellation of its a³
-    terms (near-symmetric bodies have a ≫ 1), and R_C(x, x + y) = R_C(1, 1 + y/x)/√x."""
+    terms (near-symmetric bodies have a ≫ 1).  With x = P − δS² and δ > 0 (a > 0, m ≥ 0), R_C(x, x + δS²) =
+    atan(z)/(√δ |S|), z = √δ |S|/√x, so the defect is (a/√δ) atan(√δ S/√x) (z² = δS²/x below 1e-3: a S/√x
+    times rc1's series of atan(z)/z).  What depends on the sn's is one square root, one division and the
+    atan; R_C(1, 1 + δS²/x)/√x in rc1's form took two square roots and three divisions in a row
+    (docs/benchmarks.md, "The exact free flow's short step")."""
     s2u = su * su
     s2v = sv * sv
     s2uv = suv * suv
     S = su * sv * suv
     SS = S * S
     x = 1.0 + a * (s2u + s2v + s2uv - m * SS) + a * a * (s2u * s2v + s2u * s2uv + s2v * s2uv - (1.0 + m) * SS)
-    return a * S * rc1(a * (1.0 + a) * (a + m) * SS / x) / math.sqrt(x)
+    r = 1.0 / math.sqrt(x)
+    delta = a * (1.0 + a) * (a + m)
+    z2 = delta * SS * (r * r)
+    if z2 < 1.0e-3:  # atan(z)/z = 1 − z²/3 + z⁴/5 − ...: to z¹² the error is < 1e-21
+        return a * S * r * rc1(z2)
+    k = math.sqrt(delta)
+    return (a / k) * math.atan(k * S * r)
+
+
+@njit(cache=True, error_model="numpy")
+def _rj_close(x, y, z, p):
+    """Carlson's R_J(x, y, z, p) for arguments close together (the short step's base): the series about
+    their mean A, A^(-3/2) (1 − 3E2/14 + E3/6 + 9E2²/88 − 3E4/22 − 9E2E3/52 + 3E5/26), without elliptic.rj's
+    set-up of a duplication loop that would not run, and with one division; elliptic.rj when they are
+    farther apart than its bound for no duplication (900 max|A − arg| < A)."""
+    A = (x + y + z + p + p) * 0.2
+    if 900.0 * max(abs(A - x), abs(A - y), abs(A - z), abs(A - p)) >= A:
+        return rj(x, y, z, p)
+    inv = 1.0 / A
+    X = (A - x) * inv
+    Y = (A - y) * inv
+    Z = (A - z) * inv
+    P = -0.5 * (X + Y + Z)
+    E2 = X * Y + X * Z + Y * Z - 3.0 * P * P
+    E3 = X * Y * Z + 2.0 * E2 * P + 4.0 * P * P * P
+    E4 = (2.0 * X * Y * Z + E2 * P + 3.0 * P * P * P) * P
+    E5 = X * Y * Z * P * P
+    series = 1.0 + (
+        E2 * (-3.0 / 14.0 + E2 * (9.0 / 88.0) - E3 * (9.0 / 52.0))
+        + E3 * (1.0 / 6.0)
+        - E4 * (3.0 / 22.0)
+        + E5 * (3.0 / 26.0)
+    )
+    return series * inv * math.sqrt(inv)
+
+
+# |w| at or below which the short step takes sn, cn, dn from their Maclaurin series and G from one R_J
+# of close arguments: sncndn_series is within 0.7 eps (sn, relative) and 0.3 eps (cn, dn) of mpmath for
+# |w| ≤ 0.03, every m in [0, 1] (the first dropped terms are < 0.05 eps there).
+SERIES_BASE = 0.03
 
 
 @njit(cache=True, error_model="numpy")
 def _short_step(v, mc, n):
-    """(sn, cn, dn)(v) and G(v) = (Π − F)(am v, n|m) for |v| < 1, by halving v to |w| ≤ 0.01 and doubling
-    back.
+    """(sn, cn, dn)(v) and G(v) = (Π − F)(am v, n|m) for |v| < 1, by halving v to |w| ≤ SERIES_BASE and
+    doubling back.
 
     At w: sn, cn, dn from their Maclaurin series (exact to rounding) and G(w) from one R_J whose arguments
-    differ by a w² at most (its duplication loop runs only for a ≳ 1e2).  Each doubling: sn(2w) = 2 s c d/D,
-    1 − cn(2w) = 2 s² d²/D, 1 − dn(2w) = 2 m s² c²/D with D = 1 − m s⁴ (1 − cn and 1 − dn carried instead
-    of cn and dn, which near 1 keep few of w's digits), and G(2w) = 2 G(w) − defect(w, w).  The half-
+    differ by a w² at most (``_rj_close``: its series alone, unless a ≳ 1 calls for a duplication or two).
+    Each doubling: sn(2w) = 2 s c d/D, 1 − cn(2w) = 2 s² d²/D, 1 − dn(2w) = 2 m s² c²/D with D = 1 − m s⁴
+    (1 − cn and 1 − dn carried instead of cn and dn, which near 1 keep few of w's digits), and
+    G(2w) = 2 G(w) − defect(w, w).  The half-
     and double-argument transformations T. Fukushima uses for incomplete elliptic integrals, applied to the
     step: ~1.5x faster than Bulirsch's sncndn and an R_J of v (docs/benchmarks.md), to a few eps
     (tests/test_euler_poinsot.py::test_short_step_third_kind_increment).  |v| < 1 keeps every doubling
@@ -216,12 +260,12 @@ def _short_step(v, mc, n):
     a = -n
     w = abs(v)
     k = 0
-    while w > 0.01:
+    while w > SERIES_BASE:
         w *= 0.5  # exact
         k += 1
     s, c, d = sncndn_series(w, series_coefficients(m))
     ss = s * s
-    g = -(a / 3.0) * ss * s * rj(c * c, c * c + mc * ss, 1.0, 1.0 + a * ss)
+    g = -(a / 3.0) * ss * s * _rj_close(c * c, c * c + mc * ss, 1.0, 1.0 + a * ss)
     e = 1.0 - c
     f = 1.0 - d
     for _ in range(k):
