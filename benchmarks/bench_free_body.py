@@ -8,7 +8,12 @@ Prints, from one process (ratios are taken under the same machine load):
    1 and 2 threads, on generic asymmetric bodies (random moments and rates);
    then the same at ‖ω‖dt from 0.005 to 1.5 rad (|ω| = 10 rad/s, dt scaled), where the step's |λh| goes
    from the very short to past the short-step branch (|λh| < 1); with --baseline REV, the exact flow of
-   kernels/euler_poinsot.py at git revision REV timed in the same process, alternating with today's;
+   kernels/euler_poinsot.py at git revision REV timed in the same process, alternating with today's, and
+   today's file loaded the same way ("exact, copied"): compare REV with that column.  A copy (the file
+   re-imported from a scratch directory, its relative imports pointed at the installed package) measured
+   12-16 % slower than the same source installed (2026-12-05, cause not found), so the installed column
+   flatters today's code against REV; for an A/B of installed packages, ``pip install --target DIR`` the
+   other revision and run this script with ``PYTHONPATH=DIR``;
 2. the exact Strang splitting (strang_exact) against lie_poisson (axis sub-splitting) on the asymmetric
    box of the free_asymmetric scene, I = (1e-4, 3e-4, 2e-4), ω = (1e-3 ω3, 0, ω3), f = 10 Hz ± 5 %,
    dt = 1e-4, in the same harness;
@@ -96,15 +101,26 @@ def baseline_free_flow(rev, workdir):
         raise ValueError(
             f"--baseline {rev}: {shown.stderr.strip().splitlines()[-1] if shown.stderr else 'git show failed'}"
         )
-    path = Path(workdir) / "baseline_euler_poinsot.py"
-    path.write_text(shown.stdout.replace("from .", "from gyrolab.kernels."))
-    spec = importlib.util.spec_from_file_location("baseline_euler_poinsot", path)
-    module = importlib.util.module_from_spec(spec)
     try:
-        spec.loader.exec_module(module)
-        flow = module.free_flow_exact
+        flow = copied_free_flow(shown.stdout, "baseline_euler_poinsot", workdir)
     except (ImportError, AttributeError) as exc:
         raise ValueError(f"--baseline {rev}: its euler_poinsot.py does not load against today's package: {exc}")
+    return _as_step(flow)
+
+
+def copied_free_flow(source, name, workdir):
+    """free_flow_exact of the euler_poinsot.py text ``source``, imported as module ``name`` from workdir with
+    its relative imports pointed at the installed package."""
+    path = Path(workdir) / f"{name}.py"
+    path.write_text(source.replace("from .", "from gyrolab.kernels."))
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.free_flow_exact
+
+
+def _as_step(flow):
+    """A step function (w, q, dt, body) -> (w, q) of the exact flow ``flow``."""
 
     @njit(error_model="numpy")
     def step(w, q, dt, body):
@@ -194,6 +210,8 @@ def main():
     inputs = (10.0 * W / np.linalg.norm(W, axis=1, keepdims=True), Q, B)
     steps = {"rk4": rk4.step, "exact": exact_free_step}
     if baseline is not None:
+        today = Path(importlib.util.find_spec("gyrolab.kernels.euler_poinsot").origin).read_text()
+        steps["exact, copied"] = _as_step(copied_free_flow(today, "today_euler_poinsot", workdir.name))
         steps[f"exact at {args.baseline}"] = baseline
     harnesses = {name: make_harness(step) for name, step in steps.items()}
     names = list(steps)
