@@ -55,7 +55,7 @@ PER_RUN_BYTES = 200
 # Effective rates of the pipeline around the kernels on the development machine (docs/benchmarks.md,
 # benchmarks/bench_pipeline.py): journal bytes (raw samples) per second, results bytes per second
 # of assembly (journal read, variables derived, file written), and seconds per run of assembly.
-JOURNAL_RATE = 3.0e8
+JOURNAL_RATE = 5.0e8
 ASSEMBLY_RATE = 3.5e8
 ASSEMBLY_PER_RUN = 2e-5
 
