@@ -31,6 +31,22 @@ from helpers import (  # noqa: F401 (re-used by the tests below)
 )
 
 
+def test_a_sweep_without_figures_never_imports_xarray_or_matplotlib(tmp_path):
+    """The runner writes the results through h5py: a sweep with ``output.figures=false`` (scripts, CI,
+    the regression configs) imports neither xarray (with pandas ~0.35 s) nor matplotlib (~0.2 s); every
+    invocation paid both before (2.45 s -> 1.55 s for a tiny sweep on the development machine)."""
+    res = gyrolab(
+        *TINY,  # output.figures=false among them
+        f"hydra.run.dir={tmp_path}",
+        cwd=tmp_path,
+        env=environment(PYTHONPROFILEIMPORTTIME=1),
+    )
+    assert_ok(res)
+    imported = {line.rsplit("|", 1)[-1].strip() for line in res.stderr.splitlines() if line.startswith("import time:")}
+    assert "gyrolab.runner.sweep" in imported  # the profile is there and covers the run
+    assert not {"xarray", "matplotlib", "pandas"} & imported, sorted({"xarray", "matplotlib", "pandas"} & imported)
+
+
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
     """An uninterrupted run of TINY (+ SLOW chunking) on all threads."""

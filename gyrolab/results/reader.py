@@ -15,16 +15,11 @@ from pathlib import Path
 import xarray as xr
 
 from ..limits import LimitError, check_file_sizes
+from .errors import EXIT_BAD_INPUT, ResultsError  # noqa: F401 - the reader's names, as before
 from .layout import GRID_DIMS, LAYOUT_VERSION, required_variables
 from .members import member, member_dim, member_labels
 from .migrate import current, file_layout_version
 from .validate import validate
-
-EXIT_BAD_INPUT = 2  # every gyrolab command's exit status for bad input: a bad file, option or selection
-
-
-class ResultsError(ValueError):
-    """A results file that cannot be used as asked; the message is one line naming the file."""
 
 
 def _scene_name(ds):
