@@ -32,7 +32,7 @@ import numpy as np
 from numba import get_num_threads, njit, prange, set_num_threads
 
 from gyrolab.kernels.body import Body, body_row
-from gyrolab.kernels.registry import METHODS
+from gyrolab.kernels.registry import METHODS, stepper
 
 # every registered reproduction of an engine scheme (kernels/methods README: REPRODUCES)
 ENGINE_METHODS = tuple(name for name, module in METHODS.items() if getattr(module, "REPRODUCES", ""))
@@ -54,15 +54,18 @@ def load(name):
     raise ImportError(name)
 
 
-def make_batch(step):
+def make_batch(module):
+    start, step_carried = stepper(module)  # a method's carried state threads through
+
     @njit(parallel=True, error_model="numpy")
     def run(W, Q, bodies, dt, n_steps):
         for i in prange(W.shape[0]):
             w = (W[i, 0], W[i, 1], W[i, 2])
             q = (Q[i, 0], Q[i, 1], Q[i, 2], Q[i, 3])
             body = body_row(bodies, i)
+            c = start(w, q, body)
             for _ in range(n_steps):
-                w, q = step(w, q, dt, body)
+                w, q, c = step_carried(w, q, c, dt, body)
             W[i, 0], W[i, 1], W[i, 2] = w
             Q[i, 0], Q[i, 1], Q[i, 2], Q[i, 3] = q
 
@@ -79,7 +82,7 @@ def initial_states(n_runs):
 
 
 def bench_numba(name, n_runs, steps, repeat, threads):
-    run = make_batch(load(name).step)
+    run = make_batch(load(name))
     W0, Q0, bodies = initial_states(n_runs)
     run(W0.copy(), Q0.copy(), bodies, DT, 2)  # compile
     out = {}

@@ -1,6 +1,6 @@
 """Error against dt for the cost tables of bench_kernels.py: nutation bounds and energy.
 
-``scan(method, scene, dt, t_end)`` steps one run with the method's own ``step``
+``scan(method, scene, dt, t_end)`` steps one run with the method's own step
 and returns (relative error of the θ extrema against the closed-form nutation
 bounds, max |E − E0| / E0).  Each extremum of u = cos θ between two steps is
 located by re-stepping from the step before it with 16 fractions of the step
@@ -21,14 +21,14 @@ from numba import njit
 from gyrolab.kernels.closed_form import heavy_top_nutation, scene_rotation
 from gyrolab.kernels.lanes import ieee_step
 from gyrolab.kernels.reference import rhs
-from gyrolab.kernels.registry import METHODS
+from gyrolab.kernels.registry import METHODS, stepper
 from gyrolab.kernels.rigid_body import energy
 
 MAX_EXTREMA = 4096
 _SCANS = {}
 
 
-def _make_scan(step):
+def _make_scan(start, step_carried, step):
     @njit
     def u_after(w, q, tau, body):
         _, q = step(w, q, tau, body)
@@ -38,14 +38,15 @@ def _make_scan(step):
     def scan(w, q, dt, body, n, u_ext, sign):
         e0 = energy(w, q, body)
         worst = 0.0
+        c = start(w, q, body)
         w2, q2 = w, q  # state at step k − 2
         u2 = q[0] * q[0] + q[3] * q[3] - q[1] * q[1] - q[2] * q[2]
-        w, q = step(w, q, dt, body)
+        w, q, c = step_carried(w, q, c, dt, body)
         u1 = q[0] * q[0] + q[3] * q[3] - q[1] * q[1] - q[2] * q[2]
         found = 0
         for _ in range(n - 1):
             w1, q1 = w, q
-            w, q = step(w, q, dt, body)
+            w, q, c = step_carried(w, q, c, dt, body)
             worst = max(worst, abs(energy(w, q, body) - e0))
             u0 = q[0] * q[0] + q[3] * q[3] - q[1] * q[1] - q[2] * q[2]
             s = 1.0 if u1 > u2 else -1.0
@@ -54,7 +55,7 @@ def _make_scan(step):
                 best, jbest = s * u2, 0
                 vals = np.empty(17)
                 for j in range(17):
-                    vals[j] = u_after(w2, q2, j * dt / 8.0, body)
+                    vals[j] = u_after(w2, q2, j * dt / 8.0, body) if j else u2  # τ = 0: no step to take
                     if s * vals[j] > best:
                         best, jbest = s * vals[j], j
                 jbest = min(max(jbest, 1), 15)
@@ -75,7 +76,12 @@ def _make_scan(step):
 def scan(method, scene, dt, t_end):
     """(max relative error of θ_min and θ_max, max |E − E0|/E0) of one run of ``t_end`` s."""
     if method not in _SCANS:
-        _SCANS[method] = _make_scan(ieee_step(METHODS[method].step))  # a blow-up gives NaN, not an exception
+        module = METHODS[method]
+        # The run threads a method's carried state (registry.stepper); the re-steps that locate an
+        # extremum start afresh from the saved (ω, q) with the method's ``step`` (for a method that
+        # carries state, its first step from a consistent start: an interpolant whose error is one
+        # step's local error, still below the run's own).  IEEE division: a blow-up gives NaN.
+        _SCANS[method] = _make_scan(*stepper(module), ieee_step(module.step))
     u_ext, sign = np.empty(MAX_EXTREMA), np.empty(MAX_EXTREMA)
     n = int(round(t_end / dt))
     found, e_err = _SCANS[method](tuple(scene.omega0), tuple(scene.q0), dt, tuple(scene.body), n, u_ext, sign)

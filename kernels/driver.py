@@ -142,6 +142,40 @@ def make_advance(step):
     return advance_run
 
 
+def make_advance_carried(start, step_carried):
+    """``advance_run`` of ``make_advance`` for a method that carries state beyond (ω, q) from one step
+    to the next (methods/README.md, "carried state": a multistep or generalized-α history such as
+    lie_genalpha's accelerations): ``c = start(w, q, body)`` once from the run's initial state, then
+    ``w, q, c = step_carried(w, q, c, dt, body)`` each step.  The carried state lives in the loop only:
+    such a method runs one run after another (BLOCKS False), so a run is never cut into time segments
+    and its carried state never needs to be saved; a resumed sweep runs it again whole."""
+
+    @njit(error_model="numpy", forceinline=True)
+    def steps_and_samples(i, w, q, dt, stride, body, tolerance, out, status):
+        c = start(w, q, body)
+        done = 0
+        for k in range(1, out.shape[1]):
+            for _ in range(stride):
+                w, q, c = step_carried(w, q, c, dt, body)
+            done += stride
+            _record(out, i, k, w, q, body)
+            if _diverged(out, i, k, tolerance, status):
+                break
+        return done
+
+    @njit(error_model="numpy")
+    def advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
+        body, w, q, tolerance = _start(i, w0, q0, bodies, threshold, out, status)
+        if body[4] == 0.0 and body[5] == 0.0:  # as make_advance: the axial body's branch folded away
+            axial = Body(body[0], body[1], body[2], body[3], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+            done = steps_and_samples(i, w, q, dts[i], strides[i], axial, tolerance, out, status)
+        else:
+            done = steps_and_samples(i, w, q, dts[i], strides[i], body, tolerance, out, status)
+        n_steps[i] = done
+
+    return advance_run
+
+
 def make_advance_driven(step_driven):
     """``advance_run`` of ``make_advance`` for driven bodies (a torque that depends on time,
     body.py): each step is ``step_driven(w, q, t, dt, body)`` from t = n dt, n the steps taken, so

@@ -4,7 +4,8 @@ A method module defines ``step`` (and its declarations, see methods/README.md);
 ``add_entry_points(module)`` gives it its own compiled copy of
 
 - ``run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps)``:
-  one ``prange`` over runs, each run by driver.make_advance's ``advance_run``;
+  one ``prange`` over runs, each run by driver.make_advance's ``advance_run`` (for a method that
+  carries state beyond (ω, q), ``step_carried``: driver.make_advance_carried's);
 - ``run_blocks(..., runs, starts, queues, state)``: one ``prange`` over threads, each
   running its queue of vectorised blocks (block.py), and each run's final (ω, q) in
   ``state`` (n, 7) to continue it from (the runner's time segments); not made for a method that
@@ -39,7 +40,7 @@ import types
 from numba import njit, prange
 
 from .block import make_advance_queue
-from .driver import make_advance, make_advance_driven
+from .driver import make_advance, make_advance_carried, make_advance_driven
 
 
 def _bound_per_method(factory):
@@ -84,6 +85,40 @@ def uses_blocks(module):
     return getattr(module, "BLOCKS", True)
 
 
+def carries_state(module):
+    """Whether the method carries state beyond (ω, q) from step to step (``step_carried`` and
+    ``start``, methods/README.md); its ``run_batch`` then threads that state through each run."""
+    return hasattr(module, "step_carried")
+
+
+_STEPPERS = {}
+
+
+def stepper(module):
+    """``(start, step_carried)`` of a method, njit functions for loops that step a run outside the
+    drivers (tests, reports, benchmarks): ``c = start(w, q, body)`` once, then
+    ``w, q, c = step_carried(w, q, c, dt, body)`` per step.  For a method that carries state beyond
+    (ω, q) these are its own; for every other one ``c`` is a placeholder and ``step_carried`` is its
+    ``step`` (the same bits).  A loop written this way steps every method as its run does: calling
+    ``step`` again and again would restart a carried method's history every step."""
+    if carries_state(module):
+        return module.start, module.step_carried
+    if module not in _STEPPERS:
+        step = module.step
+
+        @njit(error_model="numpy", forceinline=True)
+        def start(w, q, body):
+            return 0.0
+
+        @njit(error_model="numpy", forceinline=True)
+        def step_carried(w, q, c, dt, body):
+            w, q = step(w, q, dt, body)
+            return w, q, c
+
+        _STEPPERS[module] = start, step_carried
+    return _STEPPERS[module]
+
+
 def _compiled_copy(function, module, **loops):
     """``function`` re-homed in ``module`` (its file and module name) with ``loops`` as its globals,
     compiled, cached and parallel like every entry point."""
@@ -97,7 +132,11 @@ def _compiled_copy(function, module, **loops):
 def add_entry_points(module):
     """Define ``run_batch``, ``run_blocks`` (unless the module says ``BLOCKS = False``) and
     ``run_batch_driven`` (if it has ``step_driven``) in ``module`` (a method module with ``step``)."""
-    module.run_batch = _compiled_copy(run_batch, module, _advance_run=make_advance(module.step))
+    if carries_state(module):
+        advance = make_advance_carried(module.start, module.step_carried)
+    else:
+        advance = make_advance(module.step)
+    module.run_batch = _compiled_copy(run_batch, module, _advance_run=advance)
     if uses_blocks(module):
         module.run_blocks = _compiled_copy(run_blocks, module, _advance_queue=make_advance_queue(module.step))
     if hasattr(module, "step_driven"):

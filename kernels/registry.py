@@ -11,7 +11,7 @@ import importlib
 from numba.core.dispatcher import Dispatcher
 
 from . import real
-from .entry import add_entry_points, uses_blocks  # noqa: F401 - uses_blocks: the registry's view of a method
+from .entry import add_entry_points, carries_state, stepper, uses_blocks  # noqa: F401 - the registry's view of a method
 from .invariants import check_names
 
 
@@ -43,6 +43,18 @@ def register(name, module):
         problems.append("step_driven(w, q, t, dt, body) -> (w, q), when given, must be a numba @njit function")
     if not isinstance(getattr(module, "BLOCKS", True), bool):
         problems.append("BLOCKS, when given, must be a bool")
+    if carries_state(module):
+        for fn in ("start", "step_carried"):
+            if not isinstance(getattr(module, fn, None), Dispatcher):
+                problems.append(f"a method that carries state must define {fn} as a numba @njit function")
+        if getattr(module, "BLOCKS", True):
+            problems.append(
+                "a method that carries state must declare BLOCKS = False (the block path carries (ω, q) only)"
+            )
+        if hasattr(module, "step_driven"):
+            problems.append(
+                "a method that carries state cannot define step_driven yet (the driven loop carries (ω, q) only)"
+            )
     if problems:
         raise TypeError(f"method {name!r} ({module.__name__}): " + "; ".join(problems))
     return add_entry_points(module)
@@ -95,6 +107,8 @@ NAMES = (
     "dlpoly_fiqa",
     # Project Chrono's default timestepper for a rigid body (issue 24)
     "chrono_euler",
+    # Kynema's Lie-group generalized-α (issue 24): carries its accelerations from step to step
+    "lie_genalpha",
     # Solfec's rigid rotation updates RIG_IMP (NEW3) and its default RIG_NEG (NEW2) (issue 24, the Solfec heavy top)
     "solfec_imp",
     "solfec_neg",

@@ -16,7 +16,7 @@ import pytest
 from numba import njit
 
 from gyrolab.kernels.batch import integrate, sample_schedule
-from gyrolab.kernels.registry import METHODS
+from gyrolab.kernels.registry import METHODS, stepper
 
 
 def pytest_configure(config):
@@ -167,18 +167,19 @@ _LOOPS = {}
 
 
 def _step_loop(method):
-    """njit function (w, q, dt, body, n) -> (w, q) applying the method's ``step`` n times.
+    """njit function (w, q, dt, body, n) -> (w, q) applying the method's step n times (registry.stepper).
 
     The batch driver stores only axis and ω; tests that need the whole
     orientation (the quaternion) call the step directly.
     """
     if method not in _LOOPS:
-        step = METHODS[method].step
+        start, step_carried = stepper(METHODS[method])  # a method's carried state threads through
 
         @njit
         def loop(w, q, dt, body, n):
+            c = start(w, q, body)
             for _ in range(n):
-                w, q = step(w, q, dt, body)
+                w, q, c = step_carried(w, q, c, dt, body)
             return w, q
 
         _LOOPS[method] = loop

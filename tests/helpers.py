@@ -19,7 +19,7 @@ import xarray as xr
 
 from gyrolab.kernels.batch import integrate, sample_schedule
 from gyrolab.kernels.body import Body
-from gyrolab.kernels.registry import METHODS
+from gyrolab.kernels.registry import METHODS, stepper
 from gyrolab.kernels.scenes import build_scene, get_scene
 from gyrolab.results.identity import VOLATILE_ATTRS
 from gyrolab.results.layout import GRID_DIMS, scene_attrs, to_dataset
@@ -300,10 +300,11 @@ def random_states(n, seed, dt_max=1e-2):
 
 def step_run(name, w, q, dt, body, n):
     """Arrays (n + 1, 3) of ω (rad/s, body) and (n + 1, 4) of q of n steps of dt seconds of ``name``."""
-    step = METHODS[name].step
+    start, step_carried = stepper(METHODS[name])  # a method's carried state threads through
     W, Q = [w], [q]
+    c = start(w, q, body)
     for _ in range(n):
-        w, q = step(w, q, dt, body)
+        w, q, c = step_carried(w, q, c, dt, body)
         W.append(w)
         Q.append(q)
     return np.array(W), np.array(Q)

@@ -31,6 +31,7 @@ from gyrolab.analysis.verdicts.classify import (
     stability_threshold,
 )
 from gyrolab.kernels.reference import dop853
+from gyrolab.kernels.registry import stepper
 from gyrolab.kernels.rigid_body import axis_lab, energy, lab_momentum
 from gyrolab.kernels.scenes import build_scene
 
@@ -63,15 +64,16 @@ _SAMPLERS = {}
 def _sampler(name):
     """njit (w, q, dt, body, stride, n) -> samples (n, 8): axis (3), ω (3), E, Lz; NaN after a blow-up."""
     if name not in _SAMPLERS:
-        step = _method(name).step
+        start, step_carried = stepper(_method(name))  # a method's carried state threads through
 
         @njit(error_model="numpy")
         def run(w, q, dt, body, stride, n):
             out = np.full((n, 8), np.nan)
+            c = start(w, q, body)
             for k in range(n):
                 if k:
                     for _ in range(stride):
-                        w, q = step(w, q, dt, body)
+                        w, q, c = step_carried(w, q, c, dt, body)
                 ax = axis_lab(q)
                 L = lab_momentum(w, q, body)
                 out[k, 0], out[k, 1], out[k, 2] = ax

@@ -14,7 +14,7 @@ import sys
 
 import numpy as np
 
-from ...kernels.registry import METHODS
+from ...kernels.registry import METHODS, stepper
 from ...kernels.rigid_body import energy
 from ...kernels.scenes import build_scene
 
@@ -35,12 +35,13 @@ def max_energy_error(name, dt, scene=None, t_end=T_END):
     """max over the steps of |H − H(0)| / H(0) for method ``name`` at step dt (s); inf when the run
     turns non-finite."""
     sc = scene or solfec_scene()
-    step, body = METHODS[name].step, sc.body
+    (start, step_carried), body = stepper(METHODS[name]), sc.body
     w, q = sc.omega0, sc.q0
+    c = start(w, q, body)  # a method's carried state (registry.stepper) threads through
     h0 = energy(w, q, body)
     worst = 0.0
     for _ in range(int(round(t_end / dt))):
-        w, q = step(w, q, dt, body)
+        w, q, c = step_carried(w, q, c, dt, body)
         err = abs(energy(w, q, body) - h0) / h0
         if not err < math.inf:  # NaN or inf: the run diverged
             return math.inf
