@@ -152,15 +152,16 @@ def tangent_operator(h, q_delta):
 # ---------------------------------------------------------------------------------------------
 # The mass element (src/system/masses)
 # ---------------------------------------------------------------------------------------------
-def mass_element(p, q, v, vd, T, mass=MASS, inertia=J_COM, gravity=GRAVITY):
+def mass_element(p, q, v, vd, T, mass=MASS, inertia=J_COM, gravity=GRAVITY, mstar=None):
     """masses::CalculateQuadraturePointValues: residual (inertial minus gravity force) and the
     element's iteration matrix beta' M + gamma' G + K T, everything in the lab frame.  The 6x6
-    material mass matrix is diag(mass, mass, mass, *inertia) (no offset of the centre of mass)."""
+    material mass matrix is diag(mass, mass, mass, *inertia) (no offset of the centre of mass), or
+    ``mstar`` when given (a node off the centre of mass: see pivot_mass_matrix)."""
     R = quat_to_matrix(q[3:])  # q (x) x0 with x0 the identity
     RR = np.zeros((6, 6))
     RR[:3, :3] = R
     RR[3:, 3:] = R
-    Mstar = np.diag([mass, mass, mass, *inertia])
+    Mstar = np.diag([mass, mass, mass, *inertia]) if mstar is None else mstar
     Muu = RR @ Mstar @ RR.T
     m = Muu[0, 0]
     eta = np.array([Muu[5, 1], -Muu[5, 0], Muu[4, 0]]) / m  # CoM offset from the node (zero here)
@@ -398,6 +399,54 @@ def run_precession(n_steps=500, h=0.01, rho_inf=1.0, max_iter=6, atol=1.0e-5, rt
             T = tangent_operator(h, s["q_delta"][0])
             r, m = mass_element(p, s["q"][0], s["v"][0], s["vd"][0], T, **body)
             x = np.linalg.solve(p["conditioner"] * m, -p["conditioner"] * r)
+            err = np.sqrt(error_sum_squares(x, s["q_delta"][0] * h, atol, rtol) / 6)
+            update_dynamic_prediction(p, s, 0, x)
+            calculate_displacement(s, h)
+            it += 1
+        update_algorithmic_acceleration(p, s)
+    return s
+
+
+# ---------------------------------------------------------------------------------------------
+# The same body as one node at the pivot (gyrolab's lie_genalpha): Kynema's mass element with the
+# centre of mass off the node, the node's translation held (a prescribed BC), so only the
+# rotational block of the Newton system remains and the translational unknowns stay zero.
+# ---------------------------------------------------------------------------------------------
+def pivot_mass_matrix(mass, j_com, com):
+    """Kynema's 6x6 material mass matrix of a rigid body at a node off its centre of mass by ``com``
+    (body frame): [[m 1, (m com~)^T], [m com~, J_com + m (|com|^2 1 - com com^T)]] (the mass
+    element reads the offset back from the lower-left block)."""
+    c = np.asarray(com, dtype=float)
+    mc = mass * tilde(c)
+    out = np.zeros((6, 6))
+    out[:3, :3] = mass * np.eye(3)
+    out[3:, :3] = mc
+    out[:3, 3:] = mc.T
+    out[3:, 3:] = np.diag(j_com) + mass * ((c @ c) * np.eye(3) - np.outer(c, c))
+    return out
+
+
+def run_pivot_node(h=0.002, n_steps=400, rho_inf=0.9, mass=MASS, j_com=J_COM, com=X_COM0, gravity=GRAVITY,
+                   omega0=OMEGA0, max_iter=10, atol=1.0e-5, rtol=1.0e-3):  # fmt: skip
+    """The body as one node at the pivot (orientation identity, lab angular velocity ``omega0``),
+    from the consistent accelerations; Kynema's predictor, mass element, tangent and convergence
+    test (the RMS over the node's six unknowns).  Returns the node's state dict."""
+    p = step_parameters(h, rho_inf)
+    mstar = pivot_mass_matrix(mass, j_com, com)
+    jp = mstar[3:, 3:]
+    w = np.asarray(omega0, dtype=float)
+    wd = np.linalg.solve(jp, np.cross(com, mass * gravity) - np.cross(w, jp @ w))
+    s = make_state([[0.0, 0.0, 0.0, *w]], [[0.0, 0.0, 0.0, *wd]])
+    for k in range(n_steps):
+        predict_next_state(p, s)
+        err, it = 1000.0, 0
+        while err > 1.0:
+            if it >= max_iter:
+                raise RuntimeError(f"Newton did not converge at step {k + 1}")
+            T = tangent_operator(h, s["q_delta"][0])
+            r, m = mass_element(p, s["q"][0], s["v"][0], s["vd"][0], T, gravity=gravity, mstar=mstar)
+            x = np.zeros(6)
+            x[3:] = np.linalg.solve(p["conditioner"] * m[3:, 3:], -p["conditioner"] * r[3:])
             err = np.sqrt(error_sum_squares(x, s["q_delta"][0] * h, atol, rtol) / 6)
             update_dynamic_prediction(p, s, 0, x)
             calculate_displacement(s, h)

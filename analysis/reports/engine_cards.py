@@ -63,13 +63,14 @@ ENGINE_PACKAGES = {
     "Solfec": None,
     "Brax": None,
     "BEPUphysics": None,
+    "Kynema": None,
 }
 # A sentence of a docstring that cites a source: a code or paper reference, a commit, a year, an issue.
 CITES = re.compile(r"Followed:|[Ss]ource\b|\bdocs\b|\bcommit [0-9a-f]{7}|\b(1[89]|20)\d\d\b|(issue|PR) #\d+")
 # Words after which a period does not end a sentence (journal abbreviations, initials).
 ABBREVIATIONS = {
     "J", "Phys", "Chem", "Rev", "Lett", "Sci", "Comput", "Math", "Appl", "Mech", "Engrg", "Proc", "Adv",
-    "Nonlinear", "Soc", "Sect", "Sects", "Numer", "ed", "al", "Am", "Int", "Eq", "eq", "vs", "e.g", "i.e",
+    "Nonlinear", "Soc", "Sect", "Sects", "Numer", "ed", "al", "Am", "Int", "Eq", "eq", "vs", "e.g", "i.e", "Mach",
 }  # fmt: skip
 
 
