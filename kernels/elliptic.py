@@ -211,24 +211,28 @@ def rj(x, y, z, p):
         A = 0.25 * (A + lam)
         f *= 0.25
         f3 *= 1.0 / 64.0
-    X = f * dx / A
-    Y = f * dy / A
-    Z = f * dz / A
+    series = rj_series(f * dx / A, f * dy / A, f * dz / A)
+    return f * series / (A * math.sqrt(A)) + 6.0 * total
+
+
+@njit(cache=True, error_model="numpy")
+def rj_series(X, Y, Z):
+    """The series of Carlson's R_J(x, y, z, p) about the mean A = (x + y + z + 2p)/5 of its arguments, times
+    A^(3/2): 1 − 3E2/14 + E3/6 + 9E2²/88 − 3E4/22 − 9E2E3/52 + 3E5/26 in the scaled deviations X = (A − x)/A,
+    Y, Z and P = (A − p)/A = −(X + Y + Z)/2 (Carlson, Numer. Algorithms 10 (1995) 13–26, eq. (2.7)); the
+    tail of ``rj`` after its duplications, and the whole of an R_J of close arguments
+    (euler_poinsot._rj_close)."""
     P = -0.5 * (X + Y + Z)
     E2 = X * Y + X * Z + Y * Z - 3.0 * P * P
     E3 = X * Y * Z + 2.0 * E2 * P + 4.0 * P * P * P
     E4 = (2.0 * X * Y * Z + E2 * P + 3.0 * P * P * P) * P
     E5 = X * Y * Z * P * P
-    series = (
-        1.0
-        - 3.0 * E2 / 14.0
-        + E3 / 6.0
-        + 9.0 * E2 * E2 / 88.0
-        - 3.0 * E4 / 22.0
-        - 9.0 * E2 * E3 / 52.0
-        + 3.0 * E5 / 26.0
+    return 1.0 + (
+        E2 * (-3.0 / 14.0 + E2 * (9.0 / 88.0) - E3 * (9.0 / 52.0))
+        + E3 * (1.0 / 6.0)
+        - E4 * (3.0 / 22.0)
+        + E5 * (3.0 / 26.0)
     )
-    return f * series / (A * math.sqrt(A)) + 6.0 * total
 
 
 @njit(cache=True, error_model="numpy")

@@ -74,7 +74,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .elliptic import ellipk, rc1, rf, rj, series_coefficients, sncndn, sncndn_series
+from .elliptic import ellipk, rc1, rf, rj, rj_series, series_coefficients, sncndn, sncndn_series
 from .rotation import half_angle, quat_mul, quat_normalize, rotate_body_step
 
 _PI = math.pi
@@ -211,28 +211,14 @@ def _addition_defect(su, sv, suv, a, m):
 @njit(cache=True, error_model="numpy")
 def _rj_close(x, y, z, p):
     """Carlson's R_J(x, y, z, p) for arguments close together (the short step's base): the series about
-    their mean A, A^(-3/2) (1 − 3E2/14 + E3/6 + 9E2²/88 − 3E4/22 − 9E2E3/52 + 3E5/26), without elliptic.rj's
+    their mean A, A^(-3/2) times elliptic.rj_series (the same series rj ends with), without elliptic.rj's
     set-up of a duplication loop that would not run, and with one division; elliptic.rj when they are
     farther apart than its bound for no duplication (900 max|A − arg| < A)."""
     A = (x + y + z + p + p) * 0.2
     if 900.0 * max(abs(A - x), abs(A - y), abs(A - z), abs(A - p)) >= A:
         return rj(x, y, z, p)
     inv = 1.0 / A
-    X = (A - x) * inv
-    Y = (A - y) * inv
-    Z = (A - z) * inv
-    P = -0.5 * (X + Y + Z)
-    E2 = X * Y + X * Z + Y * Z - 3.0 * P * P
-    E3 = X * Y * Z + 2.0 * E2 * P + 4.0 * P * P * P
-    E4 = (2.0 * X * Y * Z + E2 * P + 3.0 * P * P * P) * P
-    E5 = X * Y * Z * P * P
-    series = 1.0 + (
-        E2 * (-3.0 / 14.0 + E2 * (9.0 / 88.0) - E3 * (9.0 / 52.0))
-        + E3 * (1.0 / 6.0)
-        - E4 * (3.0 / 22.0)
-        + E5 * (3.0 / 26.0)
-    )
-    return series * inv * math.sqrt(inv)
+    return rj_series((A - x) * inv, (A - y) * inv, (A - z) * inv) * inv * math.sqrt(inv)
 
 
 # |w| at or below which the short step takes sn, cn, dn from their Maclaurin series and G from one R_J
