@@ -297,6 +297,11 @@ def test_a_rounding_level_trend_is_a_rounding_drift_whatever_the_window_calls_it
         assert not classify.is_rounding_drift(cls, 1e-9, 1_000_000, False)  # 4.5 ulp a step: truncation
     for cls in ("bounded", "collapse", "diverged", "growing"):
         assert not classify.is_rounding_drift(cls, 1e-15, 1_000_000, False)
+    # A power-law growth at that size is one too (split6_exact's L_z on Kovalevskaya's top: 4.3e-12 over
+    # 1e6 steps, "growing ∝ t^1.33"); an exponential growth never, however small.
+    assert classify.is_rounding_drift("growing", 4.3e-12, 1_000_000, False, "power")
+    assert not classify.is_rounding_drift("growing", 1e-9, 1_000_000, False, "power")
+    assert not classify.is_rounding_drift("growing", 1e-15, 1_000_000, False, "1/s e-folding")
     assert not classify.is_rounding_drift("linear", 1e-15, 1_000_000, True)  # preserved is said as such
     assert not classify.is_rounding_drift("linear", None, 1_000_000, False)
     rec = dict(quantity="L", preserved=False, declared_preserved=True, drift_class="slow_oscillation")

@@ -127,8 +127,9 @@ def fmt_preserved(recs):
         if r["preserved"]:
             parts.append(r["quantity"] + ("" if r.get("declared_preserved") in (True, None) else " (undeclared)"))
         elif r.get("rounding_drift") or is_rounding_drift(
-            r.get("drift_class"), r.get("amplitude"), r.get("n_steps") or 0, r.get("preserved")
-        ):
+            r.get("drift_class"), r.get("amplitude"), r.get("n_steps") or 0, r.get("preserved"),
+            r.get("drift_rate_unit") or "",
+        ):  # fmt: skip
             parts.append(f"{r['quantity']} (rounding drift)")
         elif r.get("declared_preserved"):
             parts.append(f"!{r['quantity']} declared, not kept")

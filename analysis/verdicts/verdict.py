@@ -333,7 +333,9 @@ def drift_records(ds):
                         d = classify_drift(t, e, preserved_ulps=preserved_ulps(n_steps))
                         d.drift_reason = d.reason
                         # A drift whose total stays below 0.1 ulp per step is a rounding bias, not truncation.
-                        rounding_drift = is_rounding_drift(d.drift_class, d.amplitude, n_steps, d.preserved_to_rounding)
+                        rounding_drift = is_rounding_drift(
+                            d.drift_class, d.amplitude, n_steps, d.preserved_to_rounding, d.rate_unit
+                        )
                         out.append(
                             dict(
                                 kind="run",
