@@ -42,6 +42,7 @@ from gyrolab.kernels.batch import integrate
 from gyrolab.kernels.body import Body
 from gyrolab.kernels.driver import FIELDS, STATUS_NONFINITE, STATUS_OK
 from gyrolab.kernels.registry import METHODS, carries_state, register, stepper
+from gyrolab.runner.grid import runs_in_blocks
 
 GENALPHA = METHODS["lie_genalpha"]
 # Kynema's heavy top, node at the pivot: moments about it by the parallel-axis theorem, M g c along y.
@@ -99,6 +100,7 @@ def test_a_run_threads_the_accelerations_through_the_driver():
     """The runner's path (batch.integrate, driver.make_advance_carried) gives the bits of the stepper
     loop, and differs from restarting the history every step (the contract's ``step`` repeated)."""
     assert carries_state(GENALPHA) and not getattr(GENALPHA, "BLOCKS", True)
+    assert not runs_in_blocks("lie_genalpha", 10_000)  # so the runner never cuts its runs in time segments
     n, stride = 40, 10
     bodies = np.array([PIVOT_BODY, Body(2.0, 3.0, 4.0, 0.0)])
     w0, q0 = np.array([W0, (1.0, -2.0, 30.0)]), np.array([Q0, (0.6, 0.8, 0.0, 0.0)])
