@@ -84,3 +84,18 @@ def test_every_method_and_forty_at_least_have_their_own_colour_marker_pair(monke
     assert len(names) >= 40 and len(pairs) == len(names)
     fixed = set(io.METHOD_COLORS.values())
     assert not [m for m in names if m not in io.METHOD_COLORS and io.color(m) in fixed]  # fixed colours stay unique
+
+
+def test_a_figure_of_many_rows_puts_more_methods_in_a_panel_instead_of_shrinking_every_panel():
+    """Four invariants × four groups of 7 (25 methods) made 16 rows, each panel shrunk to a third of its
+    height until notes and tick labels collided; a panel takes 9 then, and the figure keeps 12 rows."""
+    from gyrolab.analysis.figures.record import MAX_METHODS, MAX_ROWS, method_groups, methods_per_panel
+
+    assert methods_per_panel(24, 4) == MAX_METHODS  # 3 groups of 8: 12 rows, as before
+    assert methods_per_panel(25, 4) == 9
+    assert methods_per_panel(25, 3) == MAX_METHODS  # 4 groups × 3 rows fit
+    for n in range(1, 80):
+        for rows_each in (1, 2, 3, 4, 5):
+            groups = method_groups([f"m{k}" for k in range(n)], methods_per_panel(n, rows_each))
+            assert sum(map(len, groups)) == n
+            assert len(groups) * rows_each <= max(MAX_ROWS, rows_each)

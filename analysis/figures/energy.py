@@ -38,6 +38,7 @@ from .record import (
     legend_below,
     method_groups,
     method_handles,
+    methods_per_panel,
     panel_note,
     panel_size,
     refit_notes,
@@ -215,9 +216,10 @@ def invariants_figure(ds, sel=None, envelope=True):
     if not quantities:
         raise ValueError("the file's scene declares no invariant that its variables hold")
     # one row per invariant and group of methods, one column per (f, θ0): at most 5 columns
-    n_groups = len(method_groups(ds.integrator.values))
-    sub, note = choose(select(ds, sel), "invariants", max_panels=5, rows_each=len(quantities))
-    groups = method_groups(sub.integrator.values)
+    per_panel = methods_per_panel(ds.integrator.size, len(quantities))
+    n_groups = len(method_groups(ds.integrator.values, per_panel))
+    sub, note = choose(select(ds, sel), "invariants", per_panel, max_panels=5, rows_each=len(quantities))
+    groups = method_groups(sub.integrator.values, per_panel)
     panels = [(f, th) for f in sub.f.values for th in sub.theta0.values]
     exact, quantities_drawn = [], []
     for q in quantities:

@@ -17,6 +17,10 @@ MAX_PANELS = 9  # panels drawn before values are selected (and the figure says w
 MAX_METHODS = 8  # curves of different methods in one panel; more methods are faceted into more panels
 MAX_CELLS = 60  # panels in one figure (panels per method group × method groups): past it, f and θ0 are selected
 MAX_DT = 3  # line styles (dt values) in one panel
+# Rows of panels in one figure (method groups × rows per group): past it a figure taller than MAX_HEIGHT
+# shrinks every panel until its notes and tick labels collide, so a panel takes more methods instead
+# (methods_per_panel).  12 is what the engines study's invariants figure (4 invariants × 3 groups) had.
+MAX_ROWS = 12
 MAX_WIDTH, MAX_HEIGHT = 15.5, 15.0  # inches (× 110 dpi in PNG)
 
 
@@ -156,6 +160,13 @@ def coincident(series, tol):
 def coincidence_text(groups, what="curves coincide"):
     """'curves coincide: a = b; c = d' or '' for no groups."""
     return f"{what}: " + "; ".join(" = ".join(g) for g in groups) if groups else ""
+
+
+def methods_per_panel(n_methods, rows_each=1):
+    """Curves of different methods in one panel for a figure of ``rows_each`` rows per method group:
+    MAX_METHODS, or as many more as keep the groups' rows within MAX_ROWS."""
+    groups_that_fit = max(1, MAX_ROWS // max(int(rows_each), 1))
+    return max(MAX_METHODS, math.ceil(n_methods / groups_that_fit))
 
 
 def method_groups(methods, per_panel=MAX_METHODS):
