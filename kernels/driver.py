@@ -104,6 +104,26 @@ def tolerances(w0, bodies, threshold):
     return out
 
 
+def _run_around(steps_and_samples):
+    """``advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)`` around a method's
+    loop ``steps_and_samples(i, w, q, dt, stride, body, tolerance, out, status) -> steps done``."""
+
+    @njit(error_model="numpy")
+    def advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
+        body, w, q, tolerance = _start(i, w0, q0, bodies, threshold, out, status)
+        # Two inlined copies of the loop: in the first the centre of mass is on e3 as a constant, so
+        # the general branch of gravity_torque is folded away (a loop-invariant branch costs rk4's
+        # four torque evaluations a step about 10 ns otherwise).  Same bits either way.
+        if body[4] == 0.0 and body[5] == 0.0:
+            axial = Body(body[0], body[1], body[2], body[3], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+            done = steps_and_samples(i, w, q, dts[i], strides[i], axial, tolerance, out, status)
+        else:
+            done = steps_and_samples(i, w, q, dts[i], strides[i], body, tolerance, out, status)
+        n_steps[i] = done
+
+    return advance_run
+
+
 def make_advance(step):
     """``advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)``
     specialised to one method's ``step``.
@@ -126,20 +146,7 @@ def make_advance(step):
                 break
         return done
 
-    @njit(error_model="numpy")
-    def advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
-        body, w, q, tolerance = _start(i, w0, q0, bodies, threshold, out, status)
-        # Two inlined copies of the loop: in the first the centre of mass is on e3 as a constant, so
-        # the general branch of gravity_torque is folded away (a loop-invariant branch costs rk4's
-        # four torque evaluations a step about 10 ns otherwise).  Same bits either way.
-        if body[4] == 0.0 and body[5] == 0.0:
-            axial = Body(body[0], body[1], body[2], body[3], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-            done = steps_and_samples(i, w, q, dts[i], strides[i], axial, tolerance, out, status)
-        else:
-            done = steps_and_samples(i, w, q, dts[i], strides[i], body, tolerance, out, status)
-        n_steps[i] = done
-
-    return advance_run
+    return _run_around(steps_and_samples)
 
 
 def make_advance_carried(start, step_carried):
@@ -163,17 +170,7 @@ def make_advance_carried(start, step_carried):
                 break
         return done
 
-    @njit(error_model="numpy")
-    def advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
-        body, w, q, tolerance = _start(i, w0, q0, bodies, threshold, out, status)
-        if body[4] == 0.0 and body[5] == 0.0:  # as make_advance: the axial body's branch folded away
-            axial = Body(body[0], body[1], body[2], body[3], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-            done = steps_and_samples(i, w, q, dts[i], strides[i], axial, tolerance, out, status)
-        else:
-            done = steps_and_samples(i, w, q, dts[i], strides[i], body, tolerance, out, status)
-        n_steps[i] = done
-
-    return advance_run
+    return _run_around(steps_and_samples)
 
 
 def make_advance_driven(step_driven):

@@ -386,10 +386,12 @@ PRECESSION_PUBLISHED_QUAT = np.array(
 )
 
 
-def run_precession(n_steps=500, h=0.01, rho_inf=1.0, max_iter=6, atol=1.0e-5, rtol=1.0e-3):
-    p = step_parameters(h, rho_inf)
-    s = make_state([[0.0, 0.0, 0.0, 0.5, 0.5, 1.0]], np.zeros((1, 6)))
-    body = {"mass": 1.0, "inertia": np.array([1.0, 1.0, 0.5]), "gravity": np.zeros(3)}
+def run_one_node(p, s, n_steps, element, held=False, max_iter=6, atol=1.0e-5, rtol=1.0e-3):
+    """``n_steps`` steps of one node (state ``s``) whose mass element is ``element(q, v, vd, T) ->
+    (residual, matrix)``: Kynema's predictor, Newton loop and convergence test (the RMS over the node's
+    six unknowns).  ``held``: the node's translation is held (its unknowns stay zero) and only the
+    rotational block is solved.  Returns ``s``."""
+    h = p["h"]
     for k in range(n_steps):
         predict_next_state(p, s)
         err, it = 1000.0, 0
@@ -397,14 +399,29 @@ def run_precession(n_steps=500, h=0.01, rho_inf=1.0, max_iter=6, atol=1.0e-5, rt
             if it >= max_iter:
                 raise RuntimeError(f"Newton did not converge at step {k + 1}")
             T = tangent_operator(h, s["q_delta"][0])
-            r, m = mass_element(p, s["q"][0], s["v"][0], s["vd"][0], T, **body)
-            x = np.linalg.solve(p["conditioner"] * m, -p["conditioner"] * r)
+            r, m = element(s["q"][0], s["v"][0], s["vd"][0], T)
+            if held:
+                x = np.zeros(6)
+                x[3:] = np.linalg.solve(p["conditioner"] * m[3:, 3:], -p["conditioner"] * r[3:])
+            else:
+                x = np.linalg.solve(p["conditioner"] * m, -p["conditioner"] * r)
             err = np.sqrt(error_sum_squares(x, s["q_delta"][0] * h, atol, rtol) / 6)
             update_dynamic_prediction(p, s, 0, x)
             calculate_displacement(s, h)
             it += 1
         update_algorithmic_acceleration(p, s)
     return s
+
+
+def run_precession(n_steps=500, h=0.01, rho_inf=1.0, max_iter=6, atol=1.0e-5, rtol=1.0e-3):
+    p = step_parameters(h, rho_inf)
+    s = make_state([[0.0, 0.0, 0.0, 0.5, 0.5, 1.0]], np.zeros((1, 6)))
+    body = {"mass": 1.0, "inertia": np.array([1.0, 1.0, 0.5]), "gravity": np.zeros(3)}
+
+    def element(q, v, vd, T):
+        return mass_element(p, q, v, vd, T, **body)
+
+    return run_one_node(p, s, n_steps, element, max_iter=max_iter, atol=atol, rtol=rtol)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -437,22 +454,11 @@ def run_pivot_node(h=0.002, n_steps=400, rho_inf=0.9, mass=MASS, j_com=J_COM, co
     w = np.asarray(omega0, dtype=float)
     wd = np.linalg.solve(jp, np.cross(com, mass * gravity) - np.cross(w, jp @ w))
     s = make_state([[0.0, 0.0, 0.0, *w]], [[0.0, 0.0, 0.0, *wd]])
-    for k in range(n_steps):
-        predict_next_state(p, s)
-        err, it = 1000.0, 0
-        while err > 1.0:
-            if it >= max_iter:
-                raise RuntimeError(f"Newton did not converge at step {k + 1}")
-            T = tangent_operator(h, s["q_delta"][0])
-            r, m = mass_element(p, s["q"][0], s["v"][0], s["vd"][0], T, gravity=gravity, mstar=mstar)
-            x = np.zeros(6)
-            x[3:] = np.linalg.solve(p["conditioner"] * m[3:, 3:], -p["conditioner"] * r[3:])
-            err = np.sqrt(error_sum_squares(x, s["q_delta"][0] * h, atol, rtol) / 6)
-            update_dynamic_prediction(p, s, 0, x)
-            calculate_displacement(s, h)
-            it += 1
-        update_algorithmic_acceleration(p, s)
-    return s
+
+    def element(q, v, vd, T):
+        return mass_element(p, q, v, vd, T, gravity=gravity, mstar=mstar)
+
+    return run_one_node(p, s, n_steps, element, held=True, max_iter=max_iter, atol=atol, rtol=rtol)
 
 
 if __name__ == "__main__":  # python tests/kynema_genalpha.py: the agreement the README states
