@@ -56,7 +56,7 @@ bytecode.FunctionIdentity._unique_ids = itertools.count(secrets.randbits(40) + 1
 ROOT = Path(__file__).resolve().parent
 # Pure-Python files and folders under kernels/ (relative paths): numba compiles nothing in them and no
 # compiled function reads them (tests/test_provenance.py checks both), so they key no cache.
-NOT_COMPILED = ("closed_form.py", "invariants.py", "reference.py", "registry.py", "scenes", "real")
+NOT_COMPILED = ("closed_form.py", "invariants.py", "parameters.py", "reference.py", "registry.py", "scenes", "real")
 _METHOD_IMPORT = re.compile(r"^from \.(\w+) import", re.MULTILINE)
 
 

@@ -119,28 +119,33 @@ def stepper(module):
     return _STEPPERS[module]
 
 
-def _compiled_copy(function, module, **loops):
+ENTRY_POINTS = ("run_batch", "run_blocks", "run_batch_driven")
+
+
+def _compiled_copy(function, module, tag, **loops):
     """``function`` re-homed in ``module`` (its file and module name) with ``loops`` as its globals,
-    compiled, cached and parallel like every entry point."""
+    compiled, cached and parallel like every entry point; ``tag`` appended to its qualified name (a
+    variant's, kernels/variants.py) names its own cache file."""
     namespace = {"__name__": module.__name__, "__file__": module.__file__, "prange": prange, **loops}
     code = function.__code__.replace(co_filename=module.__file__)
     copy = types.FunctionType(code, namespace, function.__name__)
-    copy.__qualname__, copy.__doc__ = function.__qualname__, function.__doc__
+    copy.__qualname__, copy.__doc__ = function.__qualname__ + tag, function.__doc__
     return njit(cache=True, parallel=True, error_model="numpy")(copy)
 
 
-def add_entry_points(module):
+def add_entry_points(module, tag=""):
     """Define ``run_batch``, ``run_blocks`` (unless the module says ``BLOCKS = False``) and
-    ``run_batch_driven`` (if it has ``step_driven``) in ``module`` (a method module with ``step``)."""
+    ``run_batch_driven`` (if it has ``step_driven``) in ``module`` (a method module with ``step``);
+    ``tag``: see ``_compiled_copy``."""
     if carries_state(module):
         advance = make_advance_carried(module.start, module.step_carried)
     else:
         advance = make_advance(module.step)
-    module.run_batch = _compiled_copy(run_batch, module, _advance_run=advance)
+    module.run_batch = _compiled_copy(run_batch, module, tag, _advance_run=advance)
     if uses_blocks(module):
-        module.run_blocks = _compiled_copy(run_blocks, module, _advance_queue=make_advance_queue(module.step))
+        module.run_blocks = _compiled_copy(run_blocks, module, tag, _advance_queue=make_advance_queue(module.step))
     if hasattr(module, "step_driven"):
         module.run_batch_driven = _compiled_copy(
-            run_batch_driven, module, _advance_driven=make_advance_driven(module.step_driven)
+            run_batch_driven, module, tag, _advance_driven=make_advance_driven(module.step_driven)
         )
     return module

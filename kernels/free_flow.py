@@ -103,13 +103,34 @@ def moment_sorted_order(body):
     return (1, 2, 0) if I2 <= I3 else (2, 1, 0)
 
 
+SORTED = (3, 4, 5)  # the axis order S-M-L in kernels/parameters.py's codes: smallest, middle, largest moment
+
+
+@njit(cache=True, error_model="numpy")
+def resolve_axes(body, axes):
+    """The body axes (0-based) of an axis order in kernels/parameters.py's codes: 0, 1, 2 are the axes
+    e1, e2, e3 themselves, 3, 4, 5 the axes of the smallest, middle and largest moment of ``body``
+    (``moment_sorted_order``).  ``axes`` is a compile-time constant in every caller, so the branch folds."""
+    if axes[0] < 3:
+        return axes
+    by_moment = moment_sorted_order(body)
+    return by_moment[axes[0] - 3], by_moment[axes[1] - 3], by_moment[axes[2] - 3]
+
+
+@njit(cache=True, error_model="numpy")
+def free_flow_axes(w, q, h, body, axes):
+    """free_flow with the axis splitting in the order ``axes`` (``resolve_axes``); exact when I1 = I2,
+    as free_flow, where no axis order enters."""
+    if body[0] == body[1]:
+        return free_flow(w, q, h, body)  # the exact symmetric flow: no axis order
+    return axis_splitting(w, q, h, body, resolve_axes(body, axes))
+
+
 @njit(cache=True, error_model="numpy")
 def free_flow_sorted(w, q, h, body):
     """free_flow with the axis splitting in the moment-sorted order S-M-L-M-S whatever the body's axis
     labels (``moment_sorted_order``); exact when I1 = I2, as free_flow."""
-    if body[0] == body[1]:
-        return free_flow(w, q, h, body)  # the exact symmetric flow: no axis order
-    return axis_splitting(w, q, h, body, moment_sorted_order(body))
+    return free_flow_axes(w, q, h, body, SORTED)
 
 
 @njit(cache=True, error_model="numpy")

@@ -10,9 +10,10 @@ import importlib
 
 from numba.core.dispatcher import Dispatcher
 
-from . import real
+from . import real, variants
 from .entry import add_entry_points, carries_state, stepper, uses_blocks  # noqa: F401 - the registry's view of a method
 from .invariants import check_names
+from .parameters import Parameter, canonical, split_name
 
 
 def register(name, module):
@@ -55,6 +56,21 @@ def register(name, module):
             problems.append(
                 "a method that carries state cannot define step_driven yet (the driven loop carries (ω, q) only)"
             )
+    parameters = getattr(module, "PARAMETERS", None)
+    if parameters is not None:
+        declared = parameters.values() if isinstance(parameters, dict) else ()
+        if not (declared and all(isinstance(p, Parameter) for p in declared)):
+            problems.append("PARAMETERS, when given, must map parameter names to kernels.parameters.Parameter")
+        elif not callable(getattr(module, "variant", None)):
+            problems.append("a method with PARAMETERS must define variant(**values) -> its steps (kernels/variants.py)")
+        else:
+            try:  # the defaults must parse, and the variant must define the steps the method has (cheap: no compiling)
+                values = canonical(name, parameters, {})[1]
+                got, needed = sorted(module.variant(**values)), sorted(variants.steps_of(module))
+                if got != needed:
+                    problems.append(f"variant() returned {got}; it must define {needed}")
+            except (TypeError, ValueError) as err:
+                problems.append(f"its PARAMETERS defaults and variant() do not fit: {err}")
     if problems:
         raise TypeError(f"method {name!r} ({module.__name__}): " + "; ".join(problems))
     return add_entry_points(module)
@@ -116,15 +132,46 @@ NAMES = (
 METHODS = {name: register(name, importlib.import_module(f".methods.{name}", __package__)) for name in NAMES}
 
 
+_VARIANTS = {}  # canonical name -> the variant module built for it in this process
+
+
+def canonical_name(name):
+    """``(canonical name, values)`` of a registered method's ``name``, plain or with parameters
+    (``no_squish(substeps=10)``, kernels/parameters.py): ``values`` is {parameter: kernel value} ({} for a
+    method without parameters); ValueError (one line) for an unknown method, parameter or value."""
+    base, given = split_name(name)
+    if base not in METHODS:
+        raise ValueError(f"unknown method {base!r}; choose from {', '.join(METHODS)}")
+    declared = getattr(METHODS[base], "PARAMETERS", {})
+    if given and not declared:
+        with_parameters = ", ".join(m for m, mod in METHODS.items() if hasattr(mod, "PARAMETERS"))
+        raise ValueError(f"{name!r}: {base} takes no parameters (methods that do: {with_parameters})")
+    return canonical(base, declared, given)
+
+
 def get_method(name):
-    """The method module registered as ``name``, or for a real engine (``real_*``, kernels/real/) its
-    backend (no numba step, ``BLOCKS`` False); ValueError naming the choices, or the missing extra."""
+    """The method module registered as ``name``, the variant module of a name with parameters
+    (kernels/variants.py), or for a real engine (``real_*``, kernels/real/) its backend (no numba
+    step, ``BLOCKS`` False); ValueError naming the choices, or the missing extra."""
     if real.is_real(name):
         return real.get_backend(name)
-    try:
+    if name in METHODS:
         return METHODS[name]
-    except KeyError:
-        raise ValueError(f"unknown method {name!r}; choose from {', '.join(METHODS)}") from None
+    if name not in _VARIANTS:
+        key, values = canonical_name(name)
+        if key not in _VARIANTS:
+            base = split_name(key)[0]
+            _VARIANTS[key] = METHODS[base] if key == base else variants.build(METHODS[base], key, values)
+        _VARIANTS[name] = _VARIANTS[key]
+    return _VARIANTS[name]
+
+
+def registered(name):
+    """The module of a registered method or variant ``name``, or None (a real engine, a name not known here)."""
+    try:
+        return None if real.is_real(str(name)) else get_method(str(name))
+    except ValueError:
+        return None
 
 
 # How batch.integrate and the grid check name a method that cannot integrate a driven body.
@@ -161,8 +208,9 @@ SELECTORS = {
 
 
 def select_methods(names, driven_scene=False):
-    """``names`` (sweep.method: method names and SELECTORS) as method names, each once, in the order
-    given (a selector's methods in registry order); ValueError (one line) naming an unknown name.
+    """``names`` (sweep.method: method names, names with parameters and SELECTORS) as method names, each
+    once, in the order given (a selector's methods in registry order, a name with parameters in its
+    canonical form); ValueError (one line) naming an unknown name or a bad parameter.
     ``driven_scene``: the scene drives its body, so ``all`` means the methods that see time."""
     out = []
     for name in names:
@@ -181,23 +229,28 @@ def select_methods(names, driven_scene=False):
         elif real.is_real(name):
             real.check_available(name)  # one line naming the extra when the engine's package is missing
             chosen = [name]
+        elif split_name(name)[0] in METHODS:  # a method with parameters: its canonical name
+            chosen = [canonical_name(name)[0]]
         else:
             raise ValueError(
                 f"unknown method {name!r}; choose from {', '.join(METHODS)}, a real engine "
-                f"({', '.join(real.NAMES)}) or a selector ({', '.join(SELECTORS)})"
+                f"({', '.join(real.NAMES)}), a selector ({', '.join(SELECTORS)}) or a method with "
+                "parameters, e.g. no_squish(substeps=10)"
             )
         out.extend(m for m in chosen if m not in out)
     return out
 
 
 def methods():
-    """{name: {"order", "symplectic", "preserves", "force_models", "doc"}} for every registered method."""
+    """{name: {"order", "symplectic", "preserves", "force_models", "parameters", "doc"}} for every
+    registered method; "parameters" is {parameter: (default, meaning)}."""
     return {
         name: {
             "order": mod.ORDER,
             "symplectic": mod.SYMPLECTIC,
             "preserves": mod.PRESERVES,
             "force_models": force_models(mod),
+            "parameters": {k: (p.default, p.doc) for k, p in getattr(mod, "PARAMETERS", {}).items()},
             "doc": (mod.__doc__ or "").strip().splitlines()[0],
         }
         for name, mod in METHODS.items()

@@ -16,7 +16,7 @@ import pytest
 from numba import njit
 
 from gyrolab.kernels.batch import integrate, sample_schedule
-from gyrolab.kernels.registry import METHODS, stepper
+from gyrolab.kernels.registry import METHODS, get_method, stepper
 
 
 def pytest_configure(config):
@@ -173,7 +173,7 @@ def _step_loop(method):
     orientation (the quaternion) call the step directly.
     """
     if method not in _LOOPS:
-        start, step_carried = stepper(METHODS[method])  # a method's carried state threads through
+        start, step_carried = stepper(get_method(method))  # a method's carried state threads through (a variant too)
 
         @njit
         def loop(w, q, dt, body, n):

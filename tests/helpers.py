@@ -19,7 +19,7 @@ import xarray as xr
 
 from gyrolab.kernels.batch import integrate, sample_schedule
 from gyrolab.kernels.body import Body
-from gyrolab.kernels.registry import METHODS, stepper
+from gyrolab.kernels.registry import get_method, stepper
 from gyrolab.kernels.scenes import build_scene, get_scene
 from gyrolab.results.identity import VOLATILE_ATTRS
 from gyrolab.results.layout import GRID_DIMS, scene_attrs, to_dataset
@@ -300,7 +300,7 @@ def random_states(n, seed, dt_max=1e-2):
 
 def step_run(name, w, q, dt, body, n):
     """Arrays (n + 1, 3) of ω (rad/s, body) and (n + 1, 4) of q of n steps of dt seconds of ``name``."""
-    start, step_carried = stepper(METHODS[name])  # a method's carried state threads through
+    start, step_carried = stepper(get_method(name))  # a method's carried state threads through (a variant too)
     W, Q = [w], [q]
     c = start(w, q, body)
     for _ in range(n):
@@ -314,8 +314,11 @@ def free_body_sweep(methods, tmp_path, f="[10]", dt="[1e-3]", t_end=0.2, every=1
     """``gyrolab`` on the tumbling box (scene free_asymmetric) with ``methods`` (a list of names), the
     Hydra lists ``f`` (Hz) and ``dt`` (s), ``t_end`` and ``every`` (s), no figures, run in ``tmp_path``
     (results.h5 there): what the real engines' tests sweep beside their reproductions.  Asserts that it
-    exits 0 and returns the results Dataset, loaded."""
+    exits 0 and stores the methods by their canonical names (a name with parameters given in double
+    quotes, kernels/parameters.py), and returns the results Dataset, loaded."""
     import xarray as xr
+
+    from gyrolab.kernels.registry import select_methods
 
     res = gyrolab(
         f"sweep.method=[{','.join(methods)}]",
@@ -331,7 +334,7 @@ def free_body_sweep(methods, tmp_path, f="[10]", dt="[1e-3]", t_end=0.2, every=1
     assert res.returncode == 0, res.stderr
     with xr.open_dataset(tmp_path / "results.h5", engine="h5netcdf") as ds:
         out = ds.load()
-    assert list(out.integrator.values) == list(methods)
+    assert list(out.integrator.values) == select_methods([m.strip('"') for m in methods])
     return out
 
 
@@ -369,3 +372,13 @@ def check_free_body_refusals(name, partner, degenerate, also=None):
     with pytest.raises(ValueError, match="driving torque") as err:
         integrate(name, body, np.array([driven.omega0]), np.array([driven.q0]), 1e-3, 1, 2)
     assert "\n" not in str(err.value)
+
+
+def block_path_args(sc):
+    """integrate()'s arguments after the method for MIN_BLOCK_RUNS runs of Scene ``sc`` (ω0 scaled 0.5-1.5×
+    across them), dt 1e-3 s, 11 samples 5 steps apart, threshold 10: the smallest batch on the block path."""
+    from gyrolab.kernels.batch import MIN_BLOCK_RUNS
+
+    n = MIN_BLOCK_RUNS
+    omega0 = np.tile(sc.omega0, (n, 1)) * np.linspace(0.5, 1.5, n)[:, None]
+    return np.tile(sc.body, (n, 1)), omega0, np.tile(sc.q0, (n, 1)), 1e-3, 5, 11, 10.0

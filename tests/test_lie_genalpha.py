@@ -53,7 +53,7 @@ Q0 = (1.0, 0.0, 0.0, 0.0)
 
 @njit
 def _steps_with(w, q, c, dt, body, rho_inf, n):
-    step_with = GENALPHA.step_with
+    step_with = GENALPHA.step_carried_with
     for _ in range(n):
         w, q, c = step_with(w, q, c, dt, body, rho_inf)
     return w, q, c

@@ -32,6 +32,7 @@ from helpers import (
     CONTROL_FAILURES,
     FREE_DISC_FAILURES,
     NO_SQUISH_ROUNDING,
+    block_path_args,
     environment,
     final_samples,
     method_params,
@@ -78,19 +79,10 @@ def test_registry_contract(name):
         "symplectic": module.SYMPLECTIC,
         "preserves": module.PRESERVES,
         "force_models": ("free", "axial", "general") + (("driven",) if hasattr(module, "step_driven") else ()),
+        "parameters": {k: (p.default, p.doc) for k, p in getattr(module, "PARAMETERS", {}).items()},
         "doc": module.__doc__.strip().splitlines()[0],
     }
-    sc = build_scene("heavy_top", 10.0, 45.0)
-    n = MIN_BLOCK_RUNS
-    args = (
-        np.tile(sc.body, (n, 1)),
-        np.tile(sc.omega0, (n, 1)) * np.linspace(0.5, 1.5, n)[:, None],
-        np.tile(sc.q0, (n, 1)),
-        1e-3,
-        5,
-        11,
-        10.0,
-    )
+    args = block_path_args(build_scene("heavy_top", 10.0, 45.0))
     runs, blocks = integrate(name, *args, path="runs"), integrate(name, *args, path="blocks")
     for a, b in zip(runs, blocks):
         np.testing.assert_array_equal(a, b)

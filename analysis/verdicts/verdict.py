@@ -146,17 +146,18 @@ def scene_key(ds):
 
 
 def declared_preserves(method):
-    """The invariants a registered method declares it preserves, or None if it is not registered."""
-    from ...kernels.registry import METHODS
+    """The invariants a registered method (or variant) declares it preserves, or None if it is not registered."""
+    from ...kernels.registry import registered
 
-    mod = METHODS.get(str(method))
+    mod = registered(method)
     return None if mod is None else tuple(mod.PRESERVES)
 
 
 def declared_order(method):
-    from ...kernels.registry import METHODS
+    """The order a registered method (or variant) declares, or None if it is not registered."""
+    from ...kernels.registry import registered
 
-    mod = METHODS.get(str(method))
+    mod = registered(method)
     return None if mod is None else int(mod.ORDER)
 
 

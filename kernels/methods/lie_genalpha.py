@@ -45,19 +45,24 @@ the test short of the generalized-α solution, and the error grows again as h fa
 renormalised (Kynema does not); exp is Kynema's (the vector part zeroed below 1e-12 rad).
 
 The run starts from consistent accelerations, Ω̇ = a = R I⁻¹(τ − ω × Iω), as Kynema's heavy top
-does (its precession test starts from zero ones: ``step_with`` takes any).  Second order; with
+does (its precession test starts from zero ones: ``step_carried_with`` takes any).  Second order; with
 ρ∞ < 1 it damps the highest frequencies (numerical dissipation), so it keeps no invariant exactly
 and is not symplectic.  ``step``, the contract's one-step function, is a run's first step (from the
 consistent start); a run threads the accelerations from step to step through ``step_carried``
 (driver.make_advance_carried, registry.stepper).
+
+Parameter ``rho_inf`` (default 0.9, Kynema's heavy top): ``lie_genalpha(rho_inf=1)`` has no numerical
+damping, ``lie_genalpha(rho_inf=0)`` the most (kernels/parameters.py).
 """
 
 import math
 
 from numba import njit
 
+from ..parameters import unit_interval
 from ..rigid_body import euler_rhs, gravity_torque
 from ..rotation import body_to_lab, quat_mul
+from ..variants import carried
 
 ORDER = 2
 SYMPLECTIC = False
@@ -70,6 +75,9 @@ ATOL = 1e-5  # Newton test: absolute tolerance on each component of the incremen
 RTOL = 1e-3  # Newton test: tolerance relative to |h Δ_i|, Kynema's heavy top
 MAX_ITERATIONS = 10  # Newton iterations before a step is declared not converged (NaN), Kynema's
 NODE_UNKNOWNS = 6.0  # the mean of the convergence test is over a Kynema node's six unknowns
+PARAMETERS = {
+    "rho_inf": unit_interval(repr(RHO_INF), "spectral radius at infinity: 1 no numerical damping, 0 the most"),
+}
 
 
 @njit(cache=True, error_model="numpy")
@@ -175,7 +183,7 @@ def start(w, q, body):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def step_with(w, q, c, dt, body, rho_inf):
+def step_carried_with(w, q, c, dt, body, rho_inf):
     """One generalized-α step of dt seconds with spectral radius ``rho_inf``: body rates w (rad/s),
     q (body → lab) and the carried lab accelerations c = (Ω̇, a) (rad/s²) to the new (w, q, c)."""
     am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
@@ -298,7 +306,7 @@ def step_with(w, q, c, dt, body, rho_inf):
 @njit(cache=True, error_model="numpy")
 def step_carried(w, q, c, dt, body):
     """One step of dt seconds (s) at ρ∞ = RHO_INF, carrying c = (Ω̇, a), the lab accelerations."""
-    return step_with(w, q, c, dt, body, RHO_INF)
+    return step_carried_with(w, q, c, dt, body, RHO_INF)
 
 
 @njit(cache=True, error_model="numpy")
@@ -306,3 +314,13 @@ def step(w, q, dt, body):
     """A run's first step of dt seconds from (w, q) at rest in its history (the consistent start)."""
     w1, q1, _ = step_carried(w, q, start(w, q, body), dt, body)
     return w1, q1
+
+
+def variant(rho_inf):
+    """The steps at spectral radius ``rho_inf`` (0 ≤ ρ∞ ≤ 1)."""
+
+    @njit(error_model="numpy")
+    def step_carried(w, q, c, dt, body):
+        return step_carried_with(w, q, c, dt, body, rho_inf)
+
+    return carried(start, step_carried)

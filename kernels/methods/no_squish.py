@@ -37,6 +37,12 @@ of lie_poisson's kind in (ω, q) to a few ulp per step (tests/test_md_methods.py
 second order; the free body's lab L and |L| are kept to rounding, and Lz under gravity.  Unlike
 lie_poisson's exact symmetric flow, the rotations about e1 and e2 change L3, so L3 is not kept on the
 symmetric top.
+
+Parameters (kernels/parameters.py): ``axes`` (default 3-2-1, as shipped) the rotor's axis order, in body
+labels or by moment (S-M-L turns about the smallest moment first, the order Fassò recommends;
+docs/splitting_order.md); ``substeps`` (default 1) rotors of dt/substeps between the two kicks, as
+DL_POLY 4 (10 by default) and jax-md's optional substeps run it.  ``no_squish(axes=X)`` is
+``lie_poisson(axes=X)`` in (q, p) on an asymmetric body, to a few ulp per step (tested).
 """
 
 import math
@@ -44,12 +50,20 @@ import math
 from numba import njit
 
 from ..body import without_drive
+from ..free_flow import resolve_axes
+from ..parameters import axis_order, count
 from ..rigid_body import torque_at
 from ..rotation import quat_normalize
+from ..variants import undriven
 
 ORDER = 2
 SYMPLECTIC = True
 PRESERVES = ("L", "L_norm", "Lz")
+SHIPPED_AXES = (2, 1, 0)  # 3-2-1-2-3 in the body's labels, as LAMMPS, HOOMD-blue, DL_POLY and jax-md turn
+PARAMETERS = {
+    "axes": axis_order("3-2-1", "the rotor's axis order: a-b-c is a(h/2) b(h/2) c(h) b(h/2) a(h/2)"),
+    "substeps": count("1", "rotors of dt/substeps between the kicks (DL_POLY's default is 10)"),
+}
 
 
 @njit(cache=True, error_model="numpy")
@@ -105,20 +119,33 @@ def _rotate(k, p, q, inertia, h):
     )
 
 
-@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
-def step_driven(w, q, t, dt, body):
-    """One NO_SQUISH step of dt seconds from time t (s): the kicks see the torque at t and t + dt (the
-    splitting made autonomous with t as a coordinate, the rotor advancing t)."""
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _rotor(p, q, h, body, axes):
+    """The free rotor for h seconds: exact rotations a(h/2) b(h/2) c(h) b(h/2) a(h/2) about the body
+    axes ``axes`` = (a, b, c) (0-based; LAMMPS numbers them from 1)."""
+    half = 0.5 * h
+    a, b, c = axes
+    p, q = _rotate(a + 1, p, q, body[a], half)
+    p, q = _rotate(b + 1, p, q, body[b], half)
+    p, q = _rotate(c + 1, p, q, body[c], h)
+    p, q = _rotate(b + 1, p, q, body[b], half)
+    return _rotate(a + 1, p, q, body[a], half)
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def step_driven_with(w, q, t, dt, body, axes, substeps):
+    """One NO_SQUISH step of dt seconds from time t (s), the rotor in the axis order ``axes``
+    (kernels/parameters.py codes, free_flow.resolve_axes) as ``substeps`` rotors of dt/substeps
+    between the kicks: the kicks see the torque at t and t + dt (the splitting made autonomous with t
+    as a coordinate, the rotor advancing t)."""
     I1, I2, I3 = body[0], body[1], body[2]
     qv = _quat_vec(q, (I1 * w[0], I2 * w[1], I3 * w[2]))
     p = (2.0 * qv[0], 2.0 * qv[1], 2.0 * qv[2], 2.0 * qv[3])
     p = _kick(p, q, dt, torque_at(q, t, body))
-    half = 0.5 * dt
-    p, q = _rotate(3, p, q, I3, half)
-    p, q = _rotate(2, p, q, I2, half)
-    p, q = _rotate(1, p, q, I1, dt)
-    p, q = _rotate(2, p, q, I2, half)
-    p, q = _rotate(3, p, q, I3, half)
+    order = resolve_axes(body, axes)
+    h = dt / substeps
+    for _ in range(substeps):
+        p, q = _rotor(p, q, h, body, order)
     p = _kick(p, q, dt, torque_at(q, t + dt, body))
     # L = ½ vec(q* ⊗ p) / |q|²: the exact inverse of p = 2 q ⊗ (0, L) for any q (LAMMPS omits 1/|q|²,
     # harmless where p is carried; here the conversion recurs every step, so |q| ≠ 1 would compound:
@@ -128,7 +155,24 @@ def step_driven(w, q, t, dt, body):
     return (s * L[0] / I1, s * L[1] / I2, s * L[2] / I3), quat_normalize(q)
 
 
+@njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
+def step_driven(w, q, t, dt, body):
+    """One NO_SQUISH step of dt seconds from time t (s) as the MD codes ship it: the rotor 3-2-1-2-3,
+    once per step."""
+    return step_driven_with(w, q, t, dt, body, SHIPPED_AXES, 1)
+
+
 @njit(cache=True, error_model="numpy")
 def step(w, q, dt, body):
     """One step of dt seconds of an undriven body: step_driven from t = 0, its drive folded away."""
     return step_driven(w, q, 0.0, dt, without_drive(body))
+
+
+def variant(axes, substeps):
+    """The steps with the rotor in the axis order ``axes`` as ``substeps`` rotors of dt/substeps."""
+
+    @njit(error_model="numpy", forceinline=True)
+    def step_driven(w, q, t, dt, body):
+        return step_driven_with(w, q, t, dt, body, axes, substeps)
+
+    return undriven(step_driven)
