@@ -339,6 +339,25 @@ def _constants_table(constants, empty, first=()):
     return lines
 
 
+def _parameters(name, module):
+    """The card's "Parameters" section: what a sweep may set (kernels/parameters.py), or nothing."""
+    declared = getattr(module, "PARAMETERS", None)
+    if not declared:
+        return []
+    first = next(iter(declared))
+    return [
+        "",
+        "## Parameters",
+        "",
+        f'Set in a sweep as `"{name}({first}=...)"` (kernels/parameters.py); the measured rows below are at the '
+        "defaults, the plain name.",
+        "",
+        "| parameter | default | meaning |",
+        "|---|---|---|",
+        *(f"| `{key}` | {_cell(p.default)} | {_cell(p.doc)} |" for key, p in declared.items()),
+    ]
+
+
 def method_card(name, module, summary, conformance):
     """The Markdown card of registered method ``name``."""
     defaults, coefficients = hidden_defaults(module)
@@ -352,6 +371,7 @@ def method_card(name, module, summary, conformance):
     ]
     if coefficients:
         lines += ["", "Scheme coefficients (not defaults): " + ", ".join(f"`{c[0]}`" for c in coefficients) + "."]
+    lines += _parameters(name, module)
     preserves = ", ".join(module.PRESERVES) or "none"
     lines += [
         "",
