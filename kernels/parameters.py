@@ -94,6 +94,21 @@ def unit_interval(default, doc):
     return Parameter(default, _parse_unit, repr, doc)
 
 
+def _parse_nonnegative(text):
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0.0 <= value < math.inf:
+        raise ValueError(f"{text!r} is not a number >= 0")
+    return value
+
+
+def nonnegative(default, doc):
+    """A finite number ≥ 0 (a mass, an acceleration); canonical text as ``unit_interval``'s."""
+    return Parameter(default, _parse_nonnegative, repr, doc)
+
+
 _NAME = re.compile(r"([A-Za-z_]\w*)\((.*)\)")
 _ITEM = re.compile(r"([A-Za-z_]\w*)=([^=,()]+)")
 

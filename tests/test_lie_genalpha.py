@@ -17,9 +17,12 @@ Measured (this machine, float64):
 * Where the node sits changes the answer: against DOP853 the centre of mass at 0.8 s is off by
   0.332 m at h = 2e-3 s and 0.0839 m at h = 1e-3 s (order 1.98) with the node at the pivot, and
   by 4.62e-3 m with Kynema's own model (node at the centre of mass, pinned to a ground node by a
-  rigid joint), the same continuous top: so this method differs from Kynema's published heavy-top
-  state by 0.336 m there, which only a body record carrying the mass apart from M g c would let a
-  gyrolab method reproduce (tests/test_kynema_heavy_top.py reproduces it in numpy to 2.1e-11).
+  rigid joint), the same continuous top: so the pivot node differs from Kynema's published heavy-top
+  state by 0.336 m there.
+* Kynema's own model is the variant ``lie_genalpha(mass=15)`` (the node at the centre of mass of the
+  15 kg top, the joint's multipliers eliminated exactly): Kynema's published state at 0.8 s to 1.8e-12
+  m (centre of mass) and 3.9e-11 (quaternion), from gyrolab's pinned experiment in its own frame
+  (tests/kynema_genalpha.py, the 15-unknown numpy transcription, gets 2.1e-11).
 """
 
 import math
@@ -30,9 +33,11 @@ import pytest
 from kynema_genalpha import (
     MASS,
     OMEGA0,
+    OMEGA_DOT0,
     PRECESSION_PUBLISHED_QUAT,
     PUBLISHED_Q,
     X_COM0,
+    X_DDOT0,
     quat_to_matrix,
     run_pivot_node,
 )
@@ -41,7 +46,8 @@ from numba import njit
 from gyrolab.kernels.batch import integrate
 from gyrolab.kernels.body import Body
 from gyrolab.kernels.driver import FIELDS, STATUS_NONFINITE, STATUS_OK
-from gyrolab.kernels.registry import METHODS, carries_state, register, stepper
+from gyrolab.kernels.registry import METHODS, carries_state, get_method, register, stepper
+from gyrolab.kernels.rotation import quat_mul
 from gyrolab.runner.grid import runs_in_blocks
 
 GENALPHA = METHODS["lie_genalpha"]
@@ -94,6 +100,56 @@ def test_the_node_at_the_pivot_is_second_order_and_not_kynemas_centre_of_mass_mo
     kynema_com = X_COM0 + PUBLISHED_Q[:3]  # Kynema's model: its error is 4.62e-3 m (test_kynema_heavy_top)
     assert np.linalg.norm(kynema_com - x_ref) < 5e-3
     assert 0.25 < np.linalg.norm(quat_to_matrix(_run(2e-3, 400)[1]) @ X_COM0 - kynema_com) < 0.40  # 0.336
+
+
+KYNEMA_MODEL = "lie_genalpha(mass=15.0)"  # the node at the centre of mass of the 15 kg top, g = 9.81
+
+
+def _run_named(name, h, n, body, w, q):
+    """(w, q, c) after n steps of the method or variant ``name`` from its start."""
+    start, step_carried = stepper(get_method(name))
+    c = start(w, q, body)
+    for _ in range(n):
+        w, q, c = step_carried(w, q, c, h, body)
+    return np.array(w), np.array(q), np.array(c)
+
+
+def test_the_node_at_the_centre_of_mass_is_kynemas_heavy_top():
+    """``lie_genalpha(mass=15)`` models the top as Kynema's test does (the node at the centre of mass,
+    pinned at the pivot by a rigid joint): from the consistent start (Kynema's hard-coded accelerations
+    to 1e-12), 400 steps of 2e-3 s give Kynema's published state.q at 0.8 s, centre-of-mass
+    displacement and quaternion (measured 1.8e-12 and 3.9e-11), here on gyrolab's own pinned experiment
+    (conf/experiment/bruls_heavy_top.yaml: body axes (e1, −e2, −e3), q0 = Rx(180°)), so Kynema's frame
+    is checked too: its quaternion is gyrolab's times (0, −1, 0, 0)."""
+    from helpers import experiment_scene
+
+    sc = experiment_scene("bruls_heavy_top")
+    w0, q0 = tuple(sc.omega0), tuple(sc.q0)
+    module = get_method(KYNEMA_MODEL)
+    c0 = np.array(module.start(w0, q0, sc.body))
+    assert np.allclose(c0[:3], X_COM0, rtol=0, atol=1e-15)  # the centre of mass, lab
+    assert np.abs(c0[6:9] - X_DDOT0).max() < 1e-12 and np.abs(c0[9:12] - OMEGA_DOT0).max() < 1e-9
+    w, q, c = _run_named(KYNEMA_MODEL, 2e-3, 400, sc.body, w0, q0)
+    q_kynema = quat_mul(q, (0.0, -1.0, 0.0, 0.0))
+    assert np.abs(c[:3] - X_COM0 - PUBLISHED_Q[:3]).max() < 1e-11  # measured 1.8e-12 m
+    assert np.abs(np.array(q_kynema) - PUBLISHED_Q[3:]).max() < 2e-10  # measured 3.9e-11
+
+
+def test_the_two_node_models_are_one_continuous_top():
+    """Where the node sits is a choice of discretisation, not of physics (the continuous top is the same
+    for any mass the record's M g c is split into): over 0.1 s both models converge as h² to the
+    centre-of-mass node's run at h/4 (quaternion: 4.9e-6 and 1.2e-6 for the centre-of-mass node at
+    h = 4e-4 and 2e-4 s, 4.3e-4 and 1.1e-4 for the node at the pivot: order 2.0 each)."""
+    diffs = []
+    for h in (4e-4, 2e-4):
+        n = round(0.1 / h)
+        _, q_pivot, _ = _run_named("lie_genalpha", h, n, PIVOT_BODY, W0, Q0)
+        _, q_com, _ = _run_named(KYNEMA_MODEL, h, n, PIVOT_BODY, W0, Q0)
+        _, q_fine, _ = _run_named(KYNEMA_MODEL, h / 4, 4 * n, PIVOT_BODY, W0, Q0)
+        diffs.append((np.abs(q_com - q_fine).max(), np.abs(q_pivot - q_fine).max()))
+    for model in (0, 1):
+        assert 1.8 < math.log2(diffs[0][model] / diffs[1][model]) < 2.2, diffs
+    assert diffs[1][0] < 2e-6 and diffs[1][1] < 2e-4, diffs
 
 
 def test_a_run_threads_the_accelerations_through_the_driver():
