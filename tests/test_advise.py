@@ -71,6 +71,28 @@ def test_errors_are_the_known_perturbation():
         (["1", "2", "3", "--omega", "1", "2", "3", "--dt", "1e-3", "--T", "1", "--metric", "spin"], "metric"),
         (["1", "2", "3", "--omega", "1", "2", "3", "--dt", "1e-3", "--T", "1", "--tol", "0"], "tol"),
         (["1", "2", "3", "--omega", "1", "2", "3", "--dt", "1e-3", "--T", "1", "--methods", "rk5"], "rk5"),
+        (
+            [
+                "1",
+                "2",
+                "3",
+                "--omega",
+                "1",
+                "2",
+                "3",
+                "--dt",
+                "1e-3",
+                "--T",
+                "1",
+                "--methods",
+                "lie_poisson(axes=1-1-2)",
+            ],
+            "axis order",
+        ),
+        (
+            ["1", "2", "3", "--omega", "1", "2", "3", "--dt", "1e-3", "--T", "1", "--methods", "no_squish(substeps=2)"],
+            "no error constants",
+        ),
         (["1", "2", "3", "--omega", "1", "2", "3", "--dt", "1e-3", "--T", "1", "--engines", "rk4"], "engine"),
         (["1", "2", "3", "--omega", "1", "2", "3", "--dt", "1e-3", "--T", "1", "--json", "/no/such/dir/a.json"], "dir"),
     ],
@@ -215,3 +237,37 @@ def test_constants_file_names_how_it_was_measured():
         assert entry["ns_per_step"] > 0 and entry["order"] >= 1
         assert set(entry["kappa"]) >= {"orientation", "omega", "energy"}
         assert all(0 < k < 1e6 for k in entry["kappa"].values())
+
+
+def test_the_methods_option_keeps_a_variants_commas():
+    assert cli.method_list("rk4, no_squish(axes=S-M-L,substeps=10),lie_poisson(axes=3-2-1)") == [
+        "rk4",
+        "no_squish(axes=S-M-L,substeps=10)",
+        "lie_poisson(axes=3-2-1)",
+    ]
+
+
+def test_a_variant_is_predicted_by_its_own_steps_on_the_users_body():
+    """A calibrated method's variant (kernels/parameters.py) is advised like the method: predicted by its
+    own steps on this body (model.probe) with the method's calibrated constants, then measured.  On
+    SPC/E-like water labelled with the moments decreasing, lie_poisson turns L-M-S; the order S-M-L is
+    predicted and measured ~40x better in energy (measured 1.38e-06 against 5.42e-05 at dt = 0.02 s over
+    100 s, each within 2 % of its prediction), and is the advice."""
+    a = advise(
+        (1.0, 0.6925, 0.3075),
+        (1.2, -0.7, 0.9),
+        100.0,
+        dt=0.02,
+        metric="energy",
+        tol=1e-5,
+        methods=["lie_poisson", "lie_poisson(axes=s-m-l)"],
+        engines=(),
+    )
+    rows = {r.method: r for r in a.rows}
+    assert set(rows) == {"lie_poisson", "lie_poisson(axes=S-M-L)"}  # canonical names
+    plain, sorted_ = rows["lie_poisson"], rows["lie_poisson(axes=S-M-L)"]
+    assert sorted_.constants_of == "lie_poisson" and plain.constants_of == ""
+    assert sorted_.measured_at_user < plain.measured_at_user / 10
+    for r in (plain, sorted_):
+        assert abs(r.measured_at_user / r.predicted_at_user - 1) < 0.1, r
+    assert a.recommended == "lie_poisson(axes=S-M-L)" and not plain.meets

@@ -58,6 +58,17 @@ class MethodRow:
     growth: float = 0.0  # κ g: the predicted error over T at Ω dt = model.H_PROBE, before rounding
     exponent: float = 0.0  # q: the predicted error goes as (Ω dt)^q (model.growth_law)
     free_exact: bool = False  # the method's step is the exact free flow (error: rounding)
+    constants_of: str = ""  # a variant (kernels/parameters.py): the method whose calibrated constants it uses
+
+
+def calibrated_name(method):
+    """The name whose calibrated constants (calibrate.py) predict ``method``: the method itself, or for a
+    variant with parameters (``lie_poisson(axes=S-M-L)``) the method it is a variant of.  The prediction
+    then runs the variant's own steps (model.probe: its defects on this body) and takes only the
+    calibrated factor κ, the ns per step and the order from the method; the measurement decides."""
+    from ...kernels.parameters import split_name
+
+    return split_name(method)[0]
 
 
 @dataclass
@@ -114,7 +125,7 @@ def _omega_scale(body, omega0):
 
 def check_inputs(inertia, omega0, mgc, T, dt_bounds, budget, metric, tol, methods, engines):
     """AdviceError (one line) for the first bad input; nothing is run."""
-    from ...kernels.registry import METHODS
+    from ...kernels.registry import canonical_name
     from .predict import KINDS
 
     I = np.asarray(inertia, float)
@@ -147,10 +158,16 @@ def check_inputs(inertia, omega0, mgc, T, dt_bounds, budget, metric, tol, method
         raise AdviceError(f"tol={tol}: the tolerance must lie in (0, 1) (relative; rad for orientation)")
     constants = model.load_constants()["methods"]
     for m in methods:
-        if m not in METHODS:
-            raise AdviceError(f"method {m!r}: unknown; calibrated: {', '.join(constants)}")
-        if m not in constants or not (metric in constants[m]["kappa"] or constants[m].get("free_exact")):
-            raise AdviceError(f"method {m!r}: no error constants for {metric!r}; calibrated: {', '.join(constants)}")
+        try:
+            canonical_name(m)
+        except ValueError as err:
+            raise AdviceError(f"method {m!r}: {err}; calibrated: {', '.join(constants)}") from None
+        base = calibrated_name(m)
+        if base not in constants or not (metric in constants[base]["kappa"] or constants[base].get("free_exact")):
+            raise AdviceError(
+                f"method {m!r}: no error constants for {metric!r}; calibrated: {', '.join(constants)} "
+                "(and their variants, e.g. lie_poisson(axes=S-M-L))"
+            )
     for m in engines:
         if m not in KINDS:
             raise AdviceError(f"engine {m!r}: not predicted; choose from {', '.join(KINDS)}")
@@ -275,6 +292,9 @@ def advise(
         dt_bounds = (math.nan, math.nan)
     methods, engines = list(methods), list(engines)
     check_inputs(inertia, omega0, mgc, float(T), dt_bounds, budget, metric, float(tol), methods, engines)
+    from ...kernels.registry import select_methods
+
+    methods = select_methods(methods)  # canonical names, each once (a variant at its defaults is the method)
     t_start = time.perf_counter()
     body = E.body_row(inertia, mgc)
     omega0 = np.asarray(omega0, float)
@@ -288,7 +308,7 @@ def advise(
     constants = constants["methods"]
     rows = []
     for m in methods:
-        c = constants[m]
+        c = constants[calibrated_name(m)]
         ns = float(c["ns_per_step"])
         p = c["order"]
         if c.get("free_exact"):
@@ -316,6 +336,7 @@ def advise(
             growth=kappa * g,
             exponent=q,
             free_exact=bool(c.get("free_exact")),
+            constants_of="" if calibrated_name(m) == m else calibrated_name(m),
         )
         if dt_largest >= lo and dt_largest > 0:
             row.dt_largest = dt_largest
@@ -368,7 +389,7 @@ def advise(
         if r.meets:
             r.measured_at_largest = errs[-1]
         if horizon[-1] < T * (1 - 1e-9):  # measured over the start: the prediction over the same span
-            c = constants[r.method]
+            c = constants[calibrated_name(r.method)]
             p = c["order"]
             if c.get("free_exact"):
                 kappa, g, q = 1.0, 0.0, p

@@ -8,6 +8,7 @@ Bad input: one line on stderr and exit status 2, before any work.
 import argparse
 import json
 import math
+import re
 import sys
 import time
 
@@ -43,19 +44,24 @@ def table(a):
     if a.prediction_note:
         out.append(f"({a.prediction_note})")
     out.append("")
+    wm = max([14] + [len(r.method) + 1 for r in a.rows])  # the method column fits a variant's name
     head = (
-        f"{'method':<14}{'p':>2} {'ns/step':>8} {'dt (s)':>9} {'predicted':>10} {'measured':>10}"
+        f"{'method':<{wm}}{'p':>2} {'ns/step':>8} {'dt (s)':>9} {'predicted':>10} {'measured':>10}"
         f" {'largest dt':>11} {'predicted':>10} {'measured':>10} {'cost (s)':>9} {'meets':>6}"
     )
     out.append(head)
     for r in a.rows:
         mark = " <- advice" if r.method == a.recommended else ""
         out.append(
-            f"{r.method:<14}{r.order:>2} {r.ns_per_step:>8.0f} {r.dt_user:>9.3g} {_g(r.predicted_at_user):>10}"
+            f"{r.method:<{wm}}{r.order:>2} {r.ns_per_step:>8.0f} {r.dt_user:>9.3g} {_g(r.predicted_at_user):>10}"
             f" {_g(r.measured_at_user):>10} {(f'{r.dt_largest:.3g}' if r.meets else 'none'):>11}"
             f" {_g(r.predicted_at_largest):>10} {_g(r.measured_at_largest):>10} {_g(r.cost_s, '.3g'):>9}"
             f" {('yes' if r.meets else 'no'):>6}{mark}"
         )
+    bases = sorted({r.constants_of for r in a.rows if r.constants_of})
+    if bases:
+        names = ", ".join(bases)
+        out.append(f"(variants: predicted by their own steps on this body, with the calibrated constants of {names})")
     exact = [r.method for r in a.rows if r.free_exact]
     if exact:
         out.append(f"({', '.join(exact)}: the exact free flow in each step, so the error is rounding at any dt)")
@@ -158,6 +164,12 @@ def figure(a, path):
     plt.close(fig)
 
 
+def method_list(text):
+    """The comma-separated methods of ``text``; a comma inside parentheses belongs to a method's
+    parameters: ``"rk4,no_squish(axes=S-M-L,substeps=10)"`` is two methods."""
+    return [m.strip() for m in re.findall(r"(?:[^,(]|\([^)]*\))+", text) if m.strip()]
+
+
 def main(argv=None):
     """The ``gyrolab-advise`` command."""
     ap = argparse.ArgumentParser(
@@ -190,7 +202,11 @@ def main(argv=None):
     ap.add_argument("--T", type=float, required=True, help="horizon (s)")
     ap.add_argument("--metric", default="orientation", help="what must be right: orientation, omega, energy, L_norm")
     ap.add_argument("--tol", type=float, default=1e-3, help="tolerance (rad for orientation, else relative)")
-    ap.add_argument("--methods", default=",".join(DEFAULT_METHODS), help="comma-separated methods to choose among")
+    ap.add_argument(
+        "--methods",
+        default=",".join(DEFAULT_METHODS),
+        help="comma-separated methods to choose among; a calibrated method's variant too, e.g. lie_poisson(axes=S-M-L)",
+    )
     ap.add_argument("--engines", default=",".join(ENGINES), help="comma-separated engine updates to report ('' none)")
     ap.add_argument("--predict-only", action="store_true", help="skip the measurement")
     ap.add_argument("--json", metavar="PATH", help="write the advice as JSON")
@@ -232,7 +248,7 @@ def main(argv=None):
             metric=args.metric,
             tol=args.tol,
             mgc=args.mgc,
-            methods=[m for m in args.methods.split(",") if m],
+            methods=method_list(args.methods),
             engines=[m for m in args.engines.split(",") if m],
             measure=not args.predict_only,
             progress=progress,
