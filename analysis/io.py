@@ -14,6 +14,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ..kernels.invariants import INVARIANTS
+from ..kernels.parameters import split_names
 from ..results import ResultsError
 from ..results.layout import GRID_DIMS
 from ..results.members import MEMBER_DIMS
@@ -77,6 +78,17 @@ def missing_variable_error(ds, name, figure):
 SELECTION_ALIASES = {"method": "integrator"}
 
 
+def _canonical_method(name):
+    """``name`` in the canonical form the runner stores (kernels/parameters.py: ``lie_poisson(axes=s-m-l)``
+    is stored as ``lie_poisson(axes=S-M-L)``); any name the registry does not know, unchanged."""
+    from ..kernels.registry import canonical_name
+
+    try:
+        return canonical_name(name)[0]
+    except ValueError:
+        return name
+
+
 def parse_selection(words, members=False):
     """``["integrator=seed_next,rk4", "f=10"]`` -> {"integrator": ["seed_next", "rk4"], "f": [10.0]}
     (``method=`` is read as ``integrator=``).  With ``members``, also ``scene=NAME`` / ``job=K``
@@ -89,12 +101,14 @@ def parse_selection(words, members=False):
             key = SELECTION_ALIASES.get(key, key)
             if not eq or key not in keys:
                 raise SelectionError(f"{item}: a selection is KEY=VALUE[,VALUE...] with KEY in {', '.join(keys)}")
-            values = [v for v in value.split(",") if v]
+            values = split_names(value) if key == "integrator" else [v for v in value.split(",") if v]
             if not values:
                 raise SelectionError(f"{item}: no value given for {key}")
             if key in MEMBER_DIMS and len(values) > 1:
                 raise SelectionError(f"{item}: one {key} at a time")
-            if key not in ("integrator",) + MEMBER_DIMS:
+            if key == "integrator":  # a method with parameters as the file names it (canonical)
+                values = [_canonical_method(v) for v in values]
+            elif key not in MEMBER_DIMS:
                 try:
                     values = [float(v) for v in values]
                 except ValueError:

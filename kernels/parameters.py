@@ -113,6 +113,12 @@ _NAME = re.compile(r"([A-Za-z_]\w*)\((.*)\)")
 _ITEM = re.compile(r"([A-Za-z_]\w*)=([^=,()]+)")
 
 
+def split_names(text):
+    """The comma-separated names of ``text``, a comma inside parentheses belonging to a name's parameters:
+    ``"rk4,no_squish(axes=S-M-L,substeps=10)"`` → ``["rk4", "no_squish(axes=S-M-L,substeps=10)"]``."""
+    return [m.strip() for m in re.findall(r"(?:[^,(]|\([^)]*\))+", str(text)) if m.strip()]
+
+
 def split_name(name):
     """``(method, {parameter: text})`` of ``name``: ``"no_squish(substeps=10)"`` → ``("no_squish",
     {"substeps": "10"})``, a plain name → ``(name, {})``; ValueError (one line) when it is neither."""

@@ -240,7 +240,9 @@ def test_constants_file_names_how_it_was_measured():
 
 
 def test_the_methods_option_keeps_a_variants_commas():
-    assert cli.method_list("rk4, no_squish(axes=S-M-L,substeps=10),lie_poisson(axes=3-2-1)") == [
+    from gyrolab.kernels.parameters import split_names
+
+    assert split_names("rk4, no_squish(axes=S-M-L,substeps=10),lie_poisson(axes=3-2-1)") == [
         "rk4",
         "no_squish(axes=S-M-L,substeps=10)",
         "lie_poisson(axes=3-2-1)",

@@ -178,3 +178,15 @@ def test_cli_help(kind, capsys):
         cli.main([kind, "--help"])
     assert exc.value.code == 0
     assert "usage: gyrolab-plot" in capsys.readouterr().out
+
+
+def test_a_selection_names_a_method_with_parameters_as_the_file_does():
+    """A variant's name keeps its commas and is made canonical (the runner stores it so), so a plot can
+    select ``lie_poisson(axes=s-m-l)``; a name the registry does not know stays as given."""
+    from gyrolab.analysis.io import parse_selection
+
+    sel = parse_selection(["integrator=lie_poisson(axes=s-m-l),no_squish(substeps=10,axes=1-2-3),DOP853", "f=10,50"])
+    assert sel == {
+        "integrator": ["lie_poisson(axes=S-M-L)", "no_squish(axes=1-2-3,substeps=10)", "DOP853"],
+        "f": [10.0, 50.0],
+    }

@@ -8,12 +8,12 @@ Bad input: one line on stderr and exit status 2, before any work.
 import argparse
 import json
 import math
-import re
 import sys
 import time
 
 import numpy as np
 
+from ...kernels.parameters import split_names
 from .advisor import ENGINES, AdviceError, advise
 from .calibrate import DEFAULT_METHODS
 
@@ -164,12 +164,6 @@ def figure(a, path):
     plt.close(fig)
 
 
-def method_list(text):
-    """The comma-separated methods of ``text``; a comma inside parentheses belongs to a method's
-    parameters: ``"rk4,no_squish(axes=S-M-L,substeps=10)"`` is two methods."""
-    return [m.strip() for m in re.findall(r"(?:[^,(]|\([^)]*\))+", text) if m.strip()]
-
-
 def main(argv=None):
     """The ``gyrolab-advise`` command."""
     ap = argparse.ArgumentParser(
@@ -248,7 +242,7 @@ def main(argv=None):
             metric=args.metric,
             tol=args.tol,
             mgc=args.mgc,
-            methods=method_list(args.methods),
+            methods=split_names(args.methods),
             engines=[m for m in args.engines.split(",") if m],
             measure=not args.predict_only,
             progress=progress,
