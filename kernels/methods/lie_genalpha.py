@@ -21,8 +21,9 @@ mass at 0.8 s is off DOP853 by 0.33 m with the node at the pivot (0.084 m at 1e-
 order) and by 4.6e-3 m with the node at the centre of mass, so this method is 0.34 m from Kynema's
 published heavy-top state.  That model needs the mass apart from M g c, which the body record does
 not carry: the parameter ``mass`` gives it (below), and ``lie_genalpha(mass=15)`` on gyrolab's
-pinned experiment gives Kynema's published state at 0.8 s to 1.8e-12 m (centre of mass) and
-3.9e-11 (quaternion).  On a free body it is Kynema's step itself: Kynema's precession test to
+pinned experiment gives Kynema's published state at 0.8 s to 2.4e-12 m (centre of mass) and
+1.1e-11 (quaternion), rounding: with Newton's test at 1e-8 (``atol``, ``rtol``, below) 4.4e-14 m and
+6.8e-13.  On a free body it is Kynema's step itself: Kynema's precession test to
 5.2e-13, and the numpy model of the pivot node to 1.7e-12 on the heavy top
 (tests/test_lie_genalpha.py).
 
@@ -68,7 +69,7 @@ import math
 
 from numba import njit
 
-from ..parameters import nonnegative, unit_interval
+from ..parameters import count, nonnegative, unit_interval
 from ..rigid_body import euler_rhs, gravity_torque
 from ..rotation import body_to_lab, quat_mul
 from ..variants import carried
@@ -90,6 +91,9 @@ PARAMETERS = {
         "0.0", "kg; > 0: the node at the centre of mass of this mass, pinned at the pivot (Kynema's heavy top)"
     ),
     "g": nonnegative("9.81", "m/s², with mass > 0: the centre of mass is M g c / (mass g)"),
+    "atol": nonnegative(repr(ATOL), "Newton test: absolute tolerance on the increment h Δ (rad, m)"),
+    "rtol": nonnegative(repr(RTOL), "Newton test: tolerance relative to |h Δ_i|"),
+    "iterations": count(str(MAX_ITERATIONS), "Newton iterations before a step fails (NaN: the run ends non-finite)"),
 }
 
 
@@ -274,12 +278,12 @@ def _predict(v_n, vd_n, a_n, dt, am, af, gamma, beta):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def _error_squares(x, dl, dt):
+def _error_squares(x, dl, dt, atol, rtol):
     """Σ (x_i / (atol + rtol |h Δ_i|))² over three unknowns: Kynema's convergence measure, taken before
     the update, against the increment h Δ."""
-    e0 = x[0] / (ATOL + RTOL * abs(dl[0] * dt))
-    e1 = x[1] / (ATOL + RTOL * abs(dl[1] * dt))
-    e2 = x[2] / (ATOL + RTOL * abs(dl[2] * dt))
+    e0 = x[0] / (atol + rtol * abs(dl[0] * dt))
+    e1 = x[1] / (atol + rtol * abs(dl[1] * dt))
+    e2 = x[2] / (atol + rtol * abs(dl[2] * dt))
     return e0 * e0 + e1 * e1 + e2 * e2
 
 
@@ -305,9 +309,10 @@ def _body_rates(q, v):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def step_carried_with(w, q, c, dt, body, rho_inf):
+def step_carried_with(w, q, c, dt, body, rho_inf, atol, rtol, iterations):
     """One generalized-α step of dt seconds with spectral radius ``rho_inf``: body rates w (rad/s),
-    q (body → lab) and the carried lab accelerations c = (Ω̇, a) (rad/s²) to the new (w, q, c)."""
+    q (body → lab) and the carried lab accelerations c = (Ω̇, a) (rad/s²) to the new (w, q, c); Newton
+    stops at RMS(x_i / (atol + rtol |h Δ_i|)) ≤ 1 or fails after ``iterations``."""
     am, af, gamma, beta, gamma_p, beta_p, cond = _coefficients(dt, rho_inf)
     jj = (body[0], body[1], body[2])
     a1, v, dl = _predict(
@@ -317,7 +322,7 @@ def step_carried_with(w, q, c, dt, body, rho_inf):
     q1 = quat_mul(_exp((dt * dl[0], dt * dl[1], dt * dl[2])), q)
 
     converged = False
-    for _ in range(MAX_ITERATIONS):
+    for _ in range(iterations):
         rm = _rot(q1)
         # rho = R J R^T
         rho = (
@@ -343,7 +348,7 @@ def step_carried_with(w, q, c, dt, body, rho_inf):
             cond * m_rot[6], cond * m_rot[7], cond * m_rot[8],
         )  # fmt: skip
         x = _solve(s_mat, (-cond * res[0], -cond * res[1], -cond * res[2]))
-        err = math.sqrt(_error_squares(x, dl, dt) / NODE_UNKNOWNS)
+        err = math.sqrt(_error_squares(x, dl, dt, atol, rtol) / NODE_UNKNOWNS)
         dl, v, vd = _update(dl, v, vd, x, dt, gamma_p, beta_p)
         q1 = quat_mul(_exp((dt * dl[0], dt * dl[1], dt * dl[2])), q)
         if err <= 1.0:
@@ -409,7 +414,7 @@ def _cross(a, b):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
-def step_com_with(w, q, c, dt, body, rho_inf, mass, g):
+def step_com_with(w, q, c, dt, body, rho_inf, mass, g, atol, rtol, iterations):
     """One generalized-α step of dt seconds of the body as Kynema models its heavy top: the node at the
     centre of mass (``mass`` kg, ``g`` m/s² along −z), pinned to the pivot at the origin by a rigid
     joint; c = (x, ẋ, ẍ, Ω̇, a_x, a_Ω) (lab) to the new (w, q, c)."""
@@ -428,7 +433,7 @@ def step_com_with(w, q, c, dt, body, rho_inf, mass, g):
     a_t = cond * beta_p * mass  # the translational block of the scaled iteration matrix, times 1
 
     converged = False
-    for _ in range(MAX_ITERATIONS):
+    for _ in range(iterations):
         rm = _rot(q1)
         rho = _mm(_mm(rm, jc), (rm[0], rm[3], rm[6], rm[1], rm[4], rm[7], rm[2], rm[5], rm[8]))
         t_r = _tangent_transposed((dt * dl[0], dt * dl[1], dt * dl[2]))
@@ -460,10 +465,11 @@ def step_com_with(w, q, c, dt, body, rho_inf, mass, g):
         xt = ((y[0] - r_t[0]) / a_t, (y[1] - r_t[1]) / a_t, (y[2] - r_t[2]) / a_t)
         dlam = (y[0] / cond, y[1] / cond, y[2] / cond)
 
-        e_l0 = dlam[0] / (ATOL + RTOL * abs(lam[0]))
-        e_l1 = dlam[1] / (ATOL + RTOL * abs(lam[1]))
-        e_l2 = dlam[2] / (ATOL + RTOL * abs(lam[2]))
-        ssq = _error_squares(xt, dlt, dt) + _error_squares(xr, dl, dt) + 2.0 * (e_l0 * e_l0 + e_l1 * e_l1 + e_l2 * e_l2)
+        e_l0 = dlam[0] / (atol + rtol * abs(lam[0]))
+        e_l1 = dlam[1] / (atol + rtol * abs(lam[1]))
+        e_l2 = dlam[2] / (atol + rtol * abs(lam[2]))
+        ssq = _error_squares(xt, dlt, dt, atol, rtol) + _error_squares(xr, dl, dt, atol, rtol)
+        ssq += 2.0 * (e_l0 * e_l0 + e_l1 * e_l1 + e_l2 * e_l2)
         err = math.sqrt(ssq / SYSTEM_UNKNOWNS)
 
         dlt, vt, vdt = _update(dlt, vt, vdt, xt, dt, gamma_p, beta_p)
@@ -487,7 +493,7 @@ def step_com_with(w, q, c, dt, body, rho_inf, mass, g):
 @njit(cache=True, error_model="numpy")
 def step_carried(w, q, c, dt, body):
     """One step of dt seconds (s) at ρ∞ = RHO_INF, carrying c = (Ω̇, a), the lab accelerations."""
-    return step_carried_with(w, q, c, dt, body, RHO_INF)
+    return step_carried_with(w, q, c, dt, body, RHO_INF, ATOL, RTOL, MAX_ITERATIONS)
 
 
 @njit(cache=True, error_model="numpy")
@@ -497,14 +503,15 @@ def step(w, q, dt, body):
     return w1, q1
 
 
-def variant(rho_inf, mass, g):
+def variant(rho_inf, mass, g, atol, rtol, iterations):
     """The steps at spectral radius ``rho_inf`` (0 ≤ ρ∞ ≤ 1), one node at the pivot (``mass`` 0) or the
-    node at the centre of mass of a body of ``mass`` kg under ``g`` m/s², pinned at the pivot."""
+    node at the centre of mass of a body of ``mass`` kg under ``g`` m/s², pinned at the pivot; Newton's
+    test ``atol``, ``rtol`` and its cap of ``iterations``."""
     if mass == 0.0:
 
         @njit(error_model="numpy")
         def step_carried(w, q, c, dt, body):
-            return step_carried_with(w, q, c, dt, body, rho_inf)
+            return step_carried_with(w, q, c, dt, body, rho_inf, atol, rtol, iterations)
 
         return carried(start, step_carried)
 
@@ -514,6 +521,6 @@ def variant(rho_inf, mass, g):
 
     @njit(error_model="numpy")
     def step_at_com(w, q, c, dt, body):
-        return step_com_with(w, q, c, dt, body, rho_inf, mass, g)
+        return step_com_with(w, q, c, dt, body, rho_inf, mass, g, atol, rtol, iterations)
 
     return carried(start_at_com, step_at_com)
