@@ -115,8 +115,9 @@ _ITEM = re.compile(r"([A-Za-z_]\w*)=([^=,()]+)")
 
 def split_names(text):
     """The comma-separated names of ``text``, a comma inside parentheses belonging to a name's parameters:
-    ``"rk4,no_squish(axes=S-M-L,substeps=10)"`` → ``["rk4", "no_squish(axes=S-M-L,substeps=10)"]``."""
-    return [m.strip() for m in re.findall(r"(?:[^,(]|\([^)]*\))+", str(text)) if m.strip()]
+    ``"rk4,no_squish(axes=S-M-L,substeps=10)"`` → ``["rk4", "no_squish(axes=S-M-L,substeps=10)"]``; an
+    unclosed parenthesis runs to the end (one malformed name, which its reader then refuses whole)."""
+    return [m.strip() for m in re.findall(r"(?:[^,(]|\([^)]*(?:\)|$))+", str(text)) if m.strip()]
 
 
 def split_name(name):

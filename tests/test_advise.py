@@ -247,6 +247,7 @@ def test_the_methods_option_keeps_a_variants_commas():
         "no_squish(axes=S-M-L,substeps=10)",
         "lie_poisson(axes=3-2-1)",
     ]
+    assert split_names("rk4,no_squish(substeps=0") == ["rk4", "no_squish(substeps=0"]
 
 
 def test_a_variant_is_predicted_by_its_own_steps_on_the_users_body():

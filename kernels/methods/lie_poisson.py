@@ -43,7 +43,9 @@ def step(w, q, dt, body):
 
 
 def variant(axes):
-    """The steps with the free flow's axis splitting in the order ``axes`` (kernels/parameters.py codes)."""
+    """The steps with the free flow's axis splitting in the order ``axes`` (kernels/parameters.py codes).
+    The plain ``step_driven`` above keeps free_flow's literal axes: through axis_splitting the one-by-one
+    path ran 13-20 % slower (free_flow.py), and the two are the same map bit for bit at 1-2-3."""
 
     @njit(error_model="numpy", forceinline=True)
     def step_driven(w, q, t, dt, body):
