@@ -64,49 +64,37 @@ def axis_order(default, doc):
     return Parameter(default, _parse_axes, _axes_text, doc)
 
 
-def _parse_count(text):
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1 or value > 1000:
-        raise ValueError(f"{text!r} is not a count: give a whole number from 1 to 1000")
-    return value
+def _number(convert, accept, what):
+    """A parser: ``convert(text)`` (int or float), ValueError "'text' is not ``what``" unless ``accept``s it
+    (NaN never does)."""
+
+    def parse(text):
+        try:
+            value = convert(text)
+        except ValueError:
+            value = math.nan
+        if not accept(value):
+            raise ValueError(f"{text!r} is not {what}")
+        return value
+
+    return parse
 
 
 def count(default, doc):
     """A whole number from 1 to 1000 (substeps, iterations)."""
-    return Parameter(default, _parse_count, str, doc)
-
-
-def _parse_unit(text):
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not 0.0 <= value <= 1.0:
-        raise ValueError(f"{text!r} is not a number from 0 to 1")
-    return value
+    return Parameter(
+        default, _number(int, lambda v: 1 <= v <= 1000, "a count: give a whole number from 1 to 1000"), str, doc
+    )
 
 
 def unit_interval(default, doc):
     """A number from 0 to 1 (a spectral radius); canonical text is Python's shortest repr (0.60 → 0.6)."""
-    return Parameter(default, _parse_unit, repr, doc)
-
-
-def _parse_nonnegative(text):
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not 0.0 <= value < math.inf:
-        raise ValueError(f"{text!r} is not a number >= 0")
-    return value
+    return Parameter(default, _number(float, lambda v: 0.0 <= v <= 1.0, "a number from 0 to 1"), repr, doc)
 
 
 def nonnegative(default, doc):
     """A finite number ≥ 0 (a mass, an acceleration); canonical text as ``unit_interval``'s."""
-    return Parameter(default, _parse_nonnegative, repr, doc)
+    return Parameter(default, _number(float, lambda v: 0.0 <= v < math.inf, "a number >= 0"), repr, doc)
 
 
 _NAME = re.compile(r"([A-Za-z_]\w*)\((.*)\)")
