@@ -124,6 +124,12 @@ def _mv(m, v):
 
 
 @njit(cache=True, error_model="numpy")
+def _transposed(m):
+    """mᵀ of a 3×3 m (9-tuple, row-major)."""
+    return (m[0], m[3], m[6], m[1], m[4], m[7], m[2], m[5], m[8])
+
+
+@njit(cache=True, error_model="numpy")
 def _mm(a, b):
     return (
         a[0] * b[0] + a[1] * b[3] + a[2] * b[6],
@@ -187,7 +193,7 @@ def _tangent_transposed(r):
         t1 * rt[7] + t2 * rt2[7],
         1.0 + t1 * rt[8] + t2 * rt2[8],
     )
-    return (t[0], t[3], t[6], t[1], t[4], t[7], t[2], t[5], t[8])
+    return _transposed(t)
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)
@@ -435,13 +441,14 @@ def step_com_with(w, q, c, dt, body, rho_inf, mass, g, atol, rtol, iterations):
     converged = False
     for _ in range(iterations):
         rm = _rot(q1)
-        rho = _mm(_mm(rm, jc), (rm[0], rm[3], rm[6], rm[1], rm[4], rm[7], rm[2], rm[5], rm[8]))
+        rho = _mm(_mm(rm, jc), _transposed(rm))
         t_r = _tangent_transposed((dt * dl[0], dt * dl[1], dt * dl[2]))
         inertial, m_rot = _rotational(rho, v, vd, t_r, beta_p, gamma_p)
         rc = _mv(rm, cb)  # R c: the centre of mass from the pivot
         phi = (rc[0] - x1[0], rc[1] - x1[1], rc[2] - x1[2])  # the joint's residual (pivot held at 0)
         sm = _tilde((-rc[0], -rc[1], -rc[2]))  # the joint's gradient on the node: [−1, (R X0)~], X0 = −R c
-        sl = _mv((sm[0], sm[3], sm[6], sm[1], sm[4], sm[7], sm[2], sm[5], sm[8]), lam)  # Sᵀ λ
+        smt = _transposed(sm)
+        sl = _mv(smt, lam)  # Sᵀ λ
         # scaled residual rows: translation m ẍ − m g_vec + (−λ), rotation inertial + Sᵀ λ
         r_t = (
             cond * (mass * vdt[0] - lam[0]),
@@ -451,14 +458,14 @@ def step_com_with(w, q, c, dt, body, rho_inf, mass, g, atol, rtol, iterations):
         r_r = (cond * (inertial[0] + sl[0]), cond * (inertial[1] + sl[1]), cond * (inertial[2] + sl[2]))
         # eliminate: x_t = (y − r_t)/a_t, y = r_t + a_t (S T x_r + Φ), (K_r + a_t Sᵀ S T) x_r = −r_r − Sᵀ(r_t + a_t Φ)
         st = _mm(sm, t_r)
-        sts = _mm((sm[0], sm[3], sm[6], sm[1], sm[4], sm[7], sm[2], sm[5], sm[8]), st)
+        sts = _mm(smt, st)
         k = (
             cond * m_rot[0] + a_t * sts[0], cond * m_rot[1] + a_t * sts[1], cond * m_rot[2] + a_t * sts[2],
             cond * m_rot[3] + a_t * sts[3], cond * m_rot[4] + a_t * sts[4], cond * m_rot[5] + a_t * sts[5],
             cond * m_rot[6] + a_t * sts[6], cond * m_rot[7] + a_t * sts[7], cond * m_rot[8] + a_t * sts[8],
         )  # fmt: skip
         rhs_t = (r_t[0] + a_t * phi[0], r_t[1] + a_t * phi[1], r_t[2] + a_t * phi[2])
-        sr = _mv((sm[0], sm[3], sm[6], sm[1], sm[4], sm[7], sm[2], sm[5], sm[8]), rhs_t)
+        sr = _mv(smt, rhs_t)
         xr = _solve(k, (-r_r[0] - sr[0], -r_r[1] - sr[1], -r_r[2] - sr[2]))
         stx = _mv(st, xr)
         y = (rhs_t[0] + a_t * stx[0], rhs_t[1] + a_t * stx[1], rhs_t[2] + a_t * stx[2])
