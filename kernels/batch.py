@@ -64,6 +64,7 @@ def integrate(
     *,
     path="auto",
     final_state=False,
+    iterations=None,
 ):
     """Integrate a batch of runs with one method, in parallel over runs.
 
@@ -73,10 +74,22 @@ def integrate(
     ``driver.FIELDS``, status (n,) int8, n_steps (n,) int64).  ``path``
     "blocks" or "runs" forces a kernel ("auto": blocks from MIN_BLOCK_RUNS
     runs up, for methods that allow it: ``BLOCKS``); the results are the same bits.
+    ``iterations``: None, or an (n, 2) int64 array filled with each run's solver iterations (in all,
+    most in one step; methods/README.md, "Solvers"): 0 for a method without a solver, −1 for an
+    engine package (kernels/real: not counted).
     """
     if path not in PATHS:
         raise ValueError(f"path={path!r}: choose from {', '.join(PATHS)}")
+    if iterations is not None and not (
+        isinstance(iterations, np.ndarray)
+        and iterations.dtype == np.int64
+        and iterations.flags.c_contiguous
+        and iterations.flags.writeable
+    ):
+        raise ValueError("iterations: a writable C-contiguous int64 array of shape (n, 2), or None")
     if real.is_real(method):  # the engine package itself, run by run (kernels/real/); same returns
+        if iterations is not None:
+            iterations[...] = -1  # the engine's own solver, if any, is not visible: not counted
         return real.integrate(method, bodies, omega0, q0, dt, stride, n_samples, threshold)
     module = get_method(method)
     bodies = np.ascontiguousarray(bodies, dtype=np.float64).reshape(-1, N_BODY)
@@ -89,15 +102,21 @@ def integrate(
     out = np.empty((n, int(n_samples), N_FIELDS))
     status = np.zeros(n, dtype=np.int8)
     n_steps = np.zeros(n, dtype=np.int64)
+    if iterations is None:
+        iterations = np.zeros((n, 2), dtype=np.int64)
+    elif iterations.shape != (n, 2):
+        raise ValueError(f"iterations: shape {iterations.shape}, not ({n}, 2)")
+    else:
+        iterations[...] = 0  # the block path (methods without a solver) leaves them so
     if final_state and is_driven(bodies):
         raise ValueError("final_state: a driven body runs one by one, not in blocks")
     if is_driven(bodies):
         # A torque that depends on time: only a step that sees time integrates it (never the blocks).
         if not sees_time(module):
             raise ValueError(f"method {method!r} {DRIVEN_REFUSAL}; methods that do: {', '.join(driven_methods())}")
-        module.run_batch_driven(omega0, q0, bodies, dt, stride, float(threshold), out, status, n_steps)
+        module.run_batch_driven(omega0, q0, bodies, dt, stride, float(threshold), out, status, n_steps, iterations)
     elif not final_state and (path == "runs" or not uses_blocks(module) or (path == "auto" and n < MIN_BLOCK_RUNS)):
-        module.run_batch(omega0, q0, bodies, dt, stride, float(threshold), out, status, n_steps)
+        module.run_batch(omega0, q0, bodies, dt, stride, float(threshold), out, status, n_steps, iterations)
     else:
         plan = plan_blocks(stride, numba.get_num_threads(), BLOCK_LANES)
         state = np.empty((n, 7))

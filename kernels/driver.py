@@ -1,8 +1,10 @@
 """Advance one run of a batch and record its samples; shared by every method.
 
 Each method module defines ``step(w, q, dt, body) -> (w, q)``; entry.py builds
-``advance_run = make_advance(step)`` for it and a ``run_batch`` that calls it
-inside one ``prange`` over runs.  The step is bound by a closure, not passed as an
+``advance_run = make_advance(step_counted)`` for it (the step and its solver's iterations, 0 for a
+method without one: entry.counted) and a ``run_batch`` that calls it inside one ``prange`` over runs.
+Each run's solver iterations (in all, most in one step) land in ``iterations`` (n, 2); a step whose
+solver did not converge ends its run with STATUS_UNCONVERGED.  The step is bound by a closure, not passed as an
 argument: numba lowers a dispatcher passed by value to a raw pointer, which
 makes the calling kernel uncacheable.  Every kernel function is compiled with
 ``error_model="numpy"``: a division by zero (a blown-up run) gives inf/NaN and
@@ -54,10 +56,12 @@ N_FIELDS = len(FIELDS)
 STATUS_OK = 0
 STATUS_NONFINITE = 1
 STATUS_ENERGY = 2
+STATUS_UNCONVERGED = 3
 STATUS_LEGEND = {
     STATUS_OK: "ok",
     STATUS_NONFINITE: "state became NaN/inf",
     STATUS_ENERGY: "|E - E0| exceeded divergence_threshold x (T0 + |M g c|)",
+    STATUS_UNCONVERGED: "a step's implicit solver did not converge within its iteration cap",
 }
 
 
@@ -105,102 +109,140 @@ def tolerances(w0, bodies, threshold):
 
 
 def _run_around(steps_and_samples):
-    """``advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)`` around a method's
-    loop ``steps_and_samples(i, w, q, dt, stride, body, tolerance, out, status) -> steps done``."""
+    """``advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, iterations)``
+    around a method's loop ``steps_and_samples(i, w, q, dt, stride, body, tolerance, out, status) ->
+    (steps done, solver iterations in all, most in one step)``."""
 
     @njit(error_model="numpy")
-    def advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
+    def advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, iterations):
         body, w, q, tolerance = _start(i, w0, q0, bodies, threshold, out, status)
         # Two inlined copies of the loop: in the first the centre of mass is on e3 as a constant, so
         # the general branch of gravity_torque is folded away (a loop-invariant branch costs rk4's
         # four torque evaluations a step about 10 ns otherwise).  Same bits either way.
         if body[4] == 0.0 and body[5] == 0.0:
             axial = Body(body[0], body[1], body[2], body[3], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-            done = steps_and_samples(i, w, q, dts[i], strides[i], axial, tolerance, out, status)
+            done, total, most = steps_and_samples(i, w, q, dts[i], strides[i], axial, tolerance, out, status)
         else:
-            done = steps_and_samples(i, w, q, dts[i], strides[i], body, tolerance, out, status)
+            done, total, most = steps_and_samples(i, w, q, dts[i], strides[i], body, tolerance, out, status)
         n_steps[i] = done
+        iterations[i, 0] = total
+        iterations[i, 1] = most
 
     return advance_run
 
 
-def make_advance(step):
-    """``advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)``
-    specialised to one method's ``step``.
+def make_advance(step_counted):
+    """``advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, iterations)``
+    specialised to one method's counted step ``step_counted(w, q, dt, body) -> (w, q, n)``: the
+    method's ``step`` and the iterations n its solver took (0 for a method without one, entry.py's
+    ``counted``; n < 0: not converged after −n, the state NaN; methods/README.md, "Solvers").
 
     Integrates run i for ``strides[i]`` steps of ``dts[i]`` (s) per sample.
     Stops early, fills the remaining samples with NaN and sets ``status[i]``
-    when the state goes non-finite or |E − E0| passes ``threshold`` times the
-    energy scale T0 + |M g c| (so a top released at θ0 = 90°, E0 = T0, is fine).
+    when a step's solver did not converge, the state goes non-finite or |E − E0| passes
+    ``threshold`` times the energy scale T0 + |M g c| (so a top released at θ0 = 90°, E0 = T0,
+    is fine).  ``iterations[i]`` = (the solver's iterations over the run, most in one step).
     """
 
     @njit(error_model="numpy", forceinline=True)
     def steps_and_samples(i, w, q, dt, stride, body, tolerance, out, status):
-        done = 0
+        done, total, most, failed = 0, 0, 0, False
         for k in range(1, out.shape[1]):
             for _ in range(stride):
-                w, q = step(w, q, dt, body)
+                w, q, n = step_counted(w, q, dt, body)
+                total, most, failed = _count(total, most, failed, n)
+                if failed:
+                    break
             done += stride
             _record(out, i, k, w, q, body)
-            if _diverged(out, i, k, tolerance, status):
+            if _stopped(out, i, k, tolerance, status, failed):
                 break
-        return done
+        return done, total, most
 
     return _run_around(steps_and_samples)
 
 
-def make_advance_carried(start, step_carried):
+def make_advance_carried(start, step_carried_counted):
     """``advance_run`` of ``make_advance`` for a method that carries state beyond (ω, q) from one step
     to the next (methods/README.md, "carried state": a multistep or generalized-α history such as
     lie_genalpha's accelerations): ``c = start(w, q, body)`` once from the run's initial state, then
-    ``w, q, c = step_carried(w, q, c, dt, body)`` each step.  The carried state lives in the loop only:
-    such a method runs one run after another (BLOCKS False), so a run is never cut into time segments
-    and its carried state never needs to be saved; a resumed sweep runs it again whole."""
+    ``w, q, c, n = step_carried_counted(w, q, c, dt, body)`` each step (n as in ``make_advance``).
+    The carried state lives in the loop only: such a method runs one run after another (BLOCKS
+    False), so a run is never cut into time segments and its carried state never needs to be saved;
+    a resumed sweep runs it again whole."""
 
     @njit(error_model="numpy", forceinline=True)
     def steps_and_samples(i, w, q, dt, stride, body, tolerance, out, status):
         c = start(w, q, body)
-        done = 0
+        done, total, most, failed = 0, 0, 0, False
         for k in range(1, out.shape[1]):
             for _ in range(stride):
-                w, q, c = step_carried(w, q, c, dt, body)
+                w, q, c, n = step_carried_counted(w, q, c, dt, body)
+                total, most, failed = _count(total, most, failed, n)
+                if failed:
+                    break
             done += stride
             _record(out, i, k, w, q, body)
-            if _diverged(out, i, k, tolerance, status):
+            if _stopped(out, i, k, tolerance, status, failed):
                 break
-        return done
+        return done, total, most
 
     return _run_around(steps_and_samples)
 
 
-def make_advance_driven(step_driven):
+def make_advance_driven(step_driven_counted):
     """``advance_run`` of ``make_advance`` for driven bodies (a torque that depends on time,
-    body.py): each step is ``step_driven(w, q, t, dt, body)`` from t = n dt, n the steps taken, so
-    that t carries no rounding accumulated over the run.  The drive's window acts per step: a step
-    whose midpoint t + dt/2 lies in [drive_on, drive_off] gets the body with its drive, any other
-    the body with the drive's amplitude zeroed.  A window whose ends are multiples of dt is then
-    exact; elsewhere the switch lands on the nearest step boundary."""
+    body.py): each step is ``step_driven_counted(w, q, t, dt, body) -> (w, q, n)`` (n as in
+    ``make_advance``) from t = n dt, n the steps taken, so that t carries no rounding accumulated
+    over the run.  The drive's window acts per step: a step whose midpoint t + dt/2 lies in
+    [drive_on, drive_off] gets the body with its drive, any other the body with the drive's
+    amplitude zeroed.  A window whose ends are multiples of dt is then exact; elsewhere the switch
+    lands on the nearest step boundary."""
 
     @njit(error_model="numpy")
-    def advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
+    def advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, iterations):
         body, w, q, tolerance = _start(i, w0, q0, bodies, threshold, out, status)
         dt, stride = dts[i], strides[i]
         idle = Body(body[0], body[1], body[2], body[3], body[4], body[5], 0.0, 0.0, 0.0, body[9], body[10], body[11])
-        done = 0
+        done, total, most, failed = 0, 0, 0, False
         for k in range(1, out.shape[1]):
             for _ in range(stride):
                 t = done * dt
                 if body[10] <= t + 0.5 * dt <= body[11]:
-                    w, q = step_driven(w, q, t, dt, body)
+                    w, q, n = step_driven_counted(w, q, t, dt, body)
                 else:
-                    w, q = step_driven(w, q, t, dt, idle)
+                    w, q, n = step_driven_counted(w, q, t, dt, idle)
                 done += 1
+                total, most, failed = _count(total, most, failed, n)
+                if failed:
+                    break
             _record(out, i, k, w, q, body)
-            if _diverged(out, i, k, tolerance, status):
+            if _stopped(out, i, k, tolerance, status, failed):
                 break
         n_steps[i] = done
+        iterations[i, 0] = total
+        iterations[i, 1] = most
 
     return advance_run
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def _count(total, most, failed, n):
+    """The run's solver tally after a step that took n iterations (n < 0: −n, not converged).
+    For a method without a solver n is the constant 0 and all of this folds away."""
+    m = -n if n < 0 else n
+    return total + m, max(most, m), failed or n < 0
+
+
+@njit(cache=True, error_model="numpy")
+def _stopped(out, i, k, tolerance, status, failed):
+    """Whether run i ends at sample k: a step's solver failed on the way to it (status unconverged),
+    or the sample is non-finite or off in energy (``_diverged``).  NaN-fills what follows."""
+    if not failed:
+        return _diverged(out, i, k, tolerance, status)
+    status[i] = STATUS_UNCONVERGED
+    _fill_after(out, i, k)
+    return True
 
 
 @njit(cache=True, error_model="numpy")
@@ -212,7 +254,13 @@ def _diverged(out, i, k, tolerance, status):
     for f in range(N_FIELDS):
         finite = finite and math.isfinite(out[i, k, f])
     status[i] = STATUS_ENERGY if finite else STATUS_NONFINITE
+    _fill_after(out, i, k)
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def _fill_after(out, i, k):
+    """NaN in run i's samples after sample k."""
     for later in range(k + 1, out.shape[1]):
         for f in range(N_FIELDS):
             out[i, later, f] = np.nan
-    return True

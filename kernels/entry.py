@@ -3,9 +3,10 @@
 A method module defines ``step`` (and its declarations, see methods/README.md);
 ``add_entry_points(module)`` gives it its own compiled copy of
 
-- ``run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps)``:
+- ``run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, iterations)``:
   one ``prange`` over runs, each run by driver.make_advance's ``advance_run`` (for a method that
-  carries state beyond (ω, q), ``step_carried``: driver.make_advance_carried's);
+  carries state beyond (ω, q), ``step_carried``: driver.make_advance_carried's), around the method's
+  counted step (``counted`` below: its solver's iterations, or none);
 - ``run_blocks(..., runs, starts, queues, state)``: one ``prange`` over threads, each
   running its queue of vectorised blocks (block.py), and each run's final (ω, q) in
   ``state`` (n, 7) to continue it from (the runner's time segments); not made for a method that
@@ -61,10 +62,10 @@ _advance_driven = _bound_per_method("driver.make_advance_driven(step_driven)")
 # <method>.<function>-<line>); an edit here changes the core key, so no stale copy can load.
 
 
-def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
+def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, iterations):
     """Integrate every run one by one, in parallel over runs (driver.make_advance)."""
     for i in prange(w0.shape[0]):
-        _advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
+        _advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, iterations)
 
 
 def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts, queues, state):
@@ -73,16 +74,27 @@ def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, ru
         _advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, state)
 
 
-def run_batch_driven(w0, q0, bodies, dts, strides, threshold, out, status, n_steps):
+def run_batch_driven(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, iterations):
     """Integrate driven bodies (a torque that depends on time), in parallel over runs."""
     for i in prange(w0.shape[0]):
-        _advance_driven(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps)
+        _advance_driven(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, iterations)
 
 
 def uses_blocks(module):
     """Whether the method runs on the vectorised block path (``BLOCKS``, default True): whether it has
     ``run_blocks``.  Callers go through kernels.registry, which re-exports it."""
     return getattr(module, "BLOCKS", True)
+
+
+# A method with an iterative solver defines the counted form of each step it has (methods/README.md,
+# "Solvers"); the registry checks that it defines all of them.
+COUNTED_STEPS = {"step": "step_counted", "step_driven": "step_driven_counted", "step_carried": "step_carried_counted"}
+
+
+def counts_iterations(module):
+    """Whether the method has an iterative solver whose iterations its runs count (``step_counted``,
+    methods/README.md, "Solvers"); such a method runs one run after another (BLOCKS False)."""
+    return hasattr(module, "step_counted")
 
 
 def carries_state(module):
@@ -133,19 +145,63 @@ def _compiled_copy(function, module, tag, **loops):
     return njit(cache=True, parallel=True, error_model="numpy")(copy)
 
 
+def counted(module):
+    """The method's step with its solver's iterations, ``(w, q, n)``, for the drivers: its own
+    ``step_counted`` (n < 0: not converged after −n) or, for a method without a solver, its
+    ``step`` with n = 0, a constant the compiled loop folds away."""
+    if counts_iterations(module):
+        return module.step_counted
+    step = module.step
+
+    @njit(error_model="numpy", forceinline=True)
+    def step_counted(w, q, dt, body):
+        w, q = step(w, q, dt, body)
+        return w, q, 0
+
+    return step_counted
+
+
+def counted_driven(module):
+    """``counted`` for ``step_driven``: ``step_driven_counted(w, q, t, dt, body) -> (w, q, n)``."""
+    if hasattr(module, "step_driven_counted"):
+        return module.step_driven_counted
+    step_driven = module.step_driven
+
+    @njit(error_model="numpy", forceinline=True)
+    def step_driven_counted(w, q, t, dt, body):
+        w, q = step_driven(w, q, t, dt, body)
+        return w, q, 0
+
+    return step_driven_counted
+
+
+def counted_carried(module):
+    """``counted`` for ``step_carried``: ``step_carried_counted(w, q, c, dt, body) -> (w, q, c, n)``."""
+    if hasattr(module, "step_carried_counted"):
+        return module.step_carried_counted
+    step_carried = module.step_carried
+
+    @njit(error_model="numpy", forceinline=True)
+    def step_carried_counted(w, q, c, dt, body):
+        w, q, c = step_carried(w, q, c, dt, body)
+        return w, q, c, 0
+
+    return step_carried_counted
+
+
 def add_entry_points(module, tag=""):
     """Define ``run_batch``, ``run_blocks`` (unless the module says ``BLOCKS = False``) and
     ``run_batch_driven`` (if it has ``step_driven``) in ``module`` (a method module with ``step``);
     ``tag``: see ``_compiled_copy``."""
     if carries_state(module):
-        advance = make_advance_carried(module.start, module.step_carried)
+        advance = make_advance_carried(module.start, counted_carried(module))
     else:
-        advance = make_advance(module.step)
+        advance = make_advance(counted(module))
     module.run_batch = _compiled_copy(run_batch, module, tag, _advance_run=advance)
     if uses_blocks(module):
         module.run_blocks = _compiled_copy(run_blocks, module, tag, _advance_queue=make_advance_queue(module.step))
     if hasattr(module, "step_driven"):
         module.run_batch_driven = _compiled_copy(
-            run_batch_driven, module, tag, _advance_driven=make_advance_driven(module.step_driven)
+            run_batch_driven, module, tag, _advance_driven=make_advance_driven(counted_driven(module))
         )
     return module

@@ -11,7 +11,14 @@ import importlib
 from numba.core.dispatcher import Dispatcher
 
 from . import real, variants
-from .entry import add_entry_points, carries_state, stepper, uses_blocks  # noqa: F401 - the registry's view of a method
+from .entry import (  # noqa: F401 - the registry's view of a method
+    COUNTED_STEPS,
+    add_entry_points,
+    carries_state,
+    counts_iterations,
+    stepper,
+    uses_blocks,
+)
 from .invariants import check_names
 from .parameters import Parameter, canonical, split_name
 
@@ -55,6 +62,14 @@ def register(name, module):
         if hasattr(module, "step_driven"):
             problems.append(
                 "a method that carries state cannot define step_driven yet (the driven loop carries (ω, q) only)"
+            )
+    if counts_iterations(module):
+        for plain, counted in COUNTED_STEPS.items():
+            if hasattr(module, plain) and not isinstance(getattr(module, counted, None), Dispatcher):
+                problems.append(f"a method with a counted solver (step_counted) must define {counted} as well")
+        if getattr(module, "BLOCKS", True):
+            problems.append(
+                "a method with a counted solver must declare BLOCKS = False (the block path counts no iterations)"
             )
     parameters = getattr(module, "PARAMETERS", None)
     if parameters is not None:

@@ -12,8 +12,9 @@ bytecode, no closure, the steps reached through globals) would otherwise load ea
 code.  The tag hashes the canonical name and the kernel values, so a change in how a value parses
 (kernels/parameters.py, which keys no cache) also selects a fresh file.
 
-The two helpers below make the steps every variant needs from the one it defines, as each method file
-writes its own ``step``: the undriven step from the time-aware one, and a carried method's first step.
+The helpers below make the steps every variant needs from the one it defines, as each method file
+writes its own ``step``: the undriven step from the time-aware one, a carried method's first step, and
+the uncounted steps of a method whose solver counts its iterations.
 """
 
 import hashlib
@@ -48,10 +49,33 @@ def carried(start, step_carried):
     return {"start": start, "step_carried": step_carried, "step": step}
 
 
+def carried_counted(start, step_carried_counted):
+    """``carried`` for a method whose steps count their solver's iterations (methods/README.md,
+    "Solvers"): ``{"start", "step_carried_counted", "step_carried", "step_counted", "step"}`` from
+    ``step_carried_counted(w, q, c, dt, body) -> (w, q, c, n)``."""
+
+    @njit(error_model="numpy")
+    def step_carried(w, q, c, dt, body):
+        w1, q1, c1, _ = step_carried_counted(w, q, c, dt, body)
+        return w1, q1, c1
+
+    @njit(error_model="numpy")
+    def step_counted(w, q, dt, body):
+        w1, q1, _, n = step_carried_counted(w, q, start(w, q, body), dt, body)
+        return w1, q1, n
+
+    steps = carried(start, step_carried)
+    steps.update(step_carried_counted=step_carried_counted, step_counted=step_counted)
+    return steps
+
+
+STEP_FUNCTIONS = ("step_driven", "start", "step_carried", "step_counted", "step_driven_counted", "step_carried_counted")
+
+
 def steps_of(module):
-    """The step functions a variant of ``module`` must define: ``step``, and ``step_driven``,
-    ``start``, ``step_carried`` where the method has them."""
-    return {"step"} | {fn for fn in ("step_driven", "start", "step_carried") if hasattr(module, fn)}
+    """The step functions a variant of ``module`` must define: ``step``, and those of ``STEP_FUNCTIONS``
+    (``step_driven``, ``start``, ``step_carried`` and their counted forms) the method has."""
+    return {"step"} | {fn for fn in STEP_FUNCTIONS if hasattr(module, fn)}
 
 
 def build(module, name, values):

@@ -159,7 +159,7 @@ def test_lie_genalpha_rho_inf_sets_the_numerical_damping():
     w_rho, q_rho = step_run("lie_genalpha(rho_inf=0.5)", w0, q0, 1e-3, body, 30)
     w, q, c = w0, q0, module.start(w0, q0, body)
     for _ in range(30):
-        w, q, c = module.step_carried_with(w, q, c, 1e-3, body, 0.5, module.ATOL, module.RTOL, module.MAX_ITERATIONS)
+        w, q, c, _ = module.step_carried_with(w, q, c, 1e-3, body, 0.5, module.ATOL, module.RTOL, module.MAX_ITERATIONS)
     assert tuple(w_rho[-1]) == w and tuple(q_rho[-1]) == q
     print()
     drift = {}

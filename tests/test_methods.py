@@ -109,7 +109,7 @@ def test_entry_points_are_the_functions_written_in_entry_py():
         for path in (package / folder).rglob("*.py"):
             assert "exec(compile(" not in path.read_text(), path
     with pytest.raises(TypeError, match="holds templates"):
-        entry_points.run_batch(np.zeros((1, 3)), *[None] * 8)
+        entry_points.run_batch(np.zeros((1, 3)), *[None] * 9)
 
 
 def test_registry_refuses_a_broken_method_in_one_line():

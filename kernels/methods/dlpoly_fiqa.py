@@ -29,11 +29,11 @@ the same time, so the method carries the synchronised ω^n, the fixed point of s
 reports its rotational energy from).  The step begins by recovering the leap-frog state exactly from
 that relation, ω^{n-½} = ω^n − dt/2 f(ω^n) (explicit), runs DL_POLY's step 1-3 as shipped, and ends
 by solving ω^{n+1} = ω^{n+½} + dt/2 f(ω^{n+1}) with the torque at q^{n+1} (the next step's step 1),
-iterated to convergence (change ≤ 1e-15 |ω|, cap 60, NaN past it) rather than five times, so that the
-next step's recovery returns this step's ω^{n+½} to rounding.  The (ω^{n+½}, q) sequence is then
-DL_POLY's own to rounding; only the ω gyrolab reports (and computes the energy from) is the
-synchronised one.  Carrying ω^{n-½} itself instead would put every diagnostic half a step out of
-phase with q (an O(dt) error in ω at time t).
+iterated to convergence (change ≤ 1e-15 |ω|, cap 60, NaN and the status "unconverged" past it)
+rather than five times, so that the next step's recovery returns this step's ω^{n+½} to rounding.
+The (ω^{n+½}, q) sequence is then DL_POLY's own to rounding; only the ω gyrolab reports (and
+computes the energy from) is the synchronised one.  Carrying ω^{n-½} itself instead would put every
+diagnostic half a step out of phase with q (an O(dt) error in ω at time t).
 
 Second order (trapezoidal quaternion update with a second-order ω^{n+1} extrapolation; measured 2.0).
 Not symplectic, and |q| = 1 only through the renormalisation.  It keeps no invariant to rounding:
@@ -55,6 +55,7 @@ SYMPLECTIC = False
 PRESERVES = ()
 REPRODUCES = "DL_POLY 4 LFV FIQA (q_update, quattol 1e-8, mxquat 100)"
 
+BLOCKS = False  # fixed-point loops per step: the lanes do not vectorise them, and their iterations are counted
 MXQUAT = 100  # DL_POLY 4 read_control.f90 default
 QUATTOL = 1.0e-8  # DL_POLY 4 read_control.f90 default
 OMEGA_SWEEPS = 5  # DL_POLY's fixed count for ω^n
@@ -124,8 +125,10 @@ def lfv_rotation(w_half, q, tau, dt, body):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
-def step_driven(w, q, t, dt, body):
-    """One DL_POLY LFV step of dt seconds from time t (s), synchronised ω in and out (module doc)."""
+def step_driven_counted(w, q, t, dt, body):
+    """One DL_POLY LFV step of dt seconds from time t (s), synchronised ω in and out (module doc), and
+    the fixed-point iterations it took: q_update's and the synchronisation's (< 0: not converged,
+    the state NaN)."""
     nan = float("nan")
     half = 0.5 * dt
     tau = torque_at(q, t, body)
@@ -133,19 +136,32 @@ def step_driven(w, q, t, dt, body):
     w_half = (w[0] - half * a[0], w[1] - half * a[1], w[2] - half * a[2])
     _, w_next_half, q_new, itq = lfv_rotation(w_half, q, tau, dt, body)
     if itq >= MXQUAT:
-        return (nan, nan, nan), (nan, nan, nan, nan)
+        return (nan, nan, nan), (nan, nan, nan, nan), -itq
     tau = torque_at(q_new, t + dt, body)
     wn = w_next_half
     scale = max(abs(wn[0]), abs(wn[1]), abs(wn[2]))
-    for _ in range(SYNC_MAX_ITERATIONS):
+    for n in range(1, SYNC_MAX_ITERATIONS + 1):
         a = _f(wn, tau, body)
         w_new = (w_next_half[0] + half * a[0], w_next_half[1] + half * a[1], w_next_half[2] + half * a[2])
         dw = max(abs(w_new[0] - wn[0]), abs(w_new[1] - wn[1]), abs(w_new[2] - wn[2]))
         wn = w_new
         scale = max(scale, abs(wn[0]), abs(wn[1]), abs(wn[2]))
         if dw <= SYNC_TOLERANCE * scale:
-            return wn, q_new
-    return (nan, nan, nan), (nan, nan, nan, nan)
+            return wn, q_new, itq + n
+    return (nan, nan, nan), (nan, nan, nan, nan), -(itq + SYNC_MAX_ITERATIONS)
+
+
+@njit(cache=True, error_model="numpy")
+def step_driven(w, q, t, dt, body):
+    """One step of dt seconds from time t (s): step_driven_counted without its count."""
+    w1, q1, _ = step_driven_counted(w, q, t, dt, body)
+    return w1, q1
+
+
+@njit(cache=True, error_model="numpy")
+def step_counted(w, q, dt, body):
+    """step_driven_counted of an undriven body, from t = 0 with its drive folded away."""
+    return step_driven_counted(w, q, 0.0, dt, without_drive(body))
 
 
 @njit(cache=True, error_model="numpy")

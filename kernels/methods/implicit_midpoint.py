@@ -8,7 +8,8 @@ iteration from Y = y_n (the form DL_POLY's FIQA uses for its quaternion): the ma
 h |ω| / 2 per sweep.  **Tolerance**: stop when the largest change of Y's components, ω relative to
 |ω|, q absolute, is ≤ 1e-15 (then y_{n+1} = 2Y − y_n); **iteration cap** 60.  A step that has not
 converged (h |ω| too large for the iteration to contract) returns NaN for ω and q, so the run ends
-with the non-finite status instead of continuing from a wrong step.
+with the status "unconverged" instead of continuing from a wrong step; each run counts its sweeps
+(methods/README.md, "Solvers").
 
 The midpoint rule keeps every quadratic invariant of the ODE exactly (to the solver's tolerance):
 |q|² (q·q̇ = 0), the energy ½ ω·Iω + M g c·γ(q) (γ is quadratic in q), |Iω|² of a free body, and the
@@ -28,18 +29,20 @@ ORDER = 2
 SYMPLECTIC = False
 PRESERVES = ("energy", "L_norm", "L3")
 
+BLOCKS = False  # a fixed-point loop per step: the lanes do not vectorise it, and its sweeps are counted
 MAX_ITERATIONS = 60
 TOLERANCE = 1e-15
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
-def step_driven(w, q, t, dt, body):
-    """One implicit-midpoint step of dt seconds from time t (s); the torque at t + dt/2."""
+def step_driven_counted(w, q, t, dt, body):
+    """One implicit-midpoint step of dt seconds from time t (s), the torque at t + dt/2, and the
+    fixed-point sweeps it took (−MAX_ITERATIONS: not converged, the state NaN)."""
     half = 0.5 * dt
     tm = t + half
     wm, qm = w, q
     scale = max(abs(w[0]), abs(w[1]), abs(w[2]))
-    for _ in range(MAX_ITERATIONS):
+    for n in range(1, MAX_ITERATIONS + 1):
         a = euler_rhs(wm, torque_at(qm, tm, body), body)
         qd = quat_mul(qm, (0.0, wm[0], wm[1], wm[2]))  # 2 q̇
         w_new = (w[0] + half * a[0], w[1] + half * a[1], w[2] + half * a[2])
@@ -53,9 +56,23 @@ def step_driven(w, q, t, dt, body):
             return (
                 (2.0 * wm[0] - w[0], 2.0 * wm[1] - w[1], 2.0 * wm[2] - w[2]),
                 quat_normalize((2.0 * qm[0] - q[0], 2.0 * qm[1] - q[1], 2.0 * qm[2] - q[2], 2.0 * qm[3] - q[3])),
+                n,
             )
     nan = float("nan")
-    return (nan, nan, nan), (nan, nan, nan, nan)
+    return (nan, nan, nan), (nan, nan, nan, nan), -MAX_ITERATIONS
+
+
+@njit(cache=True, error_model="numpy")
+def step_driven(w, q, t, dt, body):
+    """One step of dt seconds from time t (s): step_driven_counted without its count."""
+    w1, q1, _ = step_driven_counted(w, q, t, dt, body)
+    return w1, q1
+
+
+@njit(cache=True, error_model="numpy")
+def step_counted(w, q, dt, body):
+    """step_driven_counted of an undriven body, from t = 0 with its drive folded away."""
+    return step_driven_counted(w, q, 0.0, dt, without_drive(body))
 
 
 @njit(cache=True, error_model="numpy")

@@ -21,7 +21,7 @@ solved by Newton from f = I⁻¹ g / 2 (the explicit first-order guess), with ke
 the f returned after that update is at rounding; a bound of a few ε could sit below the rounding
 noise of G on an elongated body); **iteration cap** 30.  A step whose
 Newton iteration has not met the tolerance in 30 iterations returns NaN for ω and q, so the run ends
-with the non-finite status instead of continuing from a wrong step.
+with the status "unconverged" instead of continuing from a wrong step.
 
 Symplectic (a variational integrator) and second order.  For a free body Π_{k+1} = Fᵀ Π_k, so the
 lab angular momentum R Π and |Π| are kept to rounding whatever the Newton residual; under gravity the
@@ -49,17 +49,19 @@ ORDER = 2
 SYMPLECTIC = True
 PRESERVES = ("L", "L_norm", "Lz")
 
+BLOCKS = False  # a Newton loop per step, its iterations counted (one by one it runs 1.25x the blocks' time)
 MAX_ITERATIONS = 30
 TOLERANCE = 1e-14  # on max |Δf|, relative to max |f|
 
 
 @njit(cache=True, error_model="numpy")
 def cayley_vector(g, body):
-    """f with G(f) = 0 for g = h Π + h²/2 M (N m s), by Newton; NaNs when it does not converge."""
+    """(f, iterations) with G(f) = 0 for g = h Π + h²/2 M (N m s), by Newton; NaNs and
+    −MAX_ITERATIONS when it does not converge."""
     I1, I2, I3 = body[0], body[1], body[2]
     g0, g1, g2 = g
     f0, f1, f2 = 0.5 * g0 / I1, 0.5 * g1 / I2, 0.5 * g2 / I3
-    for _ in range(MAX_ITERATIONS):
+    for n in range(1, MAX_ITERATIONS + 1):
         gf = g0 * f0 + g1 * f1 + g2 * f2
         r0 = g0 + (g1 * f2 - g2 * f1) + gf * f0 - 2.0 * I1 * f0
         r1 = g1 + (g2 * f0 - g0 * f2) + gf * f1 - 2.0 * I2 * f1
@@ -74,21 +76,22 @@ def cayley_vector(g, body):
         f0, f1, f2 = f0 - d0, f1 - d1, f2 - d2
         size = max(abs(f0), abs(f1), abs(f2))
         if max(abs(d0), abs(d1), abs(d2)) <= TOLERANCE * size or size == 0.0:
-            return f0, f1, f2
+            return (f0, f1, f2), n
     nan = float("nan")
-    return nan, nan, nan
+    return (nan, nan, nan), -MAX_ITERATIONS
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
-def step_driven(w, q, t, dt, body):
-    """One LGVI step of dt seconds from time t (s); the torques at t and t + dt."""
+def step_driven_counted(w, q, t, dt, body):
+    """One LGVI step of dt seconds from time t (s), the torques at t and t + dt, and the Newton
+    iterations it took (< 0: not converged, the state NaN)."""
     I1, I2, I3 = body[0], body[1], body[2]
     h = dt
     m0, m1, m2 = torque_at(q, t, body)
     a0 = I1 * w[0] + 0.5 * h * m0  # Π_k + h/2 M_k
     a1 = I2 * w[1] + 0.5 * h * m1
     a2 = I3 * w[2] + 0.5 * h * m2
-    f0, f1, f2 = cayley_vector((h * a0, h * a1, h * a2), body)
+    (f0, f1, f2), n = cayley_vector((h * a0, h * a1, h * a2), body)
     inv = 1.0 / math.sqrt(1.0 + f0 * f0 + f1 * f1 + f2 * f2)
     qf = (inv, f0 * inv, f1 * inv, f2 * inv)  # Cay(f)
     q_next = quat_normalize(quat_mul(q, qf))
@@ -102,7 +105,21 @@ def step_driven(w, q, t, dt, body):
     return (
         ((b0 + 0.5 * h * n0) / I1, (b1 + 0.5 * h * n1) / I2, (b2 + 0.5 * h * n2) / I3),
         q_next,
+        n,
     )
+
+
+@njit(cache=True, error_model="numpy")
+def step_driven(w, q, t, dt, body):
+    """One step of dt seconds from time t (s): step_driven_counted without its count."""
+    w1, q1, _ = step_driven_counted(w, q, t, dt, body)
+    return w1, q1
+
+
+@njit(cache=True, error_model="numpy")
+def step_counted(w, q, dt, body):
+    """step_driven_counted of an undriven body, from t = 0 with its drive folded away."""
+    return step_driven_counted(w, q, 0.0, dt, without_drive(body))
 
 
 @njit(cache=True, error_model="numpy")

@@ -72,7 +72,7 @@ from numba import njit
 from ..parameters import count, nonnegative, unit_interval
 from ..rigid_body import euler_rhs, gravity_torque
 from ..rotation import body_to_lab, quat_mul
-from ..variants import carried
+from ..variants import carried_counted
 
 ORDER = 2
 SYMPLECTIC = False
@@ -83,7 +83,7 @@ BLOCKS = False  # a Newton loop per step: nothing for the lanes to vectorise
 RHO_INF = 0.9  # spectral radius at infinity, Kynema's heavy top (1 is no numerical damping)
 ATOL = 1e-5  # Newton test: absolute tolerance on each component of the increment h Δ (rad), Kynema's
 RTOL = 1e-3  # Newton test: tolerance relative to |h Δ_i|, Kynema's heavy top
-MAX_ITERATIONS = 10  # Newton iterations before a step is declared not converged (NaN), Kynema's
+MAX_ITERATIONS = 10  # Newton iterations before a step is declared not converged (status 3), Kynema's
 NODE_UNKNOWNS = 6.0  # the mean of the convergence test is over a Kynema node's six unknowns
 PARAMETERS = {
     "rho_inf": unit_interval(repr(RHO_INF), "spectral radius at infinity: 1 no numerical damping, 0 the most"),
@@ -93,7 +93,9 @@ PARAMETERS = {
     "g": nonnegative("9.81", "m/s², with mass > 0: the centre of mass is M g c / (mass g)"),
     "atol": nonnegative(repr(ATOL), "Newton test: absolute tolerance on the increment h Δ (rad, m)"),
     "rtol": nonnegative(repr(RTOL), "Newton test: tolerance relative to |h Δ_i|"),
-    "iterations": count(str(MAX_ITERATIONS), "Newton iterations before a step fails (NaN: the run ends non-finite)"),
+    "iterations": count(
+        str(MAX_ITERATIONS), "Newton iterations before a step fails (the run ends: status unconverged)"
+    ),
 }
 
 
@@ -327,8 +329,8 @@ def step_carried_with(w, q, c, dt, body, rho_inf, atol, rtol, iterations):
     vd = (0.0, 0.0, 0.0)
     q1 = quat_mul(_exp((dt * dl[0], dt * dl[1], dt * dl[2])), q)
 
-    converged = False
-    for _ in range(iterations):
+    converged, n = False, 0
+    for n in range(1, iterations + 1):  # noqa: B007 - n, the iterations taken, is returned
         rm = _rot(q1)
         # rho = R J R^T
         rho = (
@@ -363,10 +365,10 @@ def step_carried_with(w, q, c, dt, body, rho_inf, atol, rtol, iterations):
 
     if not converged:  # also a NaN err: the step is no solution, and the run says so
         nan = math.nan
-        return (nan, nan, nan), (nan, nan, nan, nan), (nan, nan, nan, nan, nan, nan)
+        return (nan, nan, nan), (nan, nan, nan, nan), (nan, nan, nan, nan, nan, nan), -max(n, 1)
     f = (1.0 - af) / (1.0 - am)
     a1 = (a1[0] + f * vd[0], a1[1] + f * vd[1], a1[2] + f * vd[2])
-    return _body_rates(q1, v), q1, (vd[0], vd[1], vd[2], a1[0], a1[1], a1[2])
+    return _body_rates(q1, v), q1, (vd[0], vd[1], vd[2], a1[0], a1[1], a1[2]), n
 
 
 # ---------------------------------------------------------------- the node at the centre of mass
@@ -438,8 +440,8 @@ def step_com_with(w, q, c, dt, body, rho_inf, mass, g, atol, rtol, iterations):
     lam = (0.0, 0.0, 0.0)  # the joint's multipliers (N), from zero every step (ResetConstraints)
     a_t = cond * beta_p * mass  # the translational block of the scaled iteration matrix, times 1
 
-    converged = False
-    for _ in range(iterations):
+    converged, n = False, 0
+    for n in range(1, iterations + 1):  # noqa: B007 - n, the iterations taken, is returned
         rm = _rot(q1)
         rho = _mm(_mm(rm, jc), _transposed(rm))
         t_r = _tangent_transposed((dt * dl[0], dt * dl[1], dt * dl[2]))
@@ -490,17 +492,33 @@ def step_com_with(w, q, c, dt, body, rho_inf, mass, g, atol, rtol, iterations):
 
     if not converged:  # also a NaN err: the step is no solution, and the run says so
         n3 = (math.nan, math.nan, math.nan)
-        return n3, (math.nan,) + n3, n3 + n3 + n3 + n3 + n3 + n3
+        return n3, (math.nan,) + n3, n3 + n3 + n3 + n3 + n3 + n3, -max(n, 1)
     f = (1.0 - af) / (1.0 - am)
     at1 = (at1[0] + f * vdt[0], at1[1] + f * vdt[1], at1[2] + f * vdt[2])
     ar1 = (ar1[0] + f * vd[0], ar1[1] + f * vd[1], ar1[2] + f * vd[2])
-    return _body_rates(q1, v), q1, x1 + vt + vdt + vd + at1 + ar1
+    return _body_rates(q1, v), q1, x1 + vt + vdt + vd + at1 + ar1, n
+
+
+@njit(cache=True, error_model="numpy")
+def step_carried_counted(w, q, c, dt, body):
+    """One step of dt seconds (s) at ρ∞ = RHO_INF, carrying c = (Ω̇, a), the lab accelerations, and
+    its Newton iterations (< 0: not converged, the state NaN)."""
+    return step_carried_with(w, q, c, dt, body, RHO_INF, ATOL, RTOL, MAX_ITERATIONS)
 
 
 @njit(cache=True, error_model="numpy")
 def step_carried(w, q, c, dt, body):
-    """One step of dt seconds (s) at ρ∞ = RHO_INF, carrying c = (Ω̇, a), the lab accelerations."""
-    return step_carried_with(w, q, c, dt, body, RHO_INF, ATOL, RTOL, MAX_ITERATIONS)
+    """step_carried_counted without its count."""
+    w1, q1, c1, _ = step_carried_counted(w, q, c, dt, body)
+    return w1, q1, c1
+
+
+@njit(cache=True, error_model="numpy")
+def step_counted(w, q, dt, body):
+    """A run's first step of dt seconds from (w, q) at rest in its history (the consistent start),
+    and its Newton iterations."""
+    w1, q1, _, n = step_carried_counted(w, q, start(w, q, body), dt, body)
+    return w1, q1, n
 
 
 @njit(cache=True, error_model="numpy")
@@ -517,10 +535,10 @@ def variant(rho_inf, mass, g, atol, rtol, iterations):
     if mass == 0.0:
 
         @njit(error_model="numpy")
-        def step_carried(w, q, c, dt, body):
+        def step_carried_counted(w, q, c, dt, body):
             return step_carried_with(w, q, c, dt, body, rho_inf, atol, rtol, iterations)
 
-        return carried(start, step_carried)
+        return carried_counted(start, step_carried_counted)
 
     @njit(error_model="numpy")
     def start_at_com(w, q, body):
@@ -530,4 +548,4 @@ def variant(rho_inf, mass, g, atol, rtol, iterations):
     def step_at_com(w, q, c, dt, body):
         return step_com_with(w, q, c, dt, body, rho_inf, mass, g, atol, rtol, iterations)
 
-    return carried(start_at_com, step_at_com)
+    return carried_counted(start_at_com, step_at_com)

@@ -68,6 +68,7 @@ REPRODUCES = "MuJoCo 3.10 implicitfast midpoint rule for free bodies"
 # difference of ω1 (I ω2) and ω2 (I ω1): ω3 stays (measured: bit-identical over 5000 steps of the heavy top).
 PRESERVES = ("L3",)
 
+BLOCKS = False  # a Newton loop per step: the lanes do not vectorise it, and its iterations are counted
 MAX_NEWTON_ITERATIONS = 100  # midpointNewton: for (niter=0; niter < 100; niter++)
 MAX_LINE_SEARCH = 20  # backtracking halvings per Newton step, midpointNewton: for (ls=0; ls < 20; ls++)
 NEWTON_TOLERANCE = 1e-13  # N m, midpointNewton: stop at |f| < tol (1 + (2/h)|Iω_m|) (1e-6 with mjUSESINGLE)
@@ -130,17 +131,20 @@ def midpoint_residual(wm, w, tau, i2h, body):
 
 @njit(cache=True, error_model="numpy")
 def midpoint_newton(w, tau, h, body):
-    """``midpointNewton``: the midpoint angular velocity ω_m (rad/s), body frame."""
+    """``midpointNewton``: the midpoint angular velocity ω_m (rad/s), body frame, and the Newton
+    iterations taken (MAX_NEWTON_ITERATIONS: the cap reached, ω_m the last iterate, as MuJoCo keeps it)."""
     i2h = 2.0 / h
     dI0, dI1, dI2 = body[2] - body[1], body[0] - body[2], body[1] - body[0]
     # i2h_I[k] = i2h * inertia[k], precomputed in MuJoCo; (i2h * I) * x is what midpoint_residual does
     a0, a1, a2 = i2h * body[0], i2h * body[1], i2h * body[2]
     wm = w
-    for _ in range(MAX_NEWTON_ITERATIONS):
+    n = 0
+    while n < MAX_NEWTON_ITERATIONS:
         f, Iw = midpoint_residual(wm, w, tau, i2h, body)
         fnorm = mj_norm3(f)
         if fnorm < NEWTON_TOLERANCE * (1.0 + i2h * mj_norm3(Iw)):
             break
+        n += 1
         J = (
             a0, wm[2] * dI0, wm[1] * dI0,
             wm[2] * dI1, a1, wm[0] * dI1,
@@ -155,15 +159,24 @@ def midpoint_newton(w, tau, h, body):
                 wm = w_try
                 break
             step *= 0.5
-    return wm
+    return wm, n
+
+
+@njit(cache=True, error_model="numpy", forceinline=True)
+def step_counted(w, q, dt, body):
+    """One step of dt seconds (s) and its Newton iterations (never < 0: at the cap MuJoCo goes on, and
+    so does this reproduction; a run's ``solver_iterations_max`` of MAX_NEWTON_ITERATIONS shows it)."""
+    # qfrc at the start of the step, from mj_forward's (normalised) orientation
+    tau = gravity_torque(mj_normalize4(q), body)
+    wm, n = midpoint_newton(w, tau, dt, body)
+    w_new = (2.0 * wm[0] - w[0], 2.0 * wm[1] - w[1], 2.0 * wm[2] - w[2])
+    # mj_implicitSkip: qvel_mid = 0.5 * (qvel_new + qvel_old), then mj_advance integrates q with it
+    w_mid = (0.5 * (w_new[0] + w[0]), 0.5 * (w_new[1] + w[1]), 0.5 * (w_new[2] + w[2]))
+    return w_new, mj_quat_integrate(q, w_mid, dt), n
 
 
 @njit(cache=True, error_model="numpy")
 def step(w, q, dt, body):
-    # qfrc at the start of the step, from mj_forward's (normalised) orientation
-    tau = gravity_torque(mj_normalize4(q), body)
-    wm = midpoint_newton(w, tau, dt, body)
-    w_new = (2.0 * wm[0] - w[0], 2.0 * wm[1] - w[1], 2.0 * wm[2] - w[2])
-    # mj_implicitSkip: qvel_mid = 0.5 * (qvel_new + qvel_old), then mj_advance integrates q with it
-    w_mid = (0.5 * (w_new[0] + w[0]), 0.5 * (w_new[1] + w[1]), 0.5 * (w_new[2] + w[2]))
-    return w_new, mj_quat_integrate(q, w_mid, dt)
+    """One step of dt seconds (s): step_counted without its count."""
+    w1, q1, _ = step_counted(w, q, dt, body)
+    return w1, q1

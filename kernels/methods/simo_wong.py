@@ -20,7 +20,7 @@ iterate, exp(−Θ̂) and the torque at Λ_n exp(Θ̂), and the next iterate; th
 h |ω| / 2 times the inertia ratio.  **Tolerance**: stop when max |ΔW_{n+1}| ≤ 1e-15 max |W|, and
 return that sweep's W_{n+1} and Λ_n exp(Θ̂); **iteration cap** 60.  A step that has not met the
 tolerance in 60 sweeps (h |ω| too large for the iteration to contract) returns NaN for ω and q, so
-the run ends with the non-finite status instead of continuing from a wrong step.  The returned
+the run ends with the status "unconverged" instead of continuing from a wrong step.  The returned
 W_{n+1} and Λ_{n+1} come from the same Θ, so the spatial momentum balance holds to rounding whatever
 the residual; the midpoint relation Θ = h/2 (W_n + W_{n+1}) holds to the tolerance.
 
@@ -46,13 +46,15 @@ ORDER = 2
 SYMPLECTIC = False
 PRESERVES = ("L", "L_norm", "Lz")
 
+BLOCKS = False  # a fixed-point loop per step: the lanes do not vectorise it, and its sweeps are counted
 MAX_ITERATIONS = 60
 TOLERANCE = 1e-15  # on max |ΔW_{n+1}|, relative to max |W|
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
-def step_driven(w, q, t, dt, body):
-    """One Simo-Wong step of dt seconds from time t (s); the torques at t and t + dt (trapezoid)."""
+def step_driven_counted(w, q, t, dt, body):
+    """One Simo-Wong step of dt seconds from time t (s), the torques at t and t + dt (trapezoid), and
+    the fixed-point sweeps it took (−MAX_ITERATIONS: not converged, the state NaN)."""
     I1, I2, I3 = body[0], body[1], body[2]
     half = 0.5 * dt
     m0, m1, m2 = torque_at(q, t, body)
@@ -61,7 +63,7 @@ def step_driven(w, q, t, dt, body):
     a2 = I3 * w[2] + half * m2
     v0, v1, v2 = w  # W_{n+1}, first guess W_n
     scale = max(abs(v0), abs(v1), abs(v2))
-    for _ in range(MAX_ITERATIONS):
+    for n in range(1, MAX_ITERATIONS + 1):
         qt = quat_from_rotvec(half * (w[0] + v0), half * (w[1] + v1), half * (w[2] + v2))  # exp(Θ̂)
         q_next = quat_mul(q, qt)
         b0, b1, b2 = body_to_lab((qt[0], -qt[1], -qt[2], -qt[3]), a0, a1, a2)  # exp(−Θ̂) a
@@ -71,9 +73,22 @@ def step_driven(w, q, t, dt, body):
         v0, v1, v2 = u0, u1, u2
         scale = max(scale, abs(v0), abs(v1), abs(v2))
         if change <= TOLERANCE * scale:
-            return (v0, v1, v2), quat_normalize(q_next)  # W_{n+1} and Λ_{n+1} from the same Θ
+            return (v0, v1, v2), quat_normalize(q_next), n  # W_{n+1} and Λ_{n+1} from the same Θ
     nan = float("nan")
-    return (nan, nan, nan), (nan, nan, nan, nan)
+    return (nan, nan, nan), (nan, nan, nan, nan), -MAX_ITERATIONS
+
+
+@njit(cache=True, error_model="numpy")
+def step_driven(w, q, t, dt, body):
+    """One step of dt seconds from time t (s): step_driven_counted without its count."""
+    w1, q1, _ = step_driven_counted(w, q, t, dt, body)
+    return w1, q1
+
+
+@njit(cache=True, error_model="numpy")
+def step_counted(w, q, dt, body):
+    """step_driven_counted of an undriven body, from t = 0 with its drive folded away."""
+    return step_driven_counted(w, q, 0.0, dt, without_drive(body))
 
 
 @njit(cache=True, error_model="numpy")

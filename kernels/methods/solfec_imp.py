@@ -24,8 +24,8 @@ do it, the multipliers by the pivot's reciprocal).  **Tolerance**: stop when max
 cap**: SOLVE's `ASSERT (++i < 50, ERR_BOD_NEW3_NEWTON_DIVERGENCE)` follows every update, so at most 49
 Newton updates succeed and the 50th aborts Solfec; here a step that has not met the tolerance within
 49 updates (or whose LU meets a zero pivot, Solfec's ERR_BOD_NEW3_SINGULAR_JACOBIAN, or whose residual
-turns NaN) returns NaN for ω and q, so the run ends non-finite.  A state that already meets the
-tolerance with W⁰ takes no update.
+turns NaN) returns NaN for ω and q, so the run ends with the status "unconverged".  A state that
+already meets the tolerance with W⁰ takes no update (0 iterations counted).
 
 Mapping.  Solfec stores Λ as a column-major 3×3 matrix (bod->conf[0..8]) and W = RIG_ANGVEL in the body
 frame; here Λ = R(q), the quaternion's body → lab matrix, and W = ω.  The products Λ exp(Ô) are
@@ -66,6 +66,7 @@ SYMPLECTIC = False
 PRESERVES = ()  # L, |L|, L_z: to the Newton residual (above), not to rounding
 REPRODUCES = "Solfec RIG_IMP (NEW3), parmes/solfec-1.0 287fba1"
 
+BLOCKS = False  # a Newton loop per step: the lanes do not vectorise it, and its iterations are counted
 MAX_ITERATIONS = 50  # SOLVE's ASSERT (++i < 50): the 50th update aborts, so 49 can succeed
 TOLERANCE = 1e-12  # SOLVE's level = 1E-12 * h, h its argument (half the step): max |r_i| <= 1e-12 * dt / 2
 
@@ -344,8 +345,9 @@ def step_begin(w, q, t, dt, body):
 
 
 @njit(cache=True, error_model="numpy", forceinline=True)  # inlined into step: its drive folds away
-def step_driven(w, q, t, dt, body):
-    """One Solfec RIG_IMP step of dt seconds from time t (s); the torque at t + dt/2."""
+def step_driven_counted(w, q, t, dt, body):
+    """One Solfec RIG_IMP step of dt seconds from time t (s), the torque at t + dt/2, and SOLVE's
+    Newton iterations (< 0: not converged, the state NaN)."""
     I1, I2, I3 = body[0], body[1], body[2]
     half = 0.5 * dt
     q_half, (g0, g1, g2), (W0, W1, W2) = step_begin(w, q, t, dt, body)
@@ -381,10 +383,23 @@ def step_driven(w, q, t, dt, body):
             break
     if not error <= level or n >= MAX_ITERATIONS:  # not converged, a zero pivot, or NaN
         nan = math.nan
-        return (nan, nan, nan), (nan, nan, nan, nan)
+        return (nan, nan, nan), (nan, nan, nan, nan), -max(n, 1)
     # Λ_{n+1} = Λ_{1/2} exp(h/2 Ŵ_{n+1})
     q_next = quat_mul(q_half, quat_from_rotvec(W0 * half, W1 * half, W2 * half))
-    return (W0, W1, W2), quat_normalize(q_next)
+    return (W0, W1, W2), quat_normalize(q_next), n
+
+
+@njit(cache=True, error_model="numpy")
+def step_driven(w, q, t, dt, body):
+    """One step of dt seconds from time t (s): step_driven_counted without its count."""
+    w1, q1, _ = step_driven_counted(w, q, t, dt, body)
+    return w1, q1
+
+
+@njit(cache=True, error_model="numpy")
+def step_counted(w, q, dt, body):
+    """step_driven_counted of an undriven body, from t = 0 with its drive folded away."""
+    return step_driven_counted(w, q, 0.0, dt, without_drive(body))
 
 
 @njit(cache=True, error_model="numpy")

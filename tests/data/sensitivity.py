@@ -78,6 +78,7 @@ def scaled_change(ds, perturb=None, kernel=None, only=None):
                 samples,
                 np.zeros(1, np.int8),
                 np.zeros(1, np.int64),
+                np.zeros((1, 2), np.int64),
             )
         stored = ds.sel({"integrator": m, "f": f, "theta0": theta0, "dt": dt})
         for var, values in sample_variables(samples[0]).items():
