@@ -31,6 +31,8 @@ import zipfile
 
 import numpy as np
 
+from ..results.layout import RUN_VARIABLES
+
 CHUNK_ELEMENTS = 2**15  # float64 values per vector component in one HDF5 chunk (256 KiB)
 ASSEMBLY_BLOCK_BYTES = 64 * 2**20  # bytes of raw + derived samples of one box held while assembling
 
@@ -76,8 +78,8 @@ def box_runs(shape, where):
 
 
 class MemoryChunk:
-    """A finished chunk held in memory: the dict of ``execute.run_chunk`` (runs, samples, status,
-    n_steps, wall_time)."""
+    """A finished chunk held in memory: the dict of ``execute.run_chunk`` (runs, samples and each of
+    RUN_VARIABLES)."""
 
     def __init__(self, chunk):
         self.chunk = chunk
@@ -98,7 +100,7 @@ class JournalChunk:
         self.path = str(path)
         with np.load(self.path, allow_pickle=False) as data:
             self.runs = data["runs"]
-            self._per_run = {k: data[k] for k in ("status", "n_steps", "wall_time")}
+            self._per_run = {k: data[k] for k in RUN_VARIABLES}
         self.row_shape = (n_samples, n_fields)
         self._offset = _npy_member_offset(self.path, "samples.npy", (self.runs.size, *self.row_shape))
         self._loaded = None

@@ -46,7 +46,7 @@ class OutputConfig:
     """every: sample interval (s); path: results file, relative to Hydra's output dir; figures: the
     figure kinds to draw after the sweep (names from analysis/figures/registry.py's registry; true: the
     default set, false: none); variables: the per-sample variables stored (names of
-    gyrolab/results/layout.py's SAMPLE_VARIABLES; null: all; per-run status, n_steps, wall_time always)."""
+    gyrolab/results/layout.py's SAMPLE_VARIABLES; null: all; the per-run RUN_VARIABLES always)."""
 
     every: float = 1e-3
     path: str = "results.h5"

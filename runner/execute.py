@@ -29,6 +29,7 @@ import numpy as np
 
 from ..kernels.batch import MIN_BLOCK_RUNS, integrate
 from ..kernels.real import is_real
+from ..results.layout import solver_variables
 from .compile import compile_jobs, compile_kernels, die_with_parent, kernel_cached
 from .grid import plan_chunks, runs_in_blocks, step_rate
 from .segments import SegmentedChunk, cut_in_time, integrate_segment, segment_length, segment_writing_seconds
@@ -211,11 +212,15 @@ def integrate_chunk(method, runs, inputs, n_samples, threshold, threads):
     returns the dict stored in the journal.
 
     wall_time (s) per run: the chunk's wall time × the threads it used, shared
-    in proportion to the steps each run took.
+    in proportion to the steps each run took.  solver_iterations and solver_iterations_max per
+    run: as the kernel counts them (gyrolab/results/layout.py RUN_VARIABLES).
     """
     bodies, omega0, q0, dt, stride = inputs
+    iterations = np.zeros((len(runs), 2), dtype=np.int64)
     start = time.perf_counter()
-    samples, status, n_steps = integrate(method, bodies, omega0, q0, dt, stride, n_samples, threshold)
+    samples, status, n_steps = integrate(
+        method, bodies, omega0, q0, dt, stride, n_samples, threshold, iterations=iterations
+    )
     wall = time.perf_counter() - start
     share = n_steps / max(int(n_steps.sum()), 1)
     wall_time = wall * min(threads, len(runs)) * share
@@ -225,6 +230,7 @@ def integrate_chunk(method, runs, inputs, n_samples, threshold, threads):
         "status": status,
         "n_steps": n_steps,
         "wall_time": wall_time,
+        **solver_variables(iterations),
     }
 
 

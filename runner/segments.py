@@ -24,6 +24,8 @@ import numpy as np
 from ..kernels.batch import integrate
 from ..kernels.driver import ENERGY, STATUS_ENERGY, STATUS_NONFINITE, STATUS_OK, tolerances
 from ..kernels.real import is_real
+from ..results.layout import solver_variables
+from ..results.migrate import NOT_COUNTED
 from .grid import JOURNAL_RATE, runs_in_blocks
 
 # The bound a continuing segment runs with: no finite energy error passes it.
@@ -81,14 +83,26 @@ def integrate_segment(method, inputs, state, n_intervals, threshold, bound, e0, 
     the start (``state`` None) or on from ``state`` (n, 7) (ω, q) with each run's E0 ``e0`` (J) and
     divergence ``bound`` (J).  Returns the journal's arrays for these samples: samples
     (n, n_intervals + 1, ·) (the first row is the starting sample), status, n_steps, wall_time
-    (s, as execute.integrate_chunk shares it), state."""
+    (s, as execute.integrate_chunk shares it), the solver counts of these steps (0 on the block path,
+    whose methods have no iterative solver), state."""
     bodies, omega0, q0, dt, stride = inputs
     if state is not None:
         omega0, q0 = np.ascontiguousarray(state[:, :3]), np.ascontiguousarray(state[:, 3:])
+    iterations = np.zeros((len(bodies), 2), dtype=np.int64)
     start = time.perf_counter()
     limit = threshold if state is None else NO_BOUND
     samples, status, n_steps, final = integrate(
-        method, bodies, omega0, q0, dt, stride, n_intervals + 1, limit, path="blocks", final_state=True
+        method,
+        bodies,
+        omega0,
+        q0,
+        dt,
+        stride,
+        n_intervals + 1,
+        limit,
+        path="blocks",
+        final_state=True,
+        iterations=iterations,
     )
     wall = time.perf_counter() - start
     if state is not None:
@@ -99,8 +113,18 @@ def integrate_segment(method, inputs, state, n_intervals, threshold, bound, e0, 
         "status": status,
         "n_steps": n_steps,
         "wall_time": wall * min(threads, len(bodies)) * share,
+        **solver_variables(iterations),
         "state": final,
     }
+
+
+def _more_iterations(so_far, part):
+    """The solver counts (solver_iterations, solver_iterations_max) of runs that did ``so_far`` and
+    then ``part``: totals added, the most in one step the larger; not counted (-1) in either stays so."""
+    uncounted = (so_far["solver_iterations"] == NOT_COUNTED) | (part["solver_iterations"] == NOT_COUNTED)
+    total = np.where(uncounted, NOT_COUNTED, so_far["solver_iterations"] + part["solver_iterations"])
+    most = np.maximum(so_far["solver_iterations_max"], part["solver_iterations_max"])
+    return {"solver_iterations": total, "solver_iterations_max": np.where(uncounted, NOT_COUNTED, most)}
 
 
 def _diverged(samples, status, n_steps, stride, e0, bound):
@@ -170,12 +194,15 @@ class SegmentedChunk:
             a, going = self.arrays, self.going
             samples = np.full((len(self.runs), n_intervals, a["samples"].shape[2]), np.nan)
             status, n_steps, wall = a["status"].copy(), a["n_steps"].copy(), a["wall_time"].copy()
+            counts = {k: a[k].copy() for k in ("solver_iterations", "solver_iterations_max")}
             state = a["state"].copy()
             if part is not None:
                 samples[going] = part["samples"][:, 1:]
                 status[going] = part["status"]
                 n_steps[going] += part["n_steps"]
                 wall[going] += part["wall_time"]
+                for k, v in _more_iterations({k: v[going] for k, v in counts.items()}, part).items():
+                    counts[k][going] = v
                 state[going] = part["state"]
             self.arrays = {
                 "runs": self.runs,
@@ -183,6 +210,7 @@ class SegmentedChunk:
                 "status": status,
                 "n_steps": n_steps,
                 "wall_time": wall,
+                **counts,
                 "state": state,
             }
         if not self.finished:

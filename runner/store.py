@@ -60,7 +60,8 @@ class JournalError(ConfigError):
     """A journal whose manifest cannot be trusted (one-line message)."""
 
 
-CHUNK_KEYS = ("runs", "samples", "status", "n_steps", "wall_time")
+# A chunk's arrays: its runs (flat numbers), their raw samples and each per-run variable of the layout.
+CHUNK_KEYS = ("runs", "samples", *RUN_VARIABLES)
 # Each chunk proves it belongs to its sweep: ``binding`` (the config hash and the kernel-source hash
 # the journal was started with) and ``mac``, an HMAC-SHA256 under the journal's secret key (a 0600
 # file in the 0700 journal directory) of the chunk's file name, its binding and every array's bytes.
@@ -224,14 +225,13 @@ class Journal:
         for tmp in [p for pattern in temporaries for p in self.dir.glob(pattern)]:
             remove_entry(tmp)  # a file, a private directory of safe_files.atomic_replace, or a link
 
-    def write_chunk(self, number, runs, samples, status, n_steps, wall_time):
+    def write_chunk(self, number, runs, samples, **per_run):
         """Store one finished chunk durably: runs (flat numbers), raw samples (n, time, RAW_PER_SAMPLE),
-        per-run arrays; then record its HMAC in the manifest."""
+        ``per_run`` arrays (n,), one for each of RUN_VARIABLES; then record its HMAC in the manifest."""
 
         start = time.perf_counter()
         path = self.dir / f"chunk-{number:05d}.npz"
-        arrays = dict(runs=runs, samples=samples, status=status, n_steps=n_steps, wall_time=wall_time)
-        arrays = {k: np.asarray(v) for k, v in arrays.items()}
+        arrays = _chunk_arrays(runs, samples, per_run)
         binding = self.binding()
         mac = chunk_mac(self.key(), path.name, binding, arrays)
 
@@ -239,15 +239,14 @@ class Journal:
         self.record_chunk(path, len(runs), mac)
         self.write_seconds += time.perf_counter() - start
 
-    def write_segment(self, number, runs, samples, status, n_steps, wall_time, state):
+    def write_segment(self, number, runs, samples, state, **per_run):
         """Store durably the samples so far of chunk ``number``, which is integrated in time segments
         (runner/segments.py): ``write_chunk``'s arrays with samples (n, k + 1, RAW_PER_SAMPLE) of
         samples 0..k, and ``state`` (n, 7).  Each segment replaces the last; ``write_chunk`` of the
         whole chunk, then ``remove_segment``, end it."""
         start = time.perf_counter()
         path = self.dir / f"segment-{number:05d}.npz"
-        arrays = dict(runs=runs, samples=samples, status=status, n_steps=n_steps, wall_time=wall_time, state=state)
-        arrays = {k: np.asarray(v) for k, v in arrays.items()}
+        arrays = _chunk_arrays(runs, samples, per_run, state=state)
         binding = self.binding()
         mac = chunk_mac(self.key(), path.name, binding, arrays, SEGMENT_KEYS)
         atomic_write(path, lambda fh: save_npz(fh, {**arrays, "binding": np.array(binding), "mac": np.array(mac)}))
@@ -362,6 +361,18 @@ class Journal:
         return done, max(numbers) + 1 if numbers else 0
 
 
+def _chunk_arrays(runs, samples, per_run, **more):
+    """A chunk's arrays in CHUNK_KEYS order (then ``more``); TypeError when ``per_run`` is not one
+    array for each of RUN_VARIABLES (a writer that misses one would store a chunk no resume accepts)."""
+    missing = [k for k in RUN_VARIABLES if k not in per_run]
+    unknown = sorted(set(per_run) - set(RUN_VARIABLES))
+    if missing or unknown:
+        what = f"missing {', '.join(missing)}" if missing else f"unknown {', '.join(unknown)}"
+        raise TypeError(f"a chunk needs the per-run arrays {', '.join(RUN_VARIABLES)}: {what}")
+    arrays = dict(runs=runs, samples=samples, **{k: per_run[k] for k in RUN_VARIABLES}, **more)
+    return {k: np.asarray(v) for k, v in arrays.items()}
+
+
 def _reason(err):
     text = " ".join(str(err).split())
     return f"{type(err).__name__}: {text[:100]}" if text else type(err).__name__
@@ -454,7 +465,7 @@ def _chunk_problem(path, listed, n_runs, n_samples, seen, key, binding, segment=
         expected = (n, shape[1], RAW_PER_SAMPLE)
     if shape != expected or arrays["samples"].dtype != np.float64:
         return f"samples have shape {shape}, expected {expected}"
-    for key in ("status", "n_steps", "wall_time"):
+    for key in RUN_VARIABLES:
         if arrays[key].shape != (n,):
             return f"{key} has shape {arrays[key].shape}, expected ({n},)"
     finished = arrays["status"] == 0

@@ -15,6 +15,7 @@ import numpy as np
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import OmegaConf
 
+from ..kernels.driver import STATUS_UNCONVERGED
 from ..results.layout import scene_attrs
 from ..safe_files import OutputLock, remove_stale_temporaries
 from .config import ConfigError, config_hash
@@ -130,10 +131,14 @@ def sweep(cfg, run_dir, stack):
     try:
         elapsed = time.perf_counter() - started
         with h5py.File(out, "r") as fh:
-            failed = int((fh["status"][...] != 0).sum())
+            status = fh["status"][...]
+        unconverged = int((status == STATUS_UNCONVERGED).sum())
+        failed = f"{int((status != 0).sum()) - unconverged} diverged"
+        if unconverged:
+            failed += f", {unconverged} with a solver that did not converge"
         print(
             f"gyrolab: results: {out} ({_size(out.stat().st_size)}, {grid.n_runs} runs, "
-            f"{failed} diverged) in {elapsed:.1f} s ({timing['integrating']:.1f} s integrating, "
+            f"{failed}) in {elapsed:.1f} s ({timing['integrating']:.1f} s integrating, "
             f"{timing['journal']:.1f} s journal, {timing['assembly']:.1f} s assembly)"
         )
         figures = cfg.output.figures

@@ -163,6 +163,9 @@ CONTENT_FAULTS = {
     "float_status": _variable("status", lambda v: v.astype(np.float64) + 0.5),
     "status_7": _variable("status", lambda v: v * 0 + 7),
     "status_minus_3": _variable("status", lambda v: v * 0 - 3),
+    "solver_iterations_minus_2": _variable("solver_iterations", lambda v: v * 0 - 2),
+    "solver_max_over_total": _variable("solver_iterations_max", lambda v: v + 1),
+    "float_solver_iterations": _variable("solver_iterations", lambda v: v.astype(np.float64) + 0.5),
     "energy_without_time": _variable("energy", lambda v: v.isel(time=0)),
     "axis_without_xyz": _variable("axis", lambda v: v.isel(xyz=0)),
     "xyz_relabelled": _coord("xyz", lambda v: np.array(["a", "b", "c"])),
@@ -202,6 +205,7 @@ BAD_FILES = {
     "no_layout_version": _no_layout_version,
     "missing_energy": _strip_variable("energy"),
     "missing_status": _strip_variable("status"),
+    "missing_solver_iterations": _strip_variable("solver_iterations"),
     "directory": lambda path, good: Path(path).mkdir(),
     **CONTENT_FAULTS,
 }

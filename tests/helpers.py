@@ -22,7 +22,7 @@ from gyrolab.kernels.body import Body
 from gyrolab.kernels.registry import get_method, stepper
 from gyrolab.kernels.scenes import build_scene, get_scene
 from gyrolab.results.identity import VOLATILE_ATTRS
-from gyrolab.results.layout import GRID_DIMS, scene_attrs, to_dataset
+from gyrolab.results.layout import GRID_DIMS, scene_attrs, solver_variables, to_dataset
 
 BIN = Path(sys.executable).parent
 TINY = [
@@ -207,10 +207,12 @@ def make_dataset(grid=None, scene="heavy_top", t_end=1.0, every=1e-3, threshold=
     scenes = [[build_scene(scene, f, th, **options) for th in grid["theta0"]] for f in grid["f"]]
     n_samples = sample_schedule(grid["dt"][0], every, t_end)[1]
     raw, status, n_steps = None, np.zeros(shape, np.int8), np.zeros(shape, np.int64)
+    iterations = np.zeros(shape + [2], np.int64)
     for index in np.ndindex(*shape):
         m, jf, kt, ld = index
         sc, dt = scenes[jf][kt], grid["dt"][ld]
         stride = sample_schedule(dt, every, t_end)[0]
+        counts = np.zeros((1, 2), np.int64)  # the kernel's: [total solver iterations, most in one step]
         samples, st, ns = integrate(
             grid["integrator"][m],
             np.array([sc.body]),
@@ -220,10 +222,11 @@ def make_dataset(grid=None, scene="heavy_top", t_end=1.0, every=1e-3, threshold=
             stride,
             n_samples,
             threshold,
+            iterations=counts,
         )
         if raw is None:
             raw = np.empty(shape + list(samples.shape[1:]))
-        raw[index], status[index], n_steps[index] = samples[0], st[0], ns[0]
+        raw[index], status[index], n_steps[index], iterations[index] = samples[0], st[0], ns[0], counts[0]
     declared = get_scene(scene)
     attrs = scene_attrs(scene, {**declared.OPTIONS, **options}, declared.CONSERVED, declared.CLOSED_FORM)
     attrs.update(t_end=t_end, every=every, divergence_threshold=threshold, config="built by tests/helpers.py")
@@ -233,7 +236,39 @@ def make_dataset(grid=None, scene="heavy_top", t_end=1.0, every=1e-3, threshold=
         "q0": [[s.q0 for s in row] for row in scenes],
     }
     coords = {k: np.array(grid[k]) for k in GRID_DIMS} | {"time": np.arange(n_samples) * every}
-    return to_dataset(raw, {"status": status, "n_steps": n_steps, "wall_time": np.zeros(shape)}, coords, inputs, attrs)
+    per_run = {"status": status, "n_steps": n_steps, "wall_time": np.zeros(shape), **solver_variables(iterations)}
+    return to_dataset(raw, per_run, coords, inputs, attrs)
+
+
+def synthetic_dataset(grid=None, scene="heavy_top", t_end=0.02, every=1e-3, counts=None, version=None, seed=0):
+    """A results Dataset of ``grid`` (dict of lists over GRID_DIMS) that passes the reader's checks, with
+    made-up samples and no kernel run (a test of the file layer compiles nothing): every run finished
+    (status 0, its steps spanning t_end), solver counts ``counts`` (an array (*grid shape, 2) of
+    [total, most in one step]; default distinct values per run).  ``version`` < 4: as that layout
+    wrote it, without the solver counts (the grid dim stays ``integrator``: what readers see)."""
+    from gyrolab.results.layout import RAW_PER_SAMPLE
+    from gyrolab.results.migrate import SOLVER_COUNTS
+
+    grid = {"integrator": ["m1"], "f": [10.0], "theta0": [45.0], "dt": [1e-3], **(grid or {})}
+    shape = [len(grid[k]) for k in GRID_DIMS]
+    n_samples = round(t_end / every) + 1
+    raw = np.random.default_rng(seed).uniform(-1.0, 1.0, (*shape, n_samples, RAW_PER_SAMPLE))
+    n_steps = np.broadcast_to(np.array([round(t_end / dt) for dt in grid["dt"]], np.int64), shape).copy()
+    if counts is None:
+        total = 1 + np.arange(np.prod(shape), dtype=np.int64).reshape(shape) * 10
+        counts = np.stack([total, 1 + total // 10], axis=-1)
+    per_run = {"status": np.zeros(shape, np.int8), "n_steps": n_steps, "wall_time": np.ones(shape)}
+    per_run |= solver_variables(counts)
+    scenes = [[build_scene(scene, f, th) for th in grid["theta0"]] for f in grid["f"]]
+    inputs = {k: [[getattr(s, k) for s in row] for row in scenes] for k in ("body", "omega0", "q0")}
+    declared = get_scene(scene)
+    attrs = scene_attrs(scene, declared.OPTIONS, declared.CONSERVED, declared.CLOSED_FORM)
+    attrs.update(t_end=t_end, every=every, divergence_threshold=10.0, config=f"scene:\n  name: {scene}\n")
+    coords = {k: np.array(grid[k]) for k in GRID_DIMS} | {"time": np.arange(n_samples) * every}
+    ds = to_dataset(raw, per_run, coords, inputs, attrs)
+    if version is not None:
+        ds = ds.drop_vars(SOLVER_COUNTS if version < 4 else []).assign_attrs(layout_version=version)
+    return ds
 
 
 # A small sweep (one method, one theta0 and dt, 20 samples) for make_file's overrides to extend.

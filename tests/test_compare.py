@@ -18,7 +18,7 @@ import yaml
 from gyrolab.analysis.files.compare import CompareError, compare_files, main, parse_tolerances
 from gyrolab.results.layout import SAMPLE_VARIABLES, VARIABLES_ATTR
 
-from helpers import make_dataset
+from helpers import make_dataset, synthetic_dataset
 
 METHODS = ("seed_next", "lie_poisson")
 F = (10.0, 20.0)
@@ -108,7 +108,12 @@ def test_identical_files_pass_with_zero_tolerance(pair):
     assert report.ok and report.exit_status == 0
     assert all(v.max_abs == 0 and v.n_bad == 0 for v in report.variables)
     assert report.worst_run is None
-    assert {v.name for v in report.variables} == set(SAMPLE_VARIABLES) | {"status", "n_steps"}
+    assert {v.name for v in report.variables} == set(SAMPLE_VARIABLES) | {
+        "status",
+        "n_steps",
+        "solver_iterations",
+        "solver_iterations_max",
+    }
     assert "ignored: wall_time (timing, not physics)" in report.text()
 
 
@@ -332,3 +337,48 @@ def test_a_combined_members_provenance_comes_from_its_source_variables(base, tmp
     assert not [c for c in report.configs if "recorded only" in c], report.configs
     free = compare_files(combined, b, members=({"scene": "free_symmetric"}, None))
     assert free.headers[0].startswith("gyrolab 0.3.0, git 1111111111")  # each member its own source
+
+
+def test_solver_counts_are_compared_exactly(tmp_path):
+    """One run's solver count differs: out of tolerance whatever the tolerances (and none can be
+    given for it); the run and the variable are named."""
+    counts = np.array([[[[[40, 6], [0, 0]]], [[[-1, -1], [12, 5]]]]])
+    grid = {"f": [10.0, 20.0], "dt": [1e-3, 5e-4]}
+    a = write(synthetic_dataset(grid, counts=counts), tmp_path / "a.h5")
+    assert compare_files(a, a).ok
+    changed = counts.copy()
+    changed[0, 1, 0, 1, 0] = 13
+    b = write(synthetic_dataset(grid, counts=changed), tmp_path / "b.h5")
+    report = compare_files(a, b, rtol=10.0, atol=10.0)
+    assert report.failed() == ["solver_iterations"] and report.bad_runs == 1
+    (diff,) = [v for v in report.variables if v.name == "solver_iterations"]
+    assert diff.exact and diff.n_bad == 1 and diff.max_abs == 1.0
+    assert diff.worst == {"integrator": "m1", "f": 20.0, "theta0": 45.0, "dt": 5e-4}
+    assert "RESULT: DIFFERENT, solver_iterations out of tolerance in 1 of 4 runs" in report.text()
+    for name in ("solver_iterations", "solver_iterations_max"):
+        with pytest.raises(CompareError, match=f"{name} is compared exactly"):
+            compare_files(a, b, atol={name: 1.0})
+    most = counts.copy()
+    most[0, 0, 0, 0, 1] = 7
+    assert compare_files(a, write(synthetic_dataset(grid, counts=most), tmp_path / "c.h5")).failed() == [
+        "solver_iterations_max"
+    ]
+
+
+def test_a_file_of_layout_3_compares_without_the_solver_counts_and_says_so(tmp_path):
+    """The stored data of layout 3 (as tests/data's regression packs) lack the solver counts: a fresh
+    file compares with it on everything else, in either order, and the report names what it left out."""
+    fresh = write(synthetic_dataset(), tmp_path / "fresh.h5")
+    stored = write(synthetic_dataset(version=3), tmp_path / "stored.h5")
+    for a, b in ((fresh, stored), (stored, fresh)):
+        report = compare_files(a, b, scaled=1e-10)
+        assert report.ok, report.text()
+        assert {v.name for v in report.variables} == set(SAMPLE_VARIABLES) | {"status", "n_steps"}
+        assert report.dropped == [
+            "variable solver_iterations (not in the older layout of one file)",
+            "variable solver_iterations_max (not in the older layout of one file)",
+        ]
+        assert "not compared (only in one file): variable solver_iterations " in report.text()
+    diverged = synthetic_dataset(version=3)
+    diverged["status"][...] = 2  # what the older layout holds is still compared
+    assert compare_files(fresh, write(diverged, tmp_path / "diverged.h5")).failed() == ["status"]

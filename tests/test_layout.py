@@ -1,7 +1,7 @@
-"""The results layout: files of the current layout (3: the grid dim is ``integrator``), of layout 2
-(the dim called ``method``), of layout 1 (before heavy bodies: no gamma, a four-field body) and of
-layout 0 (before layout_version) open with every reader, as today's names; foreign files are
-refused."""
+"""The results layout: files of the current layout (4: the per-run solver counts), of layout 3 (the
+grid dim ``integrator``, no solver counts), of layout 2 (the dim called ``method``), of layout 1
+(before heavy bodies: no gamma, a four-field body) and of layout 0 (before layout_version) open with
+every reader, as today's names; foreign files are refused."""
 
 import subprocess
 from pathlib import Path
@@ -11,10 +11,10 @@ import pytest
 
 from gyrolab.analysis.files.compare import compare_files
 from gyrolab.results import ResultsError, open_results
-from gyrolab.results.layout import LAYOUT_VERSION, SAMPLE_VARIABLES
-from gyrolab.results.migrate import file_layout_version
+from gyrolab.results.layout import LAYOUT_VERSION, RUN_VARIABLES, SAMPLE_VARIABLES, required_variables
+from gyrolab.results.migrate import SOLVER_COUNTS, file_layout_version
 
-from helpers import BIN, make_dataset
+from helpers import BIN, make_dataset, synthetic_dataset
 
 DATA = Path(__file__).resolve().parent / "data"
 
@@ -41,7 +41,7 @@ def files(tmp_path_factory):
     ds.attrs.update(gyrolab_version="0.1.0", config="sweep:\n  t_end: 0.2\n")
     new, old = root / "new.h5", root / "old.h5"
     ds.to_netcdf(new, engine="h5netcdf")
-    legacy = ds.drop_vars(["L", "gamma", "body", "omega0", "q0"]).rename(integrator="method")
+    legacy = ds.drop_vars(["L", "gamma", "body", "omega0", "q0", *SOLVER_COUNTS]).rename(integrator="method")
     legacy.attrs = {k: v for k, v in ds.attrs.items() if k not in ("layout_version", "conserved", "closed_form")}
     legacy.to_netcdf(old, engine="h5netcdf")
     return new, old
@@ -53,7 +53,7 @@ def layout_1(files, tmp_path_factory):
     import xarray as xr
 
     ds = xr.open_dataset(files[0], engine="h5netcdf").load()
-    one = ds.drop_vars("gamma").isel(body_param=slice(0, 4)).rename(integrator="method")
+    one = ds.drop_vars(["gamma", *SOLVER_COUNTS]).isel(body_param=slice(0, 4)).rename(integrator="method")
     one.attrs["layout_version"] = 1
     path = tmp_path_factory.mktemp("layout1") / "v1.h5"
     one.to_netcdf(path, engine="h5netcdf")
@@ -65,7 +65,7 @@ def layout_2(files, tmp_path_factory):
     """The current file as layout 2 wrote it: the grid dim called ``method``."""
     import xarray as xr
 
-    ds = xr.open_dataset(files[0], engine="h5netcdf").load().rename(integrator="method")
+    ds = xr.open_dataset(files[0], engine="h5netcdf").load().drop_vars(SOLVER_COUNTS).rename(integrator="method")
     ds.attrs["layout_version"] = 2
     path = tmp_path_factory.mktemp("layout2") / "v2.h5"
     ds.to_netcdf(path, engine="h5netcdf")
@@ -101,7 +101,9 @@ def test_a_fresh_file_selects_one_integrator_with_sel_and_opens_with_netcdf_c(fr
     import xarray as xr
 
     with xr.open_dataset(fresh, engine="h5netcdf") as ds:
-        assert ds.attrs["layout_version"] == LAYOUT_VERSION == 3
+        assert ds.attrs["layout_version"] == LAYOUT_VERSION == 4
+        for name in SOLVER_COUNTS:  # rk4 and lie_poisson have no iterative solver
+            assert ds[name].dtype == np.int64 and (ds[name].values == 0).all(), name
         assert list(ds["integrator"].values) == ["rk4", "lie_poisson"] and "method" not in ds.dims
         rk4 = ds.sel(integrator="rk4")
         assert "integrator" not in rk4.dims and str(rk4["integrator"].values) == "rk4"
@@ -138,9 +140,10 @@ def test_older_layouts_open_with_integrator_not_method(files, layout_1, layout_2
 
 
 @pytest.mark.slow
-def test_compare_a_layout_2_file_with_a_layout_3_file(files, layout_2):
+def test_compare_a_layout_2_file_with_a_current_file(files, layout_2):
     report = compare_files(layout_2, files[0])
-    assert report.ok and not report.dropped, report.text()
+    assert report.ok, report.text()
+    assert report.dropped == [f"variable {name} (not in the older layout of one file)" for name in SOLVER_COUNTS]
     assert report.n_runs == 2
     done = subprocess.run([str(BIN / "gyrolab-compare"), str(layout_2), str(files[0])], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
@@ -232,3 +235,62 @@ def test_plot_standard_that_draws_nothing_exits_2(files, tmp_path, monkeypatch, 
     assert done.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no figure could be drawn" in err[0]
+
+
+def test_a_file_of_today_holds_the_solver_counts_with_their_dtype_and_attrs(tmp_path):
+    """Layout 4: solver_iterations and solver_iterations_max, int64 per run, with units, long names and
+    what 0 and -1 mean; written and read back as stored."""
+    counts = np.array([[[[[7, 3], [0, 0]]], [[[-1, -1], [12, 5]]]]])  # (integrator, f, theta0, dt, 2)
+    synthetic_dataset({"f": [10.0, 20.0], "dt": [1e-3, 5e-4]}, counts=counts).to_netcdf(tmp_path / "r.h5")
+    ds = open_results(tmp_path / "r.h5")
+    assert file_layout_version(ds) == LAYOUT_VERSION == 4
+    assert list(RUN_VARIABLES)[-2:] == list(SOLVER_COUNTS) == ["solver_iterations", "solver_iterations_max"]
+    for k, name in enumerate(SOLVER_COUNTS):
+        assert ds[name].dtype == np.int64 and ds[name].dims == ("integrator", "f", "theta0", "dt")
+        np.testing.assert_array_equal(ds[name].values, counts[..., k])
+        assert ds[name].attrs["units"] == "1"
+        assert "0: the method has no iterative solver" in ds[name].attrs["description"]
+        assert "-1: not counted (an engine package" in ds[name].attrs["description"]
+    assert ds["solver_iterations"].attrs["long_name"] == "implicit solver iterations over the run"
+    assert ds["solver_iterations_max"].attrs["long_name"] == "most solver iterations in one step"
+    assert "summed over the run's steps" in ds["solver_iterations"].attrs["description"]
+    assert "3: a step's implicit solver did not converge" in ds["status"].attrs["legend"]
+
+
+def test_a_layout_3_file_without_the_solver_counts_opens_and_validates(tmp_path):
+    """Layouts 0 to 3 lack the solver counts: such a file opens, checked, without them (never filled
+    in); a layout-4 file without them is incomplete."""
+    for version in (3, 2):
+        assert not set(SOLVER_COUNTS) & set(required_variables(version))
+    assert set(SOLVER_COUNTS) <= set(required_variables(4))
+    old = synthetic_dataset(version=3)
+    assert not set(SOLVER_COUNTS) & set(old.data_vars)
+    old.to_netcdf(tmp_path / "v3.h5")
+    ds = open_results(tmp_path / "v3.h5")
+    assert file_layout_version(ds) == 3 and not set(SOLVER_COUNTS) & set(ds.data_vars)
+    assert int(ds["n_steps"].values.ravel()[0]) == 20
+    old.assign_attrs(layout_version=4).to_netcdf(tmp_path / "v4.h5")
+    with pytest.raises(ResultsError, match="no variable 'solver_iterations'"):
+        open_results(tmp_path / "v4.h5")
+
+
+@pytest.mark.parametrize(
+    "counts, message",
+    [
+        ([[-2, 0]], "solver_iterations=-2 is below -1"),
+        ([[-1, 4]], "solver_iterations=-1 with solver_iterations_max=4: -1 .not counted. must be in both"),
+        ([[5, 6]], "solver_iterations_max=6 exceeds the run's total solver_iterations=5"),
+    ],
+)
+def test_solver_counts_that_cannot_be_are_refused_in_one_line(tmp_path, counts, message):
+    synthetic_dataset(counts=np.array(counts).reshape(1, 1, 1, 1, 2)).to_netcdf(tmp_path / "r.h5")
+    with pytest.raises(ResultsError, match=message):
+        open_results(tmp_path / "r.h5")
+
+
+def test_one_solver_count_without_the_other_is_refused(tmp_path):
+    synthetic_dataset(version=3).assign(solver_iterations=synthetic_dataset()["solver_iterations"]).to_netcdf(
+        tmp_path / "r.h5"
+    )
+    with pytest.raises(ResultsError, match="variable solver_iterations without solver_iterations_max"):
+        open_results(tmp_path / "r.h5")

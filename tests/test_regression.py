@@ -243,6 +243,7 @@ def overwrite_method(path, method, run_batch):
                     stride, n = sample_schedule(float(dt), config["output"]["every"], config["sweep"]["t_end"])
                     out = np.empty((1, n, N_FIELDS))
                     status, n_steps = np.zeros(1, np.int8), np.zeros(1, np.int64)
+                    iterations = np.zeros((1, 2), np.int64)
                     run_batch(
                         np.array([sc.omega0]),
                         np.array([sc.q0]),
@@ -253,12 +254,16 @@ def overwrite_method(path, method, run_batch):
                         out,
                         status,
                         n_steps,
+                        iterations,
                     )
                     for var, values in sample_variables(out[0]).items():
                         if var in fh:  # a stored file of an older layout lacks the newer variables
                             fh[var][im, jf, kt, ld] = values
                     fh["status"][im, jf, kt, ld] = status[0]
                     fh["n_steps"][im, jf, kt, ld] = n_steps[0]
+                    for column, var in enumerate(("solver_iterations", "solver_iterations_max")):
+                        if var in fh:  # layout 4 on
+                            fh[var][im, jf, kt, ld] = iterations[0, column]
 
 
 def test_a_pack_reads_back_as_the_results_file_it_stores(tmp_path):

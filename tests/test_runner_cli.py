@@ -14,6 +14,7 @@ import xarray as xr
 
 from gyrolab import simulate
 from gyrolab.results.layout import GRID_DIMS, SAMPLE_VARIABLES
+from gyrolab.results.migrate import SOLVER_COUNTS
 
 from helpers import (  # noqa: F401 (re-used by the tests below)
     BIN,
@@ -96,7 +97,7 @@ def test_tiny_sweep_file_opens_with_xarray_and_matches_simulate(reference):
                     for dt in ds["dt"].values:
                         one = simulate(method=str(method), f=f, theta0=theta0, dt=dt, t_end=0.1, every=1e-3)
                         run = ds.sel({"integrator": method, "f": f, "theta0": theta0, "dt": dt})
-                        for name in (*SAMPLE_VARIABLES, "status", "n_steps", "body", "omega0", "q0"):
+                        for name in (*SAMPLE_VARIABLES, *SOLVER_COUNTS, "status", "n_steps", "body", "omega0", "q0"):
                             np.testing.assert_array_equal(run[name].values, one[name].values, err_msg=name)
 
 

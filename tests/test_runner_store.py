@@ -88,6 +88,8 @@ def test_results_file_layout_and_attrs(tmp_path, grid):
         run = ds.isel(integrator=1, f=0, theta0=0, dt=1)
         np.testing.assert_array_equal(run["omega"].values, chunks[1]["samples"][1][:, 3:6])
         assert int(run["n_steps"]) == 500
+        for name in ("solver_iterations", "solver_iterations_max"):  # seed_* have no iterative solver: 0
+            assert ds[name].dtype == np.int64 and int(run[name]) == chunks[1][name][1] == 0, name
         # each run's inputs are stored: analysis never rebuilds them from today's scene code
         np.testing.assert_array_equal(ds["body"].values, grid.bodies)
         np.testing.assert_array_equal(ds["omega0"].values, grid.omega0)
@@ -286,3 +288,77 @@ def test_results_file_opens_with_netcdf_c(tmp_path, grid):
         for name in h.data_vars:
             np.testing.assert_array_equal(c[name].values, h[name].values, err_msg=name)
         assert c.attrs["scene"] == "heavy_top"
+
+
+def synthetic_chunk(grid, runs, seed=0):
+    """A finished chunk as run_chunk returns it, made up (no kernel runs): finite samples, every run
+    finished, distinct solver counts per run."""
+    from gyrolab.results.layout import RAW_PER_SAMPLE
+
+    runs = np.asarray(runs, dtype=np.int64)
+    rng = np.random.default_rng(seed)
+    return {
+        "runs": runs,
+        "samples": rng.uniform(-1.0, 1.0, (runs.size, grid.n_samples, RAW_PER_SAMPLE)),
+        "status": np.zeros(runs.size, np.int8),
+        "n_steps": np.asarray(grid.steps(runs), dtype=np.int64),
+        "wall_time": np.full(runs.size, 0.5),
+        "solver_iterations": 100 + 7 * runs,
+        "solver_iterations_max": 3 + runs,
+    }
+
+
+def test_the_solver_counts_go_through_the_journal_into_the_file(tmp_path, grid):
+    """A chunk's solver counts are MAC'd with it, verify, read back from the chunk file and land at
+    their runs in the results file (int64, the layout's attrs)."""
+    from gyrolab.runner.assembly import JournalChunk
+    from gyrolab.runner.store import CHUNK_KEYS, assemble
+
+    assert CHUNK_KEYS[-2:] == ("solver_iterations", "solver_iterations_max")
+    journal = Journal(tmp_path / "results.h5")
+    journal.create({"config_hash": "abc"})
+    chunks = [synthetic_chunk(grid, [0, 3, 5, 6], 1), synthetic_chunk(grid, [1, 2, 4, 7], 2)]
+    for number, chunk in enumerate(chunks):
+        journal.write_chunk(number, **chunk)
+    assert Journal(tmp_path / "results.h5").verify(grid.n_runs, grid.n_samples) == []
+    for stored, chunk in zip(journal.chunks(), chunks):
+        for name in ("solver_iterations", "solver_iterations_max"):
+            assert stored[name].dtype == np.int64
+            np.testing.assert_array_equal(stored[name], chunk[name])
+    source = JournalChunk(journal.chunk_files()[1], grid.n_samples, chunks[1]["samples"].shape[-1])
+    np.testing.assert_array_equal(source.per_run("solver_iterations"), chunks[1]["solver_iterations"])
+    assemble(tmp_path / "results.h5", grid, journal, {"scene": "heavy_top"})
+    with xr.open_dataset(tmp_path / "results.h5", engine="h5netcdf") as ds:
+        for name in ("solver_iterations", "solver_iterations_max"):
+            assert ds[name].dtype == np.int64 and ds[name].dims == ("integrator", "f", "theta0", "dt")
+            assert {k: ds[name].attrs[k] for k in VARIABLE_ATTRS[name]} == VARIABLE_ATTRS[name]
+        np.testing.assert_array_equal(ds["solver_iterations"].values.ravel(), 100 + 7 * np.arange(grid.n_runs))
+        np.testing.assert_array_equal(ds["solver_iterations_max"].values.ravel(), 3 + np.arange(grid.n_runs))
+
+
+def test_a_chunk_without_the_solver_counts_or_with_altered_ones_is_set_aside(tmp_path, grid):
+    """A chunk of the keys before the solver counts (proof and all) is not a chunk now; counts altered
+    after writing fail the chunk's HMAC; a writer that misses one is refused before anything is stored."""
+    from gyrolab.runner.store import CHUNK_KEYS, PROOF_KEYS, chunk_mac, save_npz
+
+    journal = Journal(tmp_path / "results.h5")
+    journal.create({"config_hash": "abc"})
+    old_keys = ("runs", "samples", "status", "n_steps", "wall_time")
+    arrays = {k: v for k, v in synthetic_chunk(grid, [0, 1]).items() if k in old_keys}
+    mac = chunk_mac(journal.key(), "chunk-00000.npz", journal.binding(), arrays, old_keys)
+    with open(journal.dir / "chunk-00000.npz", "wb") as fh:
+        save_npz(fh, {**arrays, "binding": np.array(journal.binding()), "mac": np.array(mac)})
+    journal.write_chunk(1, **synthetic_chunk(grid, [2, 3]))
+    with np.load(journal.dir / "chunk-00001.npz") as data:
+        altered = {k: data[k] for k in (*CHUNK_KEYS, *PROOF_KEYS)}
+    altered["solver_iterations"] = altered["solver_iterations"] + 1
+    with open(journal.dir / "chunk-00001.npz", "wb") as fh:
+        save_npz(fh, altered)
+    rejected = dict(Journal(tmp_path / "results.h5").verify(grid.n_runs, grid.n_samples))
+    assert rejected["chunk-00000.npz"] == "not a gyrolab chunk (no array 'solver_iterations')"
+    assert "its HMAC does not match" in rejected["chunk-00001.npz"]
+    assert journal.chunk_files() == []
+    partial = {k: v for k, v in synthetic_chunk(grid, [4]).items() if k != "solver_iterations_max"}
+    with pytest.raises(TypeError, match="missing solver_iterations_max"):
+        journal.write_chunk(2, **partial)
+    assert not (journal.dir / "chunk-00002.npz").exists()

@@ -80,7 +80,16 @@ def test_journal_chunk_and_manifest_temporaries_do_not_follow_links(tmp_path, vi
     journal.create({"config_hash": "x", "n_runs": 1, "shape": [1, 1, 1, 1], "n_samples": 2})
     for name in (".chunk-00000.npz.tmp", ".manifest.json.tmp"):
         (journal.dir / f"{name}{os.getpid()}").symlink_to(victim)
-    journal.write_chunk(0, np.array([0]), np.zeros((1, 2, 8)), np.zeros(1, np.int8), np.ones(1), np.ones(1))
+    journal.write_chunk(
+        0,
+        np.array([0]),
+        np.zeros((1, 2, 8)),
+        status=np.zeros(1, np.int8),
+        n_steps=np.ones(1, np.int64),
+        wall_time=np.ones(1),
+        solver_iterations=np.zeros(1, np.int64),
+        solver_iterations_max=np.zeros(1, np.int64),
+    )
     assert victim.read_bytes() == SECRET
     chunk = journal.dir / "chunk-00000.npz"
     assert chunk.is_file() and not chunk.is_symlink() and "chunk-00000.npz" in journal.manifest()["chunks"]
@@ -328,6 +337,8 @@ def test_invented_zeros_with_status_0_are_refused(tmp_path, tiny_grid):
             status=np.zeros(n, np.int8),
             n_steps=np.ones(n, np.int64),
             wall_time=np.ones(n),
+            solver_iterations=np.zeros(n, np.int64),
+            solver_iterations_max=np.zeros(n, np.int64),
             binding=np.array(journal.binding()),  # even with the right binding, read from the manifest
             mac=np.array("0" * 64),
         )

@@ -10,6 +10,7 @@ import xarray as xr
 from hydra import compose, initialize_config_module
 
 from gyrolab.kernels.batch import MIN_BLOCK_RUNS
+from gyrolab.results.migrate import SOLVER_COUNTS
 from gyrolab.runner import execute
 from gyrolab.runner.config import register_configs
 from gyrolab.runner.execute import run_chunk
@@ -64,7 +65,7 @@ def test_a_chunk_cut_in_time_gives_the_bits_of_one_call(method):
         cut = chunk.chunk()
         # every segment but the last journaled (the chunk file follows it)
         assert journal.written and journal.written[-1] < grid.n_samples
-        for key in ("samples", "status", "n_steps"):
+        for key in ("samples", "status", "n_steps", "solver_iterations", "solver_iterations_max"):
             np.testing.assert_array_equal(cut[key], whole[key])  # NaN == NaN here
         assert np.array_equal(np.signbit(cut["samples"]), np.signbit(whole["samples"]))
 
@@ -177,3 +178,38 @@ def test_a_sweep_killed_mid_segment_resumes_to_identical_data(tmp_path):
     assert_ok(resumed)
     xr.testing.assert_identical(data(run / "results.h5"), data(reference / "results.h5"))
     assert not partial.exists()
+
+
+def test_the_solver_counts_of_segments_add_up_and_keep_the_most_in_one_step():
+    """SegmentedChunk.absorb: a run's counts over its segments are the totals added and the larger of
+    the most in one step (-1, not counted, stays so); runs no longer going keep theirs."""
+    grid = grid_of("sweep.method=[rk4]", "sweep.f=[5,10,20]", "sweep.theta0=[30]", "sweep.dt=[1e-3]", "sweep.t_end=1")
+    runs = np.arange(grid.n_runs)
+    so_far = {
+        "runs": runs,
+        "samples": np.ones((3, 2, 17)),
+        "status": np.array([0, 2, 0], np.int8),
+        "n_steps": np.array([10, 7, 10], np.int64),
+        "wall_time": np.ones(3),
+        "solver_iterations": np.array([30, 20, -1], np.int64),
+        "solver_iterations_max": np.array([4, 5, -1], np.int64),
+        "state": np.ones((3, 7)),
+    }
+    chunk = SegmentedChunk(grid, 0, runs, so_far)
+    assert chunk.task(1) is not None and chunk.going.tolist() == [0, 2]  # run 1 stopped (status 2)
+    part = {
+        "samples": np.full((2, 2, 17), 2.0),
+        "status": np.zeros(2, np.int8),
+        "n_steps": np.array([10, 10], np.int64),
+        "wall_time": np.ones(2),
+        "solver_iterations": np.array([25, 8], np.int64),
+        "solver_iterations_max": np.array([6, 2], np.int64),
+        "state": np.full((2, 7), 2.0),
+    }
+    journal = Segments()
+    chunk.absorb(journal, part)
+    assert journal.written == [3]
+    assert chunk.arrays["solver_iterations"].tolist() == [55, 20, -1]
+    assert chunk.arrays["solver_iterations_max"].tolist() == [6, 5, -1]
+    assert chunk.arrays["n_steps"].tolist() == [20, 7, 20]
+    assert set(chunk.chunk()) == {"runs", "samples", "status", "n_steps", "wall_time", *SOLVER_COUNTS}

@@ -5,7 +5,7 @@ import pytest
 import xarray as xr
 from hydra import compose, initialize_config_module
 
-from gyrolab.results.layout import SAMPLE_VARIABLES, VARIABLES_ATTR, held_variables, stored_per_sample
+from gyrolab.results.layout import RUN_VARIABLES, SAMPLE_VARIABLES, VARIABLES_ATTR, held_variables, stored_per_sample
 from gyrolab.runner.config import ConfigError, register_configs
 from gyrolab.runner.grid import build_grid
 
@@ -63,7 +63,7 @@ def files(tmp_path_factory):
 def test_the_file_holds_the_chosen_variables_and_the_per_run_ones(files):
     chosen, full = files
     with xr.open_dataset(chosen, engine="h5netcdf") as a, xr.open_dataset(full, engine="h5netcdf") as b:
-        assert set(a.data_vars) == {"theta", "energy", "status", "n_steps", "wall_time", "body", "omega0", "q0"}
+        assert set(a.data_vars) == {"theta", "energy", *RUN_VARIABLES, "body", "omega0", "q0"}
         assert a.attrs[VARIABLES_ATTR] == "theta energy" and VARIABLES_ATTR not in b.attrs
         assert held_variables(a) == ("theta", "energy") and held_variables(b) == tuple(SAMPLE_VARIABLES)
         for name in ("theta", "energy", "status", "n_steps"):

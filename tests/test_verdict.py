@@ -345,3 +345,17 @@ def test_a_diverged_run_is_diverged_in_every_invariant_derived_or_stored():
         assert d.drift_class == "diverged", (q, d.reason)
         times.add(d.t_diverged)
     assert len(times) == 1
+
+
+def test_the_verdict_text_counts_the_implicit_solvers_of_its_drift_runs():
+    """A summary whose drift run counted solver iterations shows their mean a step and the most in one
+    step; methods without a solver (0), engines (−1) and files of older layouts (None) show nothing."""
+    rows = [
+        {"method": "implicit_midpoint", "solver_iterations": 3100, "solver_iterations_max": 5, "n_steps": 1000},
+        {"method": "implicit_midpoint", "solver_iterations": 3100, "solver_iterations_max": 5, "n_steps": 1000},
+        {"method": "rk4", "solver_iterations": 0, "solver_iterations_max": 0, "n_steps": 1000},
+        {"method": "mujoco_engine", "solver_iterations": -1, "solver_iterations_max": -1, "n_steps": 1000},
+        {"method": "lgvi", "solver_iterations": None, "solver_iterations_max": None, "n_steps": 1000},
+    ]
+    assert V.solver_words(rows) == "implicit_midpoint 3.1 (5)"
+    assert V.solver_words(rows[2:]) == ""

@@ -9,7 +9,8 @@ box).  Methods whose maps are identical are named in the panel titles.
 Cells are drawn on log-log axes (dt in s, f in Hz), so lines of constant
 ω3·dt = 2π f dt (rad of spin per step) are straight: dotted guides at
 ω3·dt = 0.01, 0.1, 1.  Runs that diverged (status ≠ 0: NaN/inf or energy
-past the runner's threshold) are grey, hatched and marked ×: the worst
+past the runner's threshold) are grey, hatched and marked ×, runs whose
+implicit solver did not converge (status unconverged) the same but marked ○: the worst
 error a run reached before it stopped says nothing of how good it was (a
 run that is exact until its state turns NaN would take the best colour).  A file from ``gyrolab-combine``
 with a ``scene`` (or ``job``) dimension gets one row of panels per scene.
@@ -21,6 +22,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.ticker import NullFormatter
 
+from ...kernels.driver import STATUS_UNCONVERGED
 from ..io import pick, relative_error, scene_label, select
 from . import yardstick
 from .record import add_note, facet, panel_size, suptitle, wrap_note
@@ -76,7 +78,9 @@ def _panel(ax, sub, method, theta0, measure="energy"):
     mesh = ax.pcolormesh(_edges(dt), _edges(f), shown, cmap=cmap, vmin=VMIN, vmax=VMAX, shading="flat")
     for i, fv in enumerate(f):
         for j, dv in enumerate(dt):
-            if status[i, j] != 0:
+            if status[i, j] == STATUS_UNCONVERGED:  # the implicit solver gave up: a ring, not a cross
+                ax.plot(dv, fv, "o", color="red", mfc="none", ms=8, mew=2)
+            elif status[i, j] != 0:
                 ax.plot(dv, fv, "x", color="red", ms=9, mew=2)
             else:
                 ax.text(
@@ -104,9 +108,13 @@ def _panel(ax, sub, method, theta0, measure="energy"):
     ax.set_ylim(ye[0], ye[-1])
     ax.set_xlabel("time step dt (s)")
     ax.set_ylabel("spin f (Hz)")
-    n_bad = int((status != 0).sum())
+    n_unconverged = int((status == STATUS_UNCONVERGED).sum())
+    n_bad = int((status != 0).sum()) - n_unconverged
+    failed = ", ".join(
+        [f"{n_bad} diverged (x)"] * bool(n_bad) + [f"{n_unconverged} solver failed (o)"] * bool(n_unconverged)
+    )
     # what the map adds to the name goes on a line of its own: beside the name it ran into the next title
-    ax.set_title(method + (f"\n{n_bad} diverged" if n_bad else ""), fontsize=9)
+    ax.set_title(method + (f"\n{failed}" if failed else ""), fontsize=9)
     return mesh, np.where(status != 0, np.nan, logerr)
 
 

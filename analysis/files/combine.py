@@ -10,7 +10,9 @@ reason, exit status 2, and the output is not touched.
 
 Files of every layout are read as today's (gyrolab/results/layout.py ``current``: the ``method`` dim of
 layouts before 3 is ``integrator``, a four-field body gains mgc1 = mgc2 = 0) and the combined file
-is of today's layout (a variable an older layout lacks is left out of its ``variables`` attr).
+is of today's layout (a per-sample variable an older layout lacks is left out of its ``variables``
+attr; the per-run solver counts a file of layout 0 to 3 lacks are -1, "not counted", for its runs:
+gyrolab/results/migrate.py).
 
 Files made with the same scene, scene options, t_end, output.every and
 divergence threshold are joined along the grid axes (integrator, f, theta0, dt):
@@ -21,11 +23,11 @@ over f, theta0) must agree wherever tiles share an (f, theta0).  Groups that
 differ in those attrs are stacked along a new dimension: ``scene`` when each
 group is a different scene, else ``job``; the attrs that differ become
 coordinates along it, and points missing from a group's grid are NaN with
-status -1; every other attr that differs between the groups (``conserved``, ``closed_form``,
-``config``, ...) becomes such a coordinate too (a vector scene option as JSON text, coordinate
-attr ``encoding: json``), so that a member read back (analysis/io.py ``open_members``) carries
-its own attrs.  Each input file's provenance (config, git commit, creation time,
-path) is kept in variables along a ``source`` dimension.  The inputs are
+status -1 (n_steps 0, solver counts -1); every other attr that differs between the groups
+(``conserved``, ``closed_form``, ``config``, ...) becomes such a coordinate too (a vector scene
+option as JSON text, coordinate attr ``encoding: json``), so that a member read back
+(analysis/io.py ``open_members``) carries its own attrs.  Each input file's provenance (config,
+git commit, creation time, path) is kept in variables along a ``source`` dimension.  The inputs are
 loaded into memory; the output is written through a temporary file, fsync
 and rename (gyrolab/safe_files.py atomic_replace).
 """
@@ -52,11 +54,12 @@ from ...results.layout import (
     STATUS_ABSENT,
     VARIABLE_ATTRS,
     VARIABLES_ATTR,
+    held_run_variables,
     held_variables,
     sample_dims,
     variables_attr,
 )
-from ...results.migrate import file_layout_version
+from ...results.migrate import NOT_COUNTED, SOLVER_COUNTS, file_layout_version
 from ...results.validate import validate
 from ...safe_files import (
     OutputBusyError,
@@ -93,6 +96,10 @@ def load(path):
     except ValueError as err:
         raise CombineError(f"{path}: {err}") from None
     held = held_variables(ds, version)
+    for name in RUN_VARIABLES:  # the solver counts of a file of layout 0 to 3: not counted
+        if name not in ds.data_vars:
+            dtype, attrs = RUN_VARIABLES[name]
+            ds[name] = (GRID_DIMS, np.full(tuple(ds.sizes[d] for d in GRID_DIMS), NOT_COUNTED, dtype), attrs)
     ds.attrs["layout_version"] = LAYOUT_VERSION  # today's names and body now, what it holds named below
     if variables_attr(held) is not None:
         ds.attrs[VARIABLES_ATTR] = variables_attr(held)
@@ -115,7 +122,9 @@ def layout_problem(ds, version=None):
     expected = {
         name: dims
         for name, dims in LAYOUT_DIMS.items()
-        if (name not in SAMPLE_VARIABLES or name in held) and not (name in INPUT_VARIABLES and version == 0)
+        if (name not in SAMPLE_VARIABLES or name in held)
+        and not (name in INPUT_VARIABLES and version == 0)
+        and (name not in RUN_VARIABLES or name in held_run_variables(version))
     }
     for name, dims in expected.items():
         if name not in ds.data_vars:
@@ -125,7 +134,7 @@ def layout_problem(ds, version=None):
         units = VARIABLE_ATTRS[name].get("units")
         if ds[name].attrs.get("units") != units:
             return f"variable {name} has units {ds[name].attrs.get('units')!r}, expected {units!r}"
-    for name in RUN_VARIABLES:
+    for name in held_run_variables(version):
         if ds[name].dtype.kind not in "iu" and name != "wall_time":
             return f"variable {name} has dtype {ds[name].dtype}, expected integers"
     for name in expected:
@@ -239,14 +248,19 @@ def join_tiles(group, allow_identical_overlap=False):
                     "tiles must not overlap (--allow-identical-overlap accepts bit-identical runs)"
                 )
             for name in data:
-                if name != "wall_time" and not _same_bits(data[name][at][taken], ds[name].values[taken]):
+                mine, theirs = data[name][at][taken], ds[name].values[taken]
+                if name in SOLVER_COUNTS:  # a file of layout 0 to 3 did not count them (load): either will do
+                    counted = (mine != NOT_COUNTED) & (theirs != NOT_COUNTED)
+                    mine, theirs = mine[counted], theirs[counted]
+                if name != "wall_time" and not _same_bits(mine, theirs):
                     raise CombineError(
                         f"{path}: {name} of the runs it shares with {other} differs; "
                         "overlapping runs must be bit-identical"
                     )
         for name in data:
             block = data[name][at]
-            block[~taken] = ds[name].values[~taken]
+            fill = ~taken | (block == NOT_COUNTED) if name in SOLVER_COUNTS else ~taken
+            block[fill] = ds[name].values[fill]
             data[name][at] = block
         owner[at] = np.where(taken, owner[at], t)
         iat = np.ix_(*[[axes[d].index(v) for v in ds[d].values.tolist()] for d in INPUT_DIMS])
@@ -307,7 +321,7 @@ def _stack(merged, identities):
     differing = [k for k in keys if not all(k in a and _equal(a[k], attrs[0].get(k)) for a in attrs)]
     scenes = [i.get("scene") for i in identities]
     dim = "scene" if len(set(scenes)) == len(scenes) else "job"
-    fill = {"status": STATUS_ABSENT, "n_steps": 0}
+    fill = {"status": STATUS_ABSENT, "n_steps": 0} | {name: NOT_COUNTED for name in SOLVER_COUNTS}
     common = {k: attrs[0][k] for k in keys if k not in differing}
     shared = [m.drop_attrs(deep=False).assign_attrs(common) for m in merged]
     out = xr.concat(
@@ -321,8 +335,10 @@ def _stack(merged, identities):
         compat="equals",
     )
     out = out.assign_coords({k: _label([_plain(a.get(k)) for a in attrs], dim) for k in differing})
+    for name, (dtype, _) in RUN_VARIABLES.items():  # integers, filled where a group has no run
+        if name in out and np.dtype(dtype).kind in "iu":
+            out[name] = out[name].astype(dtype)
     if "status" in out:
-        out["status"] = out["status"].astype(np.int8)
         legend = out["status"].attrs.get("legend", "")
         out["status"].attrs["legend"] = f"{legend}; {STATUS_ABSENT}: not in this {dim}'s grid"
     return out

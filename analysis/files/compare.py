@@ -7,14 +7,15 @@ when ``|a − b| <= atol + rtol·max(|a|, |b|)`` (symmetric in A and B); NaN in
 both files at the same place counts as equal (a run that diverged in both),
 NaN against a number is a difference.  ``--scaled X`` sets each variable's atol to
 X times its largest |value| in B (the reference), so one number fits variables
-of any units and scene.  ``status`` and ``n_steps`` are compared
-exactly; ``wall_time`` is ignored (timing, not physics).  Tolerances default to
+of any units and scene.  ``status``, ``n_steps`` and the solver counts (``solver_iterations``,
+``solver_iterations_max``) are compared exactly; ``wall_time`` is ignored (timing, not physics).  Tolerances default to
 0: without options the files must be bit-identical.
 
 The runs (integrator, f, theta0, dt) are matched by label, in any order; the files
 must hold the same runs (``--shared-runs``: only those in both) and the same
 time samples.  Files of every layout compare with each other (an older layout's ``method`` dim
-is read as ``integrator``).  Two combined files (gyrolab-combine) compare member by member, the
+is read as ``integrator``; a variable one file's older layout lacks, such as the solver counts
+before layout 4, is named as not compared).  Two combined files (gyrolab-combine) compare member by member, the
 members (``scene`` or ``job``) matched by label like the runs; ``gyrolab-compare combined.h5
 scene=heavy_top one.h5`` compares one member with a one-scene file.  Differences in
 gyrolab/numba/numpy version or in the data-relevant config are printed before the table.
@@ -33,7 +34,7 @@ import numpy as np
 from ...results.layout import GRID_DIMS as RUN_DIMS
 from ...results.layout import INPUT_VARIABLES
 
-EXACT = ("status", "n_steps")
+EXACT = ("status", "n_steps", "solver_iterations", "solver_iterations_max")
 IGNORED = {"wall_time": "timing, not physics"}
 VERSION_ATTRS = ("gyrolab_version", "numba_version", "numpy_version")
 COORD_RTOL = 1e-9  # float coordinates (f, theta0, dt, time) match to this relative tolerance

@@ -329,6 +329,7 @@ def drift_records(ds):
                 for dt in ds.dt.values:
                     run = ds.sel({"integrator": m, "f": f, "theta0": th, "dt": dt})
                     n_steps = int(run.n_steps)
+                    solver = solver_counts(run)
                     for q in names:
                         e = signed_error(invariant(run, q).values)
                         d = classify_drift(t, e, preserved_ulps=preserved_ulps(n_steps))
@@ -349,6 +350,7 @@ def drift_records(ds):
                                 t_end=float(t[-1]),
                                 n_steps=n_steps,
                                 status=int(run.status),
+                                **solver,
                                 drift_class=d.drift_class,
                                 drift_rate=d.rate,
                                 drift_rate_unit=d.rate_unit,
@@ -411,6 +413,26 @@ def threshold_records(datasets, t_end, rtol=1e-3):
 
 
 # ---------------------------------------------------------------- the verdict
+
+
+SOLVER_KEYS = ("solver_iterations", "solver_iterations_max")
+
+
+def solver_counts(run):
+    """{solver_iterations, solver_iterations_max} of one run of a file (None where its layout has none,
+    kernels/methods/README.md "Solvers": 0 no solver, −1 not counted)."""
+    return {k: int(run[k]) if k in run else None for k in SOLVER_KEYS}
+
+
+def solver_words(rows):
+    """ "method 3.1 (5), ..." for the rows (summaries of one scene and (f, θ0)) of methods whose solver
+    counted iterations in their drift run: the mean a step and the most in one step; "" if none."""
+    seen = {}
+    for r in rows:
+        total, most, steps = r.get("solver_iterations"), r.get("solver_iterations_max"), r.get("n_steps")
+        if r["method"] not in seen and total and total > 0 and steps:
+            seen[r["method"]] = f"{r['method']} {total / steps:.3g} ({most})"
+    return ", ".join(seen.values())
 
 
 def _blank(**kw):
@@ -506,6 +528,7 @@ def _group_summaries(scene, m, f, th, order, group_runs, thr, quantities):
                         "t_end",
                         "n_steps",
                         "status",
+                        *SOLVER_KEYS,
                     )
                 }
             )
@@ -698,6 +721,9 @@ def table(records, width=TABLE_WIDTH):
         if run:
             dt, t_end = fmt_number(run["dt"]), fmt_number(run["t_end"])
             lines.append(f"  drift: dt = {dt} s over {t_end} s ({run['n_steps']:.3g} steps)")
+            solved = solver_words(rows)
+            if solved:
+                lines.append(_cell(f"  implicit solvers, iterations a step (most in one): {solved}", width).rstrip())
         head = [_cell("method", cols[0]), _cell("invariant", cols[1]), _cell("measured order", cols[2])]
         lines.append(" ".join(head + [_cell("drift", drift_w), "crit"]))
         shown = set()

@@ -19,9 +19,13 @@ netCDF-C) holds, for a grid of runs over ``GRID_DIMS``:
   resolved config as YAML and the provenance of the code
   (runner/provenance.py).
 
+Layout versions (``LAYOUT_VERSION``, the file attr ``layout_version``): 0 before the attr, without
+stored run inputs or L; 1 without gamma; 2 with a body of six fields; 3 the grid dim ``integrator``
+(was ``method``); 4 the per-run solver counts ``solver_iterations`` and ``solver_iterations_max``.
 Files of older layouts open with every reader through ``current``: layouts 0 to 2 called the
 grid dim ``integrator`` ``method``, a keyword of xarray's ``.sel`` (``ds.sel(method="rk4")``
-silently selected every method), and they lack what ``ABSENT_BEFORE`` lists.
+silently selected every method), and they lack what ``ABSENT_BEFORE`` lists (left absent, per-run
+variables too: gyrolab/results/migrate.py).
 
 Adding a per-sample variable (recipe, also in docs/design.md): a field in kernels/driver.py
 (``FIELDS`` and ``_record``) and its formula in kernels/reference.py (``samples_from_states``) if the
@@ -41,9 +45,9 @@ from ..kernels.body import FIELDS as BODY_FIELDS
 from ..kernels.body import UNITS as BODY_UNITS
 from ..kernels.driver import FIELDS as RAW_FIELDS
 from ..kernels.driver import STATUS_LEGEND
-from .migrate import ABSENT_BEFORE, file_layout_version
+from .migrate import ABSENT_BEFORE, NOT_COUNTED, file_layout_version
 
-LAYOUT_VERSION = 3
+LAYOUT_VERSION = 4
 GRID_DIMS = ("integrator", "f", "theta0", "dt")
 INPUT_DIMS = ("f", "theta0")  # a run's body and initial state depend on these only
 RAW_PER_SAMPLE = len(RAW_FIELDS)
@@ -110,6 +114,10 @@ SAMPLE_VARIABLES = {
         vector=True,
     ),
 }
+SOLVER_COUNT_NOTE = (
+    "{what} the run's steps; 0: the method has no iterative solver; "
+    f"{NOT_COUNTED}: not counted (an engine package, whose solver is not visible)"
+)
 RUN_VARIABLES = {
     "status": (
         np.int8,
@@ -117,6 +125,22 @@ RUN_VARIABLES = {
     ),
     "n_steps": (np.int64, {"units": "1", "long_name": "time steps taken"}),
     "wall_time": (np.float64, {"units": "s", "long_name": "wall-clock time of the run"}),
+    "solver_iterations": (
+        np.int64,
+        {
+            "units": "1",
+            "long_name": "implicit solver iterations over the run",
+            "description": SOLVER_COUNT_NOTE.format(what="fixed-point sweeps or Newton iterations summed over"),
+        },
+    ),
+    "solver_iterations_max": (
+        np.int64,
+        {
+            "units": "1",
+            "long_name": "most solver iterations in one step",
+            "description": SOLVER_COUNT_NOTE.format(what="the most fixed-point sweeps or Newton iterations of one of"),
+        },
+    ),
 }
 # Status of a grid point that a combined file's member does not have (gyrolab-combine fills the union
 # grid of its members; their data there is NaN).
@@ -210,13 +234,20 @@ WALL_TIME_NOTE = (
 )
 
 
+def held_run_variables(version):
+    """The per-run variables (RUN_VARIABLES order) every file of layout ``version`` holds: all but
+    what the layout lacks (``ABSENT_BEFORE``: the solver counts before layout 4)."""
+    absent = ABSENT_BEFORE.get(version, ())
+    return tuple(name for name in RUN_VARIABLES if name not in absent)
+
+
 def required_variables(version, ds=None):
     """{name: dims} every results file of layout ``version`` holds (grid dims first); with the
     opened file ``ds``, only the per-sample variables its writer chose (``held_variables``)."""
     absent = ABSENT_BEFORE.get(version, ())
     held = held_variables(ds, version) if ds is not None else SAMPLE_VARIABLES
     wanted = {name: GRID_DIMS + sample_dims(name) for name in SAMPLE_VARIABLES if name not in absent and name in held}
-    wanted.update({name: GRID_DIMS for name in RUN_VARIABLES})
+    wanted.update({name: GRID_DIMS for name in held_run_variables(version)})
     return wanted
 
 
@@ -229,6 +260,16 @@ def sample_variables(raw, names=None):
     """{name: values} of the per-sample variables ``names`` (None: every one) from raw kernel samples
     (..., time, RAW_PER_SAMPLE)."""
     return {name: v.derive(raw) for name, v in SAMPLE_VARIABLES.items() if names is None or name in names}
+
+
+def solver_variables(iterations):
+    """{solver_iterations, solver_iterations_max}: int64 (n,) of the (n, 2) array the kernels fill
+    (kernels/batch.py ``integrate(..., iterations=)``: each run's total and most in one step)."""
+    iterations = np.asarray(iterations, dtype=np.int64)
+    return {
+        "solver_iterations": iterations[..., 0].copy(),  # contiguous, and a 0-d array stays 0-d
+        "solver_iterations_max": iterations[..., 1].copy(),
+    }
 
 
 def unwrap_nan(phase):

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from .layout import GRID_DIMS, STATUS_ABSENT
+from .layout import GRID_DIMS, RUN_VARIABLES, STATUS_ABSENT
 
 # The leading dim gyrolab-combine stacks files along (analysis/files/combine.py): one scene per member, or
 # jobs of one scene with different options.  A selection ``scene=NAME`` / ``job=K`` picks a member.
@@ -56,7 +56,8 @@ def member(ds, label):
     one = one.isel({d: np.flatnonzero(mask) for d, mask in keep.items()})
     if "t_end" in attrs:  # a member of a shorter sweep: its own samples only
         one = one.isel(time=np.flatnonzero(one["time"].values <= float(attrs["t_end"]) * (1 + 1e-12)))
-    for name, dtype in (("status", np.int8), ("n_steps", np.int64)):
-        one[name] = one[name].astype(dtype)
+    for name, (dtype, _) in RUN_VARIABLES.items():  # integers again (an older combined file lacks the solver counts)
+        if name in one.data_vars and np.dtype(dtype).kind in "iu":
+            one[name] = one[name].astype(dtype)
     attrs["combined_member"] = f"{dim}={label}"
     return one.assign_attrs(attrs)

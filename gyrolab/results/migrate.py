@@ -1,7 +1,18 @@
 """Files of older layouts read as today's: renamed dims, today's body, what they lack left absent.
 
-Every reader opens files through ``current`` (gyrolab/results/open.py does), so
+Every reader opens files through ``current`` (gyrolab/results/reader.py does), so
 analysis code speaks only today's names.
+
+What an older layout lacks (``ABSENT_BEFORE``, per-sample and per-run variables alike) stays
+absent: it is never filled in on reading, so a reader cannot take an invented value for a stored
+one.  The reader (``layout.required_variables``), ``validate`` and gyrolab-compare (which reports a
+variable only one file's older layout lacks as not compared) follow ``ABSENT_BEFORE``.  The one
+exception is gyrolab-combine, which writes today's layout: the per-run solver counts
+(``SOLVER_COUNTS``) of a member of layout 0 to 3 are filled with ``NOT_COUNTED`` (-1, "not
+counted", the value an engine package's runs carry), as are the grid points a member does not have.
+
+Layouts: 0 (no ``layout_version`` attr) to 4 (``layout.LAYOUT_VERSION``); see ``ABSENT_BEFORE`` and
+``RENAMED_AT`` for what each changed, and docs/design.md.
 """
 
 from ..kernels.body import FIELDS as BODY_FIELDS
@@ -10,8 +21,13 @@ from ..kernels.body import FIELDS as BODY_FIELDS
 # Layout 0: files written before layout_version existed (gyrolab at c0ed527 and earlier), without
 # stored run inputs.  Layout 1: no gamma, and a body of four fields (I1, I2, I3, mgl: the centre of
 # mass on e3), read as today's Body with mgc1 = mgc2 = 0.  Layout 2: a body of six fields (no
-# driving torque), read as today's Body with the drive zero.
-ABSENT_BEFORE = {0: ("L", "gamma"), 1: ("gamma",)}
+# driving torque), read as today's Body with the drive zero.  Layouts 0 to 3: no per-run solver
+# counts (``solver_iterations``, ``solver_iterations_max``: added at layout 4).
+SOLVER_COUNTS = ("solver_iterations", "solver_iterations_max")
+ABSENT_BEFORE = {0: ("L", "gamma", *SOLVER_COUNTS), 1: ("gamma", *SOLVER_COUNTS), 2: SOLVER_COUNTS, 3: SOLVER_COUNTS}
+# The solver counts of a run whose iterations were not counted (an engine package's: its solver is
+# not visible), and what gyrolab-combine fills in where a member has none.
+NOT_COUNTED = -1
 # Dims renamed at a layout: {layout: {old name: new name}}, applied to files of every earlier layout.
 # Layout 3: ``method`` -> ``integrator`` (``method`` is a keyword of xarray's .sel).
 RENAMED_AT = {3: {"method": "integrator"}}

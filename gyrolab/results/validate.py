@@ -12,6 +12,8 @@ the dtypes, never the values, of the per-sample variables):
 - per-sample variables are float64 (the layout's; an int or float32 copy has lost digits);
 - status is an integer in the legend (kernels/driver.py; -1 marks a combined file's absent runs),
   n_steps a whole number >= 0;
+- the solver counts (layout 4 on; absent from older layouts, gyrolab/results/migrate.py) are
+  integers >= -1 (-1: not counted), -1 in both or in neither, the most in one step at most the total;
 - the fixed coordinates (xyz, quat, body_param) are the layout's, so a figure's ``.sel`` finds them;
 - the scene, its declared invariants and closed form are ones this gyrolab knows (a combined file's
   member labels are data, see gyrolab/safe_files.py, and not checked against the scene names);
@@ -26,6 +28,7 @@ import math
 import numpy as np
 
 from .layout import FIXED_COORDS, GRID_DIMS, LAYOUT_VERSION, RUN_VARIABLES, SAMPLE_VARIABLES, STATUS_ABSENT
+from .migrate import NOT_COUNTED, SOLVER_COUNTS
 
 # Relative tolerance of times against the file's every/t_end and n_steps x dt: times are written as
 # k x every, every as stride x dt (kernels/batch.py sample_schedule divides to 1e-9).
@@ -132,7 +135,7 @@ def _variables(ds):
         if name in ds.data_vars and ds[name].dtype != np.float64:
             raise ValueError(f"variable {name} is stored as {ds[name].dtype}, not float64")
     for name in RUN_VARIABLES:
-        if name == "wall_time":
+        if name == "wall_time" or name not in ds.data_vars:  # an older layout's (the reader checked which)
             continue
         values = ds[name].values
         if values.dtype.kind not in "iu":
@@ -147,6 +150,31 @@ def _variables(ds):
     steps = ds["n_steps"].values
     if np.any(steps < 0):
         raise ValueError(f"n_steps={_first(steps.ravel(), steps.ravel() < 0)} is negative")
+    _solver_counts(ds)
+
+
+def _solver_counts(ds):
+    """The per-run solver counts, when the file holds them (layout 4 on)."""
+    held = [name for name in SOLVER_COUNTS if name in ds.data_vars]
+    if len(held) < len(SOLVER_COUNTS):
+        if held:
+            raise ValueError(f"variable {held[0]} without {next(n for n in SOLVER_COUNTS if n not in held)}")
+        return
+    total, most = ds["solver_iterations"].values.ravel(), ds["solver_iterations_max"].values.ravel()
+    for name, values in (("solver_iterations", total), ("solver_iterations_max", most)):
+        if np.any(values < NOT_COUNTED):
+            raise ValueError(f"{name}={_first(values, values < NOT_COUNTED)} is below {NOT_COUNTED} (not counted)")
+    odd = (total == NOT_COUNTED) != (most == NOT_COUNTED)
+    if odd.any():
+        k = int(np.flatnonzero(odd)[0])
+        raise ValueError(
+            f"solver_iterations={total[k]} with solver_iterations_max={most[k]}: "
+            f"{NOT_COUNTED} (not counted) must be in both or in neither"
+        )
+    over = most > total
+    if over.any():
+        k = int(np.flatnonzero(over)[0])
+        raise ValueError(f"solver_iterations_max={most[k]} exceeds the run's total solver_iterations={total[k]}")
 
 
 def _fixed_coords(ds):
