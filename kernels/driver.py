@@ -1,8 +1,8 @@
 """Advance one run of a batch and record its samples; shared by every method.
 
 Each method module defines ``step(w, q, dt, body) -> (w, q)``; entry.py builds
-``advance_run = make_advance(step_counted)`` for it (the step and its solver's iterations, 0 for a
-method without one: entry.counted) and a ``run_batch`` that calls it inside one ``prange`` over runs.
+``advance_run = make_advance(step_counted, counting)`` for it (the step and its solver's iterations,
+0 for a method without one: entry.counted) and a ``run_batch`` that calls it inside one ``prange`` over runs.
 Each run's solver iterations (in all, most in one step) land in ``iterations`` (n, 2); a step whose
 solver did not converge ends its run with STATUS_UNCONVERGED.  The step is bound by a closure, not passed as an
 argument: numba lowers a dispatcher passed by value to a raw pointer, which
@@ -131,11 +131,13 @@ def _run_around(steps_and_samples):
     return advance_run
 
 
-def make_advance(step_counted):
+def make_advance(step_counted, counting):
     """``advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, iterations)``
     specialised to one method's counted step ``step_counted(w, q, dt, body) -> (w, q, n)``: the
-    method's ``step`` and the iterations n its solver took (0 for a method without one, entry.py's
-    ``counted``; n < 0: not converged after −n, the state NaN; methods/README.md, "Solvers").
+    method's ``step`` and the iterations n its solver took (n < 0: not converged after −n, the state
+    NaN; methods/README.md, "Solvers").  ``counting`` False (a method without a solver, whose n is 0:
+    entry.py's ``counted``) compiles the tally out of the loop: a test per step, even of a constant,
+    cost rk4 5–7 % one by one (measured).
 
     Integrates run i for ``strides[i]`` steps of ``dts[i]`` (s) per sample.
     Stops early, fills the remaining samples with NaN and sets ``status[i]``
@@ -150,9 +152,10 @@ def make_advance(step_counted):
         for k in range(1, out.shape[1]):
             for _ in range(stride):
                 w, q, n = step_counted(w, q, dt, body)
-                total, most, failed = _count(total, most, failed, n)
-                if failed:
-                    break
+                if counting:
+                    total, most, failed = _count(total, most, failed, n)
+                    if failed:
+                        break
             done += stride
             _record(out, i, k, w, q, body)
             if _stopped(out, i, k, tolerance, status, failed):
@@ -162,11 +165,12 @@ def make_advance(step_counted):
     return _run_around(steps_and_samples)
 
 
-def make_advance_carried(start, step_carried_counted):
+def make_advance_carried(start, step_carried_counted, counting):
     """``advance_run`` of ``make_advance`` for a method that carries state beyond (ω, q) from one step
     to the next (methods/README.md, "carried state": a multistep or generalized-α history such as
     lie_genalpha's accelerations): ``c = start(w, q, body)`` once from the run's initial state, then
-    ``w, q, c, n = step_carried_counted(w, q, c, dt, body)`` each step (n as in ``make_advance``).
+    ``w, q, c, n = step_carried_counted(w, q, c, dt, body)`` each step (n and ``counting`` as in
+    ``make_advance``).
     The carried state lives in the loop only: such a method runs one run after another (BLOCKS
     False), so a run is never cut into time segments and its carried state never needs to be saved;
     a resumed sweep runs it again whole."""
@@ -178,9 +182,10 @@ def make_advance_carried(start, step_carried_counted):
         for k in range(1, out.shape[1]):
             for _ in range(stride):
                 w, q, c, n = step_carried_counted(w, q, c, dt, body)
-                total, most, failed = _count(total, most, failed, n)
-                if failed:
-                    break
+                if counting:
+                    total, most, failed = _count(total, most, failed, n)
+                    if failed:
+                        break
             done += stride
             _record(out, i, k, w, q, body)
             if _stopped(out, i, k, tolerance, status, failed):
@@ -190,10 +195,10 @@ def make_advance_carried(start, step_carried_counted):
     return _run_around(steps_and_samples)
 
 
-def make_advance_driven(step_driven_counted):
+def make_advance_driven(step_driven_counted, counting):
     """``advance_run`` of ``make_advance`` for driven bodies (a torque that depends on time,
-    body.py): each step is ``step_driven_counted(w, q, t, dt, body) -> (w, q, n)`` (n as in
-    ``make_advance``) from t = n dt, n the steps taken, so that t carries no rounding accumulated
+    body.py): each step is ``step_driven_counted(w, q, t, dt, body) -> (w, q, n)`` (n and
+    ``counting`` as in ``make_advance``) from t = n dt, n the steps taken, so that t carries no rounding accumulated
     over the run.  The drive's window acts per step: a step whose midpoint t + dt/2 lies in
     [drive_on, drive_off] gets the body with its drive, any other the body with the drive's
     amplitude zeroed.  A window whose ends are multiples of dt is then exact; elsewhere the switch
@@ -213,9 +218,10 @@ def make_advance_driven(step_driven_counted):
                 else:
                     w, q, n = step_driven_counted(w, q, t, dt, idle)
                 done += 1
-                total, most, failed = _count(total, most, failed, n)
-                if failed:
-                    break
+                if counting:
+                    total, most, failed = _count(total, most, failed, n)
+                    if failed:
+                        break
             _record(out, i, k, w, q, body)
             if _stopped(out, i, k, tolerance, status, failed):
                 break
@@ -228,8 +234,7 @@ def make_advance_driven(step_driven_counted):
 
 @njit(cache=True, error_model="numpy", forceinline=True)
 def _count(total, most, failed, n):
-    """The run's solver tally after a step that took n iterations (n < 0: −n, not converged).
-    For a method without a solver n is the constant 0 and all of this folds away."""
+    """The run's solver tally after a step that took n iterations (n < 0: −n, not converged)."""
     m = -n if n < 0 else n
     return total + m, max(most, m), failed or n < 0
 

@@ -148,7 +148,7 @@ def _compiled_copy(function, module, tag, **loops):
 def counted(module):
     """The method's step with its solver's iterations, ``(w, q, n)``, for the drivers: its own
     ``step_counted`` (n < 0: not converged after −n) or, for a method without a solver, its
-    ``step`` with n = 0, a constant the compiled loop folds away."""
+    ``step`` with n = 0 (the loop around it does not count: ``counts_iterations``)."""
     if counts_iterations(module):
         return module.step_counted
     step = module.step
@@ -194,14 +194,17 @@ def add_entry_points(module, tag=""):
     ``run_batch_driven`` (if it has ``step_driven``) in ``module`` (a method module with ``step``);
     ``tag``: see ``_compiled_copy``."""
     if carries_state(module):
-        advance = make_advance_carried(module.start, counted_carried(module))
+        advance = make_advance_carried(module.start, counted_carried(module), counts_iterations(module))
     else:
-        advance = make_advance(counted(module))
+        advance = make_advance(counted(module), counts_iterations(module))
     module.run_batch = _compiled_copy(run_batch, module, tag, _advance_run=advance)
     if uses_blocks(module):
         module.run_blocks = _compiled_copy(run_blocks, module, tag, _advance_queue=make_advance_queue(module.step))
     if hasattr(module, "step_driven"):
         module.run_batch_driven = _compiled_copy(
-            run_batch_driven, module, tag, _advance_driven=make_advance_driven(counted_driven(module))
+            run_batch_driven,
+            module,
+            tag,
+            _advance_driven=make_advance_driven(counted_driven(module), counts_iterations(module)),
         )
     return module

@@ -261,7 +261,7 @@ def lie_poisson4_with(w1):
         w, q = strang_step(w, q, w1 * dt, body)
         return w, q, 0
 
-    advance = make_advance(step_counted)
+    advance = make_advance(step_counted, False)
 
     @njit
     def run_batch(w0_, q0_, bodies, dts, strides, threshold, out, status, n_steps, iterations):
