@@ -674,7 +674,10 @@ def _conditions(records, scene):
         (r["f"], r["theta0"], r["dt"], r["t_end"], r["n_steps"]) for r in runs if r.get("status") == 0
     ):
         f, th, dt, t_end, n = key
-        out.append(f"drift: f = {f:g} Hz, θ0 = {th:g}°, dt = {dt:g} s, t_end = {t_end:g} s ({n:.3g} steps)")
+        mine = [r for r in runs if (r["f"], r["theta0"], r["dt"], r["t_end"], r["n_steps"]) == key]
+        solved = solver_words(mine)
+        solved = f"; solver iterations a step (most in one step): {solved}" if solved else ""
+        out.append(f"drift: f = {f:g} Hz, θ0 = {th:g}°, dt = {dt:g} s, t_end = {t_end:g} s ({n:.3g} steps){solved}")
     thr = [r for r in records if r["kind"] == "threshold" and r["scene"] == scene]
     for key in dict.fromkeys((r["f"], r["theta0"], r["stability_t_end"], r["omega"]) for r in thr):
         f, th, t_end, omega = key
