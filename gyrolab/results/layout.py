@@ -78,6 +78,11 @@ def _phi(raw):
     return unwrap_nan(np.arctan2(raw[..., ay], raw[..., ax]))
 
 
+# The description of the per-run solver counts (RUN_VARIABLES), one sentence for both.
+SOLVER_COUNT_NOTE = (
+    "{what} the run's steps; 0: the method has no iterative solver; "
+    f"{NOT_COUNTED}: not counted (an engine package, whose solver is not visible)"
+)
 SAMPLE_VARIABLES = {
     "axis": SampleVariable(
         "1", "symmetry axis R e3 in the lab frame", lambda r: r[..., _raw("axis_x", "axis_y", "axis_z")], vector=True
@@ -114,10 +119,6 @@ SAMPLE_VARIABLES = {
         vector=True,
     ),
 }
-SOLVER_COUNT_NOTE = (
-    "{what} the run's steps; 0: the method has no iterative solver; "
-    f"{NOT_COUNTED}: not counted (an engine package, whose solver is not visible)"
-)
 RUN_VARIABLES = {
     "status": (
         np.int8,
