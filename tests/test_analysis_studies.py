@@ -142,3 +142,23 @@ def test_animation_writes_gif_frames(results_file, tmp_path):
     )
     with Image.open(out) as im:
         assert 5 <= im.n_frames <= 12
+
+
+@pytest.mark.slow
+def test_stability_map_rings_the_runs_whose_solver_gave_up(tmp_path):
+    """implicit_midpoint's fixed point does not converge at the 100 Hz top at dt = 1e-2 s: the cell is
+    ringed (not crossed), the panel counts it as a solver failure and the title says what a ring is."""
+    from gyrolab.kernels.driver import STATUS_UNCONVERGED
+
+    path = tmp_path / "stability.h5"
+    ds = build_dataset(
+        path, {"integrator": ["implicit_midpoint"], "f": [2.0, 100.0], "dt": [1e-3, 1e-2]}, t_end=0.2, every=1e-2
+    )
+    failed = ds.status.sel({"integrator": "implicit_midpoint", "theta0": 45.0}).values == STATUS_UNCONVERGED
+    assert failed.sum() >= 1 and (ds.status.values != 0).sum() == failed.sum()
+    fig = stability_figure(open_results(path))
+    ax = fig.axes[0]
+    rings = [ln for ln in ax.get_lines() if ln.get_marker() == "o"]
+    assert len(rings) == failed.sum() and not [ln for ln in ax.get_lines() if ln.get_marker() == "x"]
+    assert f"{failed.sum()} solver failed (o)" in ax.get_title() and "diverged (x)" not in ax.get_title()
+    assert "○: solver did not converge" in " ".join(fig._suptitle.get_text().split())  # wrapped to the width

@@ -210,10 +210,11 @@ def stability_figure(ds, sel=None, theta0=None, measure=None):
     against = (
         "" if measure == "energy" else f" against the {yardstick.label(sub)}".replace(" exact (", " exact motion (")
     )
+    ringed = "; ○: solver did not converge" if bool((sub.status == STATUS_UNCONVERGED).any()) else ""
     suptitle(
         fig,
         f"Stability map: {what}, θ0 = {float(th):g}°, {t_end:g} s; {what_err}{against}\n"
-        "numbers: log10 error; grey, red × hatched: diverged; dotted: ω3·dt = 0.01, 0.1, 1 rad per step",
+        f"numbers: log10 error; grey, red × hatched: diverged{ringed}; dotted: ω3·dt = 0.01, 0.1, 1 rad per step",
         fontsize=10.5,
         y=1.0 + 0.12 / rows,
     )
