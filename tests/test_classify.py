@@ -561,6 +561,7 @@ DRIFT_CASES = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", DRIFT_CASES, ids=lambda c: f"{c[0]}-{c[1]}")
 def test_energy_drift_class_from_theory(case):
     """Symplectic splittings: bounded; rk4: linear (RK4 damps every rotation by |P(iθ)|² = 1 −

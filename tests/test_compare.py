@@ -339,6 +339,7 @@ def test_a_combined_members_provenance_comes_from_its_source_variables(base, tmp
     assert free.headers[0].startswith("gyrolab 0.3.0, git 1111111111")  # each member its own source
 
 
+@pytest.mark.slow
 def test_solver_counts_are_compared_exactly(tmp_path):
     """One run's solver count differs: out of tolerance whatever the tolerances (and none can be
     given for it); the run and the variable are named."""

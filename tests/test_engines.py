@@ -282,6 +282,7 @@ CONFORMANCE = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scene, dt", CONFORMANCE)
 @pytest.mark.parametrize("integrator", MJ_INTEGRATOR)
 def test_mujoco_conformance(mujoco, integrator, scene, dt):

@@ -81,6 +81,7 @@ def test_a_sweep_with_a_bad_parameter_fails_before_any_work(tmp_path):
     assert not list(tmp_path.rglob("*.h5"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", WITH_PARAMETERS)
 def test_a_variant_at_the_defaults_is_the_method_bit_for_bit(name):
     """``variant(**defaults)`` (built here directly: the registry never builds it, the canonical name of
@@ -172,6 +173,7 @@ def test_lie_genalpha_rho_inf_sets_the_numerical_damping():
     assert drift["1.0"] < drift["0.5"] < drift["0.0"], drift
 
 
+@pytest.mark.slow
 def test_a_sweep_records_each_variant_it_ran(tmp_path):
     """A sweep of a method and two variants (one named twice, in two spellings) runs each through its own
     cached entry points and stores it under its canonical name; each run's last sample is that variant
@@ -201,6 +203,7 @@ def test_variants_cache_under_their_own_names():
     assert len(names) == 4 and "run_batch" in names
 
 
+@pytest.mark.slow
 def test_the_splitting_order_experiment_on_water(tmp_path):
     """``experiment=splitting_order``: SPC/E water labelled with the moments increasing (as LAMMPS labels
     it), so the shipped NO_SQUISH is lie_poisson in the order L-M-S (to rounding over 5000 steps);

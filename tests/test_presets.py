@@ -269,6 +269,7 @@ ORDER_CASES = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", ORDER_CASES)
 def test_declared_order_on_a_free_asymmetric_body(case, step_loop):
     """Final state after 1 s (ω/|ω0| and R) against DOP853, dt = 2e-3 .. 1.25e-4: log-log slope within 0.1 of

@@ -32,6 +32,7 @@ from helpers import (  # noqa: F401 (re-used by the tests below)
 )
 
 
+@pytest.mark.slow
 def test_a_sweep_without_figures_never_imports_xarray_or_matplotlib(tmp_path):
     """The runner writes the results through h5py: a sweep with ``output.figures=false`` (scripts, CI,
     the regression configs) imports neither xarray (with pandas ~0.35 s) nor matplotlib (~0.2 s); every
