@@ -97,6 +97,27 @@ def nonnegative(default, doc):
     return Parameter(default, _number(float, lambda v: 0.0 <= v < math.inf, "a number >= 0"), repr, doc)
 
 
+def choice(default, options, doc):
+    """One of the words ``options`` (case-insensitive); the kernel value is its index, 0 for the first."""
+    words = tuple(o.lower() for o in options)
+
+    def parse(text):
+        word = str(text).strip().lower()
+        if word not in words:
+            raise ValueError(f"{text!r} is not one of {', '.join(words)}")
+        return words.index(word)
+
+    return Parameter(default, parse, lambda index: words[index], doc)
+
+
+ACCUMULATE = choice(
+    "plain",
+    ("plain", "compensated"),
+    "how a splitting adds each flow to the state: plain (overwrite ω and q) or compensated (ω and q kept "
+    "as hi + lo, each flow added error-free as an increment: kernels/compensated.py)",
+)
+
+
 _NAME = re.compile(r"([A-Za-z_]\w*)\((.*)\)")
 _ITEM = re.compile(r"([A-Za-z_]\w*)=([^=,()]+)")
 

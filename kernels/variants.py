@@ -70,6 +70,7 @@ def carried_counted(start, step_carried_counted):
 
 
 STEP_FUNCTIONS = ("step_driven", "start", "step_carried", "step_counted", "step_driven_counted", "step_carried_counted")
+CARRIED_STEPS = {"step", "start", "step_carried"}  # what ``carried`` returns
 
 
 def steps_of(module):
@@ -82,13 +83,23 @@ def build(module, name, values):
     """The method ``module`` as ``name`` (its canonical name, kernels/parameters.py) with ``values``
     ({parameter: kernel value}) bound: a module with the variant's steps and its own entry points."""
     steps = module.variant(**values)
-    if set(steps) != steps_of(module):
+    needed = steps_of(module)
+    # A variant may carry state where the method does not (lie_poisson4(accumulate=compensated) carries
+    # the low parts of ω and q): it then defines a carried method's steps, and it is one in everything
+    # else too: no step_driven (the driven loop carries (ω, q) only), one run after another (BLOCKS).
+    carries = "step_carried" in steps and "step_carried" not in needed
+    if set(steps) != (CARRIED_STEPS if carries else needed):
         raise TypeError(
-            f"{module.__name__}.variant returned {sorted(steps)}; a variant of it defines {sorted(steps_of(module))}"
+            f"{module.__name__}.variant returned {sorted(steps)}; a variant of it defines {sorted(needed)}"
+            + (f" or, carrying state, {sorted(CARRIED_STEPS)}" if "step_carried" not in needed else "")
         )
     variant = types.ModuleType(module.__name__, module.__doc__)
-    variant.__dict__.update({k: v for k, v in vars(module).items() if k not in ENTRY_POINTS and k != "__spec__"})
+    variant.__dict__.update(
+        {k: v for k, v in vars(module).items() if k not in ENTRY_POINTS and k not in STEP_FUNCTIONS and k != "__spec__"}
+    )
     variant.__dict__.update(steps)
+    if carries:
+        variant.BLOCKS = False
     variant.METHOD, variant.NAME, variant.VALUES = module, name, dict(values)
     tag = hashlib.sha256(f"{name}\0{sorted(values.items())!r}".encode()).hexdigest()[:12]
     return add_entry_points(variant, tag=f"__v{tag}")

@@ -9,20 +9,30 @@ Symplectic; on a free body it is the exact solution to rounding at any dt.
 Source: H. Yoshida, "Construction of higher order symplectic integrators",
 Phys. Lett. A 150 (1990) 262, Table 1 (solution A); the exact free flow as in
 Celledoni, Fassò, Säfström & Zanna, SIAM J. Sci. Comput. 30 (2008) 2084.
+
+Parameter ``accumulate`` (default plain): ``compensated`` keeps ω and q as hi + lo and adds the kicks
+and the closed-form free flow of a body with I1 = I2 as error-free increments (kernels/compensated.py);
+an asymmetric body's elliptic flow is computed afresh each substep and stays uncompensated.  That
+variant carries the low parts from step to step, runs one run after another, and integrates undriven
+bodies only.
 """
 
 from numba import njit
 
+from .. import compensated
 from ..body import without_drive
 from ..compose import compose_kicks
 from ..euler_poinsot import free_flow_exact
 from ..free_flow import kick_at
+from ..parameters import ACCUMULATE
+from ..variants import carried
 
 ORDER = 6
 SYMPLECTIC = True
 FREE_EXACT = True  # on a torque-free body the step is the exact flow: error at rounding for any dt
 BLOCKS = False  # its libm-bound elliptic free flow does not vectorise: docs/benchmarks.md, "Off the block path"
 PRESERVES = ("L", "L_norm", "Lz", "L3")
+PARAMETERS = {"accumulate": ACCUMULATE}
 
 W1 = -1.17767998417887
 W2 = 0.235573213359357
@@ -43,3 +53,11 @@ def step_driven(w, q, t, dt, body):
 def step(w, q, dt, body):
     """One step of dt seconds of the body without its drive: step_driven from t = 0."""
     return step_driven(w, q, 0.0, dt, without_drive(body))
+
+
+def variant(accumulate):
+    """The method itself (``accumulate`` 0, plain), or with ``accumulate`` 1 the same map compensated
+    (kernels/compensated.py), a carried method."""
+    if accumulate:
+        return carried(compensated.start, compensated.kick_composition(WEIGHTS))
+    return {"step_driven": step_driven, "step": step}

@@ -1,0 +1,209 @@
+"""Compensated (error-free) accumulation of the state in the Lie–Poisson splittings (issue 22, item 4).
+
+A plain splitting overwrites ω and q with each flow's result: every flow rounds the whole state, and
+where a flow's rounding goes the same way step after step (a nearly constant turn, a product of nearly
+constant unit quaternions) the invariants drift linearly at round-off level.  Here the state is a sum
+``hi + lo`` of two doubles per component (``lo`` within half an ulp of ``hi``), and each flow is written
+as an increment to it, added error-free (two-sum, Knuth TAOCP vol. 2 §4.2.2; the compensated sums of
+IAS15, Rein & Spiegel, MNRAS 446 (2015) 1424, §2.3, and WHFast, Rein & Tamayo, MNRAS 452 (2015) 376):
+
+- a kick adds h τ/I to ω;
+- a turn of the body by a small rotation dq = 1 + (α, u) (α = cos(φ/2) − 1 = −sin²(φ/2)/(1 + cos(φ/2)),
+  computed without cancellation; u = sin(φ/2) n̂) adds the Hamilton product q ⊗ (α, u) to q, so the
+  rounding is that of the increment, ~φ/2 times smaller than of q ⊗ dq;
+- a turn of L_b in a plane by −φ is three shears (x += t y; y −= s x; x += t y with t = tan(φ/2),
+  s = sin φ; Paeth 1986): each shear has determinant 1 whatever its rounded coefficient, where the
+  matrix (cos, sin; −sin, cos) of rounded entries scales |L⊥| by a factor that rounds the same way
+  every step — the bias benchmarks/roundoff_bias.py found in lie_poisson4 (variant 3 there);
+- q is projected back to |q| = 1 by the increment −q (|q|² − 1)/2, |q|² from hi and lo.
+
+What is left per step is the rounding of the increments themselves, ~|increment|·eps.  The flows are
+those of kernels/free_flow.py (the exact symmetric free flow, or the axis splitting in a given order)
+and of kernels/euler_poinsot.py (whose elliptic flow of an asymmetric body is not an increment and is
+taken as it is), with gravity's kicks of an undriven body; ``strang_composition`` and
+``kick_composition`` compose them as kernels/compose.py does (the same maps to rounding), for the
+``accumulate=compensated`` variants of lie_poisson4 and split6_exact.  Those variants carry the low
+parts (ωl, ql) from step to step (kernels/variants.py ``carried``).  benchmarks/brouwer.py measures
+what it buys: the energy error against t over 1e8 steps, and its cost.
+"""
+
+from numba import njit
+
+from .euler_poinsot import free_flow_exact
+from .free_flow import resolve_axes
+from .rigid_body import gravity_torque
+from .rotation import half_angle, quat_from_rotvec, quat_mul
+
+
+@njit(cache=True, error_model="numpy")
+def _add(hi, lo, d):
+    """(hi, lo) + d, error-free: the sum s = hi + (d + lo) and its rounding error (two-sum)."""
+    y = d + lo
+    s = hi + y
+    b = s - hi
+    return s, (hi - (s - b)) + (y - b)
+
+
+@njit(cache=True, error_model="numpy")
+def _add3(w, wl, d0, d1, d2):
+    a0, l0 = _add(w[0], wl[0], d0)
+    a1, l1 = _add(w[1], wl[1], d1)
+    a2, l2 = _add(w[2], wl[2], d2)
+    return (a0, a1, a2), (l0, l1, l2)
+
+
+@njit(cache=True, error_model="numpy")
+def _add4(q, ql, d):
+    a0, l0 = _add(q[0], ql[0], d[0])
+    a1, l1 = _add(q[1], ql[1], d[1])
+    a2, l2 = _add(q[2], ql[2], d[2])
+    a3, l3 = _add(q[3], ql[3], d[3])
+    return (a0, a1, a2, a3), (l0, l1, l2, l3)
+
+
+@njit(cache=True, error_model="numpy")
+def _minus_one(a, u0, u1, u2):
+    """α = a − 1 of a unit quaternion (a, u) with a > 0, without cancellation: −|u|²/(1 + a)."""
+    return -(u0 * u0 + u1 * u1 + u2 * u2) / (1.0 + a)
+
+
+@njit(cache=True, error_model="numpy")
+def _normalize(q, ql):
+    """(q, ql) projected to |q| = 1: the increment −q (|q|² − 1)/2 (first order; |q|² − 1 ~ eps)."""
+    n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3] - 1.0
+    n2 += 2.0 * (q[0] * ql[0] + q[1] * ql[1] + q[2] * ql[2] + q[3] * ql[3])
+    k = -0.5 * n2
+    return _add4(q, ql, (k * q[0], k * q[1], k * q[2], k * q[3]))
+
+
+@njit(cache=True, error_model="numpy")
+def kick(w, wl, q, h, body):
+    """(ω, ωl) after gravity's torque at q acted for h seconds (orientation frozen)."""
+    t0, t1, t2 = gravity_torque(q, body)
+    return _add3(w, wl, h * t0 / body[0], h * t1 / body[1], h * t2 / body[2])
+
+
+@njit(cache=True, error_model="numpy")
+def _shear_turn(x, xl, y, yl, t, s, kx, ky):
+    """Turn (x, y) by −φ as three shears, x += t y; y −= s x; x += t y (t = tan(φ/2), s = sin φ), with
+    x and y the components of ω whose L = I ω turn: kx = I_y/I_x and ky = I_x/I_y carry L's shear to ω."""
+    x, xl = _add(x, xl, t * kx * y)
+    y, yl = _add(y, yl, -s * ky * x)
+    x, xl = _add(x, xl, t * kx * y)
+    return x, xl, y, yl
+
+
+@njit(cache=True, error_model="numpy")
+def _axis_turn(w, wl, q, ql, axis, h, body):
+    """The flow of L_k²/(2 I_k) for h seconds, compensated: the body turns by φ = ω_k h about e_k, L_b by −φ."""
+    c, s = half_angle(w[axis] * h)
+    u = (s if axis == 0 else 0.0, s if axis == 1 else 0.0, s if axis == 2 else 0.0)
+    q, ql = _add4(q, ql, quat_mul(q, (_minus_one(c, 0.0, 0.0, s), u[0], u[1], u[2])))
+    t, sp = s / c, 2.0 * s * c  # tan(φ/2), sin φ
+    # L_b turns in the plane (e_i, e_j), i, j = axis + 1, axis + 2 (mod 3): x = L_i, y = L_j
+    if axis == 0:
+        x, xl, y, yl = _shear_turn(w[1], wl[1], w[2], wl[2], t, sp, body[2] / body[1], body[1] / body[2])
+        return (w[0], x, y), (wl[0], xl, yl), q, ql
+    if axis == 1:
+        x, xl, y, yl = _shear_turn(w[2], wl[2], w[0], wl[0], t, sp, body[0] / body[2], body[2] / body[0])
+        return (y, w[1], x), (yl, wl[1], xl), q, ql
+    x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], t, sp, body[1] / body[0], body[0] / body[1])
+    return (x, y, w[2]), (xl, yl, wl[2]), q, ql
+
+
+@njit(cache=True, error_model="numpy")
+def _symmetric_flow(w, wl, q, ql, h, body):
+    """The exact torque-free flow of a body with I1 = I2 (kernels/free_flow.free_flow's), compensated:
+    R(h) = R0 Rot(ω⊥ h + (I3/I1) ω3 h e3) Rot(c h e3), L_b turned by −c h about e3, c = (1 − I3/I1) ω3."""
+    I1, I3 = body[0], body[2]
+    c = (1.0 - I3 / I1) * w[2]
+    a1, u0, u1, u2 = quat_from_rotvec(w[0] * h, w[1] * h, I3 / I1 * w[2] * h)
+    al1 = _minus_one(a1, u0, u1, u2)
+    ch, sh = half_angle(c * h)
+    al2 = _minus_one(ch, 0.0, 0.0, sh)
+    # (1 + α1, u) ⊗ (1 + α2, sh e3) = 1 + (α1 + α2 + α1 α2 − u3 sh, u + sh e3 + α1 sh e3 + α2 u + u × sh e3)
+    alpha = al1 + al2 + (al1 * al2 - u2 * sh)
+    v0 = u0 + (al2 * u0 + u1 * sh)
+    v1 = u1 + (al2 * u1 - u0 * sh)
+    v2 = sh + u2 + (al1 * sh + al2 * u2)
+    q, ql = _add4(q, ql, quat_mul(q, (alpha, v0, v1, v2)))
+    q, ql = _normalize(q, ql)
+    x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], sh / ch, 2.0 * sh * ch, 1.0, 1.0)
+    return (x, y, w[2]), (xl, yl, wl[2]), q, ql
+
+
+@njit(cache=True, error_model="numpy")
+def free_flow(w, wl, q, ql, h, body, axes):
+    """kernels/free_flow.free_flow_axes compensated: the exact flow when I1 = I2, else the axis splitting
+    a(h/2) b(h/2) c(h) b(h/2) a(h/2) in the order ``axes`` (kernels/parameters.py codes, resolve_axes)."""
+    if body[0] == body[1]:
+        return _symmetric_flow(w, wl, q, ql, h, body)
+    a, b, c = resolve_axes(body, axes)
+    half = 0.5 * h
+    w, wl, q, ql = _axis_turn(w, wl, q, ql, a, half, body)
+    w, wl, q, ql = _axis_turn(w, wl, q, ql, b, half, body)
+    w, wl, q, ql = _axis_turn(w, wl, q, ql, c, h, body)
+    w, wl, q, ql = _axis_turn(w, wl, q, ql, b, half, body)
+    w, wl, q, ql = _axis_turn(w, wl, q, ql, a, half, body)
+    q, ql = _normalize(q, ql)
+    return w, wl, q, ql
+
+
+@njit(cache=True, error_model="numpy")
+def exact_flow(w, wl, q, ql, h, body):
+    """kernels/euler_poinsot.free_flow_exact, compensated where it is written as increments: the closed-form
+    flow of a body with I1 = I2.  Any other body's elliptic flow computes ω(h) and q(h) afresh from the
+    state, not as increments: taken as it is (its rounding, ~eps |ω| a step, is not compensated), with
+    the low parts dropped."""
+    if body[0] == body[1]:
+        return _symmetric_flow(w, wl, q, ql, h, body)
+    w, q = free_flow_exact(w, q, h, body)
+    return w, (0.0, 0.0, 0.0), q, (0.0, 0.0, 0.0, 0.0)
+
+
+@njit(cache=True, error_model="numpy")
+def strang_step(w, wl, q, ql, h, body, axes):
+    """lie_poisson's step of an undriven body compensated: kick(h/2) free_flow(h) kick(h/2)."""
+    w, wl = kick(w, wl, q, 0.5 * h, body)
+    w, wl, q, ql = free_flow(w, wl, q, ql, h, body, axes)
+    w, wl = kick(w, wl, q, 0.5 * h, body)
+    return w, wl, q, ql
+
+
+@njit(cache=True, error_model="numpy")
+def start(w, q, body):
+    """A run's carried state: the low parts (ωl, ql) of ω and q, zero at the start."""
+    return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0)
+
+
+def strang_composition(weights, axes):
+    """``step_carried(w, q, c, dt, body) -> (w, q, c)``: the composition of compensated Strang steps of
+    ``weights[k] * dt`` (kernels/compose.py compose_steps' map, undriven), c = (ωl, ql)."""
+    weights = tuple(float(x) for x in weights)
+
+    @njit(error_model="numpy")
+    def step_carried(w, q, c, dt, body):
+        wl, ql = c
+        for k in range(len(weights)):
+            w, wl, q, ql = strang_step(w, wl, q, ql, weights[k] * dt, body, axes)
+        return w, q, (wl, ql)
+
+    return step_carried
+
+
+def kick_composition(weights):
+    """``step_carried`` of the composition with merged kicks and exact free flows (kernels/compose.py
+    compose_kicks' map, undriven), compensated: n exact flows ``exact_flow`` and n + 1 kicks."""
+    weights = tuple(float(x) for x in weights)
+    kicks = tuple([0.5 * weights[0]] + [0.5 * (a + b) for a, b in zip(weights, weights[1:])] + [0.5 * weights[-1]])
+
+    @njit(error_model="numpy")
+    def step_carried(w, q, c, dt, body):
+        wl, ql = c
+        for k in range(len(weights)):
+            w, wl = kick(w, wl, q, kicks[k] * dt, body)
+            w, wl, q, ql = exact_flow(w, wl, q, ql, weights[k] * dt, body)
+        w, wl = kick(w, wl, q, kicks[-1] * dt, body)
+        return w, q, (wl, ql)
+
+    return step_carried
