@@ -62,7 +62,7 @@ def main():
                 path: time_path(method, scene, path, args.runs, args.steps, args.repeat, args.f, args.dt)
                 for path in paths
             }
-            print(f"{scene:16s} {method:13s} " + "  ".join(f"{p} {t:7.2f}" for p, t in row.items()), flush=True)
+            print(f"{scene:16s} {method:36s} " + "  ".join(f"{p} {t:7.2f}" for p, t in row.items()), flush=True)
 
 
 if __name__ == "__main__":
