@@ -29,6 +29,7 @@ what it buys: the energy error against t over 1e8 steps, and its cost.
 
 from numba import njit
 
+from .compose import merged_kicks
 from .euler_poinsot import free_flow_exact
 from .free_flow import resolve_axes
 from .rigid_body import gravity_torque
@@ -195,7 +196,7 @@ def kick_composition(weights):
     """``step_carried`` of the composition with merged kicks and exact free flows (kernels/compose.py
     compose_kicks' map, undriven), compensated: n exact flows ``exact_flow`` and n + 1 kicks."""
     weights = tuple(float(x) for x in weights)
-    kicks = tuple([0.5 * weights[0]] + [0.5 * (a + b) for a, b in zip(weights, weights[1:])] + [0.5 * weights[-1]])
+    kicks = merged_kicks(weights)
 
     @njit(error_model="numpy")
     def step_carried(w, q, c, dt, body):

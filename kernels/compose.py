@@ -54,7 +54,7 @@ def compose_kicks(kick_at, flow, weights):
     ``weights[k] * dt``, one after another with adjacent half kicks merged; ``kick_at(w, q, h, t,
     body) -> w`` and ``flow(w, q, h, body) -> (w, q)``, times as in the module docstring."""
     weights = _check(weights)
-    kicks = [0.5 * weights[0]] + [0.5 * (a + b) for a, b in zip(weights, weights[1:])] + [0.5 * weights[-1]]
+    kicks = merged_kicks(weights)
     link = _last_kick(kick_at, kicks[-1])
     for k in reversed(range(len(weights))):
         link = _kick_and_flow(kick_at, flow, kicks[k], weights[k], link)
@@ -64,6 +64,13 @@ def compose_kicks(kick_at, flow, weights):
         return link(w, q, t, t, dt, body)
 
     return composed
+
+
+def merged_kicks(weights):
+    """The n + 1 kicks, as fractions of dt, of n Strang steps of ``weights`` with adjacent half kicks
+    merged: ½ w_0, ½ (w_0 + w_1), …, ½ (w_{n−2} + w_{n−1}), ½ w_{n−1}."""
+    weights = _check(weights)
+    return tuple([0.5 * weights[0]] + [0.5 * (a + b) for a, b in zip(weights, weights[1:])] + [0.5 * weights[-1]])
 
 
 def _check(weights):
