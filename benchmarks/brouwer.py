@@ -161,6 +161,14 @@ def main(argv=None):
     ap.add_argument("--verbose", action="store_true", help="print each RMS curve at nine times")
     ap.add_argument("--figure", default=None, help="PNG of the RMS curves (default: none)")
     args = ap.parse_args(argv)
+    if min(args.runs, args.plain_runs) < 2 or args.samples < 10 or args.steps < args.samples:
+        ap.error("--runs and --plain-runs take at least 2 runs, --samples at least 10, --steps at least --samples")
+    for given, known in ((args.scenes, SCENES), (args.methods, METHODS)):
+        unknown = [x for x in given.split(",") if x not in known]
+        if unknown:
+            ap.error(f"{unknown[0]!r}: choose from {', '.join(known)}")
+    if args.figure and not args.figure.endswith(".png"):
+        ap.error("--figure: a .png path")
     n = args.samples + 1
     stride = max(1, round(args.steps / args.samples))
     rng = np.random.default_rng(args.seed)
@@ -221,6 +229,8 @@ def _figure(curves, args):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from gyrolab.analysis.io import save_figure
+
     scenes = list(dict.fromkeys(c[0] for c in curves))
     fig, axes = plt.subplots(1, len(scenes), figsize=(6.2 * len(scenes), 4.8), squeeze=False)
     colours = {"lie_poisson4": "tab:blue", "split6_exact": "tab:red"}
@@ -243,8 +253,7 @@ def _figure(curves, args):
         ax.legend(fontsize=7, loc="best")
     fig.suptitle("Energy round-off: state overwritten by each flow (dotted) or accumulated error-free (solid)")
     fig.tight_layout()
-    fig.savefig(args.figure, dpi=120)
-    print(f"figure: {args.figure}")
+    print(f"figure: {save_figure(fig, args.figure)}")  # through a private temporary, never through a link
 
 
 if __name__ == "__main__":
