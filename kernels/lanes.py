@@ -10,11 +10,12 @@ numba function it calls, with three changes and nothing else:
   the loop over lanes (numba's own ``inline="always"`` does the same on its
   IR, but takes ~100 s for lie_poisson4's ~140 nested calls);
 - ``quat_from_rotvec`` and ``half_angle``, the two helpers that branch between
-  the small-angle series, its doubled form (from SMALL_ANGLE) and libm (from
+  the small-angle series, its longer form (from SMALL_ANGLE) and libm (from
   WIDE_ANGLE), take the series and return NaN where the original would not
   (angle ≥ SMALL_ANGLE or NaN).  ``lane_step(step, wide=True)`` takes the series or
-  its doubled form by a select, NaN only where the original calls libm: a few
-  more operations a rotation, for blocks whose lanes turn by more (block.py).
+  its longer form (the last coefficients selected), NaN only where the original
+  calls libm: a few more operations a rotation, for blocks whose lanes turn by
+  more (block.py).
 
 So on every lane where the result is finite it is bit for bit what ``step``
 returns (same operations in the same order; numba never contracts a·b + c
@@ -68,16 +69,19 @@ def _half_angle_or_nan(phi):
 
 @njit
 def _cos_sinc_half_or_nan(angle2):
-    """rotation's _cos_sinc_half below SMALL_ANGLE², _cos_sinc_half_wide (the same operations, in
-    order) up to WIDE_ANGLE², cos = NaN beyond (or for NaN); one polynomial, selects, no branch."""
+    """rotation's _cos_sinc_half below SMALL_ANGLE², _cos_sinc_half_wide up to WIDE_ANGLE², cos = NaN beyond
+    (or for NaN); one polynomial, no branch: the wide series' operations in order, its last coefficients
+    selected to 0 below SMALL_ANGLE², where h2·(0 + h2·(0 + h2·0)) = +0 leaves _cos_sinc_half's own
+    operations and bits (1/40320 + 0 is 1/40320)."""
     small = angle2 < _SMALL_ANGLE2
-    a2 = angle2 if small else 0.0625 * angle2
-    c, s = _cos_sinc_half(a2)
-    c1, s1 = 1.0 - 2.0 * s * s * a2, s * c
-    a2 = 4.0 * a2
-    c2, s2 = 1.0 - 2.0 * s1 * s1 * a2, s1 * c1
-    if not small:
-        c, s = c2, s2
+    c14, c12, c10 = (0.0, 0.0, 0.0) if small else (-1.0 / 87178291200, 1.0 / 479001600, -1.0 / 3628800)
+    s12, s10 = (0.0, 0.0) if small else (1.0 / 12454041600, -1.0 / 79833600)
+    h2 = 0.25 * angle2
+    c = c12 + h2 * c14
+    c = 1.0 / 40320 + h2 * (c10 + h2 * c)
+    c = 1.0 + h2 * (-1.0 / 2 + h2 * (1.0 / 24 + h2 * (-1.0 / 720 + h2 * c)))
+    s = 1.0 / 725760 + h2 * (s10 + h2 * s12)
+    s = 0.5 + h2 * (-1.0 / 12 + h2 * (1.0 / 240 + h2 * (-1.0 / 10080 + h2 * s)))
     if not angle2 < _WIDE_ANGLE2:
         c = math.nan
     return c, s
@@ -107,7 +111,7 @@ _REPLACED_WIDE = {
 
 def lane_step(step, wide=False):
     """njit ``(w, q, dt, body) -> (w, q)``: ``step`` recompiled as described above (``wide``: the
-    doubled series too, NaN only from WIDE_ANGLE); non-finite output means "recompute this lane
+    longer series too, NaN only from WIDE_ANGLE); non-finite output means "recompute this lane
     with ``ieee_step(step)``"."""
     return _recompile(step, {}, _REPLACED_WIDE if wide else _REPLACED, {"forceinline": True})
 
