@@ -116,13 +116,13 @@ def main():
     rows = [
         (
             f"shipped steps(): {m} steps, then the non-finite check (symmetric pass)",
-            timed(lambda k: shipped(W, Q, B, DT, S, BAD, n, k, True, 0), n, m, args.repeat),
+            timed(lambda k: shipped(W, Q, B, DT, S, BAD, n, k, True, 0, 0), n, m, args.repeat),
         )
     ]
     rows.append(
         (
             "  same, general pass (I2 read from B)",
-            timed(lambda k: shipped(W, Q, B, DT, S, BAD, n, k, False, 0), n, m, args.repeat),
+            timed(lambda k: shipped(W, Q, B, DT, S, BAD, n, k, False, 0, 0), n, m, args.repeat),
         )
     )
     for label, variant in [

@@ -41,12 +41,19 @@ VECTOR = 8
 
 # After a sample interval where more than 1/WIDE_FRACTION of a block's lanes turned
 # by SMALL_ANGLE or more in a rotation, the block redoes it with the wide pass
-# (lane_step(step, wide=True): the series doubled up to WIDE_ANGLE) and runs the
-# next WIDE_INTERVALS intervals with it; where more than that fraction needed libm
-# even so, with the libm pass (ieee_step inlined and vectorised).  The fast pass
-# itself stays free of the doubling's operations (~30 % of lie_poisson4's step).
+# (lane_step(step, wide=True): the longer series up to WIDE_ANGLE) and runs a stretch
+# of the next intervals with it; where more than that fraction needed libm even so,
+# with the libm pass (ieee_step inlined and vectorised).  The fast pass itself stays
+# free of the longer series' operations.  A stretch is WIDE_INTERVALS intervals; when
+# the fast pass fails again in the interval right after one, the next stretch is twice
+# as long, up to MAX_STRETCH: a block that keeps turning that far (lie_poisson4 at
+# dt = 1e-3 s on the 50 Hz top) would otherwise pay a failed fast interval in every
+# eight.  Where the fast pass has not held yet (a block's first interval, the first
+# after a stretch), it is tried for one step before the rest of the interval.  Which
+# pass computes a lane never changes its bits, only the cost.
 WIDE_FRACTION = 4
 WIDE_INTERVALS = 7
+MAX_STRETCH = 16 * WIDE_INTERVALS
 
 
 # Lane-pass modes: what every lane of a block shares, as a compile-time constant of its pass
@@ -67,8 +74,11 @@ def block_mode(B, n):
 
 
 def make_block_steps(step):
-    """``steps(W, Q, B, DT, S, BAD, n_lanes, m, mode, wide) -> wide``: m steps of ``step`` on
-    lanes 0 .. n_lanes − 1.  ``wide`` > 0: intervals left on the wide pass, < 0: on the libm pass.
+    """``steps(W, Q, B, DT, S, BAD, n_lanes, m, mode, wide, stretch) -> (wide, stretch)``: m steps of
+    ``step`` on lanes 0 .. n_lanes − 1.  ``wide`` > 0: intervals left on the wide pass, < 0: on the libm
+    pass; ``stretch``: the length of the last stretch on either, 0 once the fast pass has held, −1 before
+    the block's first interval.  Where the fast pass has not held yet (``stretch`` ≠ 0) it is tried for one
+    step before the other m − 1.
 
     W (3, ≥ n_lanes) body ω (rad/s), Q (4, ·) quaternions, updated in place;
     B (N_BODY, ·) bodies, DT (·,) steps (s); S (7, ·) float and BAD (·,) uint8
@@ -81,8 +91,9 @@ def make_block_steps(step):
     next).  Checking once per m steps instead of after each one saves ~20 %.
     When many lanes turn by more than SMALL_ANGLE a rotation, all lanes are redone
     with the wide pass, and when many need libm even so (rotations beyond
-    WIDE_ANGLE), with the vectorised libm pass; either is used for the next
-    intervals too (``wide`` counts them down; each has a SYMMETRIC_TOP and a
+    WIDE_ANGLE), with the vectorised libm pass; either is used for a stretch of
+    the next intervals too (``wide`` counts them down; the stretch doubles while
+    the fast pass keeps failing right after one; each has a SYMMETRIC_TOP and a
     GENERAL pass only).
     """
     fast, exact, libm = lane_step(step), ieee_step(step), ieee_step(step, inline=True)
@@ -124,10 +135,20 @@ def make_block_steps(step):
             Q[0, j], Q[1, j], Q[2, j], Q[3, j] = S[3, j], S[4, j], S[5, j], S[6, j]
 
     @njit(error_model="numpy")
-    def steps(W, Q, B, DT, S, BAD, n_lanes, m, mode, wide):
+    def with_fast(W, Q, B, DT, n_lanes, m, mode):
+        for _ in range(m):
+            if mode == SYMMETRIC_TOP:
+                symmetric_pass(W, Q, B, DT, n_lanes)
+            elif mode == FREE:
+                free_pass(W, Q, B, DT, n_lanes)
+            else:
+                general(W, Q, B, DT, n_lanes)
+
+    @njit(error_model="numpy")
+    def steps(W, Q, B, DT, S, BAD, n_lanes, m, mode, wide, stretch):
         if wide < 0:
             with_libm(W, Q, B, DT, n_lanes, m, mode)
-            return wide + 1
+            return wide + 1, stretch
         for j in range(n_lanes):
             S[0, j], S[1, j], S[2, j] = W[0, j], W[1, j], W[2, j]
             S[3, j], S[4, j], S[5, j], S[6, j] = Q[0, j], Q[1, j], Q[2, j], Q[3, j]
@@ -136,23 +157,30 @@ def make_block_steps(step):
             with_wide(W, Q, B, DT, n_lanes, m, mode)
             wide -= 1
         else:
-            for _ in range(m):
-                if mode == SYMMETRIC_TOP:
-                    symmetric_pass(W, Q, B, DT, n_lanes)
-                elif mode == FREE:
-                    free_pass(W, Q, B, DT, n_lanes)
-                else:
-                    general(W, Q, B, DT, n_lanes)
+            done = 0
+            while done < m:  # one call site: the passes are inlined once (compile time)
+                # Where the fast pass is unproven (the block's first interval, or the first after a stretch
+                # on a dearer pass) one step first, so that lanes that still turn too far are found after one
+                # step instead of m (a sweep of 4 samples a run lost a quarter of its steps to the failed pass).
+                k = 1 if done == 0 and stretch != 0 else m - done
+                with_fast(W, Q, B, DT, n_lanes, k, mode)
+                done += k
+                if done < m and WIDE_FRACTION * count_bad(W, Q, BAD, n_lanes) > n_lanes:
+                    break
         n_bad = count_bad(W, Q, BAD, n_lanes)
         if WIDE_FRACTION * n_bad > n_lanes and not ran_wide:  # the fast pass: many lanes turned further
+            stretch = min(2 * stretch, MAX_STRETCH) if stretch > 0 else WIDE_INTERVALS
             restore(W, Q, S, n_lanes)
             with_wide(W, Q, B, DT, n_lanes, m, mode)
-            wide = WIDE_INTERVALS
+            wide = stretch
             n_bad = count_bad(W, Q, BAD, n_lanes)
+        elif not ran_wide:
+            stretch = 0  # the fast pass held: a later failure starts with a short stretch again
         if WIDE_FRACTION * n_bad > n_lanes:  # the wide pass: many lanes need libm
             restore(W, Q, S, n_lanes)
             with_libm(W, Q, B, DT, n_lanes, m, mode)
-            return -WIDE_INTERVALS
+            stretch = max(stretch, WIDE_INTERVALS)
+            return -stretch, stretch
         if n_bad:
             for j in range(n_lanes):
                 if BAD[j]:
@@ -162,7 +190,7 @@ def make_block_steps(step):
                         w, q = exact(w, q, DT[j], body)
                     W[0, j], W[1, j], W[2, j] = w
                     Q[0, j], Q[1, j], Q[2, j], Q[3, j] = q
-        return wide
+        return wide, stretch
 
     return steps
 
@@ -236,13 +264,13 @@ def make_advance_block(step):
             TOL[j] = threshold * (kinetic_energy(w, body) + potential_scale(body))
             status[i] = STATUS_OK
             n_steps[i] = 0
-        mode, wide = block_mode(B, size), 0
+        mode, wide, stretch = block_mode(B, size), 0, -1  # -1: the fast pass not yet tried
         active = n if out.shape[1] > 1 else 0
         while active > 0:
             m = LEFT[0]
             for j in range(1, active):
                 m = min(m, LEFT[j])
-            wide = steps(W, Q, B, DT, S, BAD, -(-active // VECTOR) * VECTOR, m, mode, wide)
+            wide, stretch = steps(W, Q, B, DT, S, BAD, -(-active // VECTOR) * VECTOR, m, mode, wide, stretch)
             j = 0
             while j < active:
                 LEFT[j] -= m

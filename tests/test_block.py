@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from gyrolab.kernels.batch import MIN_BLOCK_RUNS, integrate, sample_schedule
-from gyrolab.kernels.block import VECTOR, WIDE_INTERVALS, make_block_steps, plan_blocks
+from gyrolab.kernels.block import MAX_STRETCH, VECTOR, WIDE_INTERVALS, make_block_steps, plan_blocks
 from gyrolab.kernels.body import is_driven
 from gyrolab.kernels.driver import N_FIELDS, STATUS_ENERGY, STATUS_NONFINITE, STATUS_OK
 from gyrolab.kernels.lanes import (
@@ -202,7 +202,7 @@ def test_runs_path_reports_the_overflowing_run():
 )
 def test_replaced_helpers_switch_exactly_where_rotation_py_does(quat, half, edge):
     """Below their edge (SMALL_ANGLE for the fast pass's helpers: the series; WIDE_ANGLE for the wide pass's:
-    the series and, from SMALL_ANGLE, its doubled form) the NaN-poisoned helpers are rotation.py's, bit for
+    the series and, from SMALL_ANGLE, its longer form) the NaN-poisoned helpers are rotation.py's, bit for
     bit; from the first angle where rotation.py takes another branch on, they return NaN."""
     u = np.array([0.6, -0.48, 0.64])
     angles = [0.0, 1e-12, 0.1, np.nextafter(SMALL_ANGLE, 0.0), SMALL_ANGLE, 0.3, 0.5, np.nextafter(WIDE_ANGLE, 0.0)]
@@ -247,7 +247,7 @@ def test_block_loop_is_vectorised():
     n = VECTOR
     W, Q, B, DT = np.zeros((3, n)), np.zeros((4, n)), np.ones((4, n)), np.zeros(n)
     Q[0] = 1.0
-    steps(W, Q, B, DT, np.empty((7, n)), np.zeros(n, np.uint8), n, 1, False, 0)
+    steps(W, Q, B, DT, np.empty((7, n)), np.zeros(n, np.uint8), n, 1, False, 0, 0)
     ir = steps.inspect_llvm(steps.signatures[0])
     assert "fdiv <" in ir and "fmul <" in ir and " x double>" in ir
 
@@ -271,27 +271,56 @@ def large_rotation_lanes(scale):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("scale, lanes_on_wide, returned", [(WIDE_ANGLE / 25, 2, (0, 0)), (WIDE_ANGLE / 12, 4, (7, 6))])
-def test_many_rotations_beyond_the_series_switch_the_block_to_the_wide_pass(scale, lanes_on_wide, returned):
+@pytest.mark.parametrize("unproven", [0, -1])
+@pytest.mark.parametrize(
+    "scale, lanes_on_wide, returned",
+    [(WIDE_ANGLE / 25, 2, ((0, 0), (0, 0))), (WIDE_ANGLE / 12, 4, ((7, 7), (6, 7)))],
+)
+def test_many_rotations_beyond_the_series_switch_the_block_to_the_wide_pass(scale, lanes_on_wide, returned, unproven):
     """A few lanes (2 of 8) turning by SMALL_ANGLE or more a step are redone one by one; more (4 of 8, one of
-    them beyond WIDE_ANGLE) make steps() redo the interval with the wide pass and ask for it for WIDE_INTERVALS
-    more (returns that count, then counts down).  Every lane ends with the bits of 100 bare steps."""
+    them beyond WIDE_ANGLE) make steps() redo the interval with the wide pass and ask for it for a stretch of
+    WIDE_INTERVALS more (returns (intervals left, stretch), then counts down).  The same when the fast pass is
+    unproven (stretch −1, a block's first interval: one fast step is tried before the other 49).  Every lane
+    ends with the bits of 100 bare steps."""
     steps, (W, Q, B, DT, S, BAD, n), expected = large_rotation_lanes(scale)
     assert (W[2] * DT >= SMALL_ANGLE).sum() == lanes_on_wide and (W[2] * DT >= WIDE_ANGLE).sum() <= 1
-    first = steps(W, Q, B, DT, S, BAD, n, 50, True, 0)
-    assert (first, steps(W, Q, B, DT, S, BAD, n, 50, True, first)) == returned
-    assert returned[0] in (0, WIDE_INTERVALS)
+    first = steps(W, Q, B, DT, S, BAD, n, 50, True, 0, unproven)
+    assert (first, steps(W, Q, B, DT, S, BAD, n, 50, True, *first)) == returned
+    assert returned[0][0] in (0, WIDE_INTERVALS)
     np.testing.assert_array_equal(np.vstack([W, Q]).T, expected)
+
+
+@pytest.mark.slow
+def test_the_wide_stretch_doubles_while_the_fast_pass_keeps_failing_and_resets_when_it_holds():
+    """4 of 8 lanes keep turning past SMALL_ANGLE: after each stretch on the wide pass the fast pass fails
+    again, so the stretches run 7, 14, 28, 56 intervals (a failed fast interval every 8, 15, 29, 57 instead
+    of every 8), capped at MAX_STRETCH; on lanes where the fast pass holds, the stretch is forgotten.  The
+    passes only change the cost: 100 one-step intervals end on the bits of 100 bare steps."""
+    steps, (W, Q, B, DT, S, BAD, n), expected = large_rotation_lanes(WIDE_ANGLE / 12)
+    state, stretches = (0, 0), []
+    for _ in range(100):
+        state = steps(W, Q, B, DT, S, BAD, n, 1, True, *state)
+        if state[0] == state[1]:  # a stretch starts
+            stretches.append(state[1])
+    assert stretches == [WIDE_INTERVALS, 2 * WIDE_INTERVALS, 4 * WIDE_INTERVALS, 8 * WIDE_INTERVALS]
+    np.testing.assert_array_equal(np.vstack([W, Q]).T, expected)
+    assert steps(W, Q, B, DT, S, BAD, n, 1, True, 0, MAX_STRETCH) == (MAX_STRETCH, MAX_STRETCH)
+    steps, (W, Q, B, DT, S, BAD, n), _ = large_rotation_lanes(WIDE_ANGLE / 25)
+    assert steps(W, Q, B, DT, S, BAD, n, 1, True, 0, 8 * WIDE_INTERVALS) == (0, 0)
 
 
 @pytest.mark.slow
 def test_many_large_rotations_switch_the_block_to_the_libm_pass():
     """5 of 8 lanes turn by WIDE_ANGLE or more per step: steps() redoes the interval with the wide pass, then,
-    as that leaves the 5 lanes non-finite, with the vectorised libm pass, and asks for that for WIDE_INTERVALS
-    more (returns minus that count, then counts up); every lane ends with the bits of 100 bare steps."""
+    as that leaves the 5 lanes non-finite, with the vectorised libm pass, and asks for that for a stretch of
+    WIDE_INTERVALS more (returns minus that count, then counts up); every lane ends with the bits of 100 bare
+    steps."""
     steps, (W, Q, B, DT, S, BAD, n), expected = large_rotation_lanes(WIDE_ANGLE)
-    assert steps(W, Q, B, DT, S, BAD, n, 50, True, 0) == -WIDE_INTERVALS
-    assert steps(W, Q, B, DT, S, BAD, n, 50, True, -WIDE_INTERVALS) == -WIDE_INTERVALS + 1
+    assert steps(W, Q, B, DT, S, BAD, n, 50, True, 0, 0) == (-WIDE_INTERVALS, WIDE_INTERVALS)
+    assert steps(W, Q, B, DT, S, BAD, n, 50, True, -WIDE_INTERVALS, WIDE_INTERVALS) == (
+        -WIDE_INTERVALS + 1,
+        WIDE_INTERVALS,
+    )
     np.testing.assert_array_equal(np.vstack([W, Q]).T, expected)
 
 
