@@ -90,7 +90,7 @@ def _kick(w, q, h, body, v):
     if v == 5 or v == 11:
         L1, L2, L3 = body[0] * w[0] + h * t1, body[1] * w[1] + h * t2, body[2] * w[2] + h * t3
         return L1 / body[0], L2 / body[1], L3 / body[2]
-    return w[0] + h * t1 / body[0], w[1] + h * t2 / body[1], w[2] + h * t3 / body[2]
+    return w[0] + h * t1 * (1.0 / body[0]), w[1] + h * t2 * (1.0 / body[1]), w[2] + h * t3 * (1.0 / body[2])
 
 
 @njit(cache=True, error_model="numpy")
