@@ -24,9 +24,11 @@ def _kick_by(w, h, tau, body):
 
     Multiplied by 1/I_k rather than divided by I_k: inlined into a step, each 1/I_k is then one division
     for the whole step (LLVM merges the equal ones), where lie_poisson4's step had 18 divisions, the
-    dearest operation of the vectorised loop (docs/benchmarks.md, "Reciprocals in the splittings").  The
-    rounded 1/I_k is the same all run long, so the kick is the exact kick of the potential scaled by
-    1 + O(eps): still symplectic, no drift.  The free flows keep their divisions (see _axis_rotation)."""
+    dearest operation of the vectorised loop (docs/benchmarks.md, "Reciprocals in the splittings' kicks").
+    The rounded 1/I_k is the same all run long: the kick of moments off by ≤ ½ ulp.  For a symmetric top
+    (1/I1 = 1/I2, no torque about e3) that is the kick of the potential scaled by 1 + O(eps), still
+    Poisson; for other bodies an O(eps) perturbation of fixed sign per component, measured to add no drift
+    above the plain rounding's (docs/benchmarks.md).  The free flows keep their divisions (_axis_rotation)."""
     return (
         w[0] + h * tau[0] * (1.0 / body[0]),
         w[1] + h * tau[1] * (1.0 / body[1]),
