@@ -19,20 +19,25 @@ The two compute the substeps' times as the hand-unrolled code they replace did (
 against a running time), operation for operation, so every stored result keeps its bits.
 
 Both return ``composed(w, q, t, dt, body) -> (w, q)``, a numba function that is not cached by
-itself: it is a chain of small closures made at import time, one per substep, each calling the
-base step (or kick and flow) with its constants and then the next link, each ``forceinline`` so
-that LLVM makes the chain one function body (numba treats a closure's
-free variables as compile-time constants, so ``c * dt`` is the same multiplication by the same
-double as a global ``C * dt``).  The method file wraps it in its cached
-``step_driven`` (and ``step``), which numba caches with the whole chain compiled in; lanes.py
-follows the chain through the closure cells to recompile it for the block path, where it is
-inlined like any helper.  Measured against the hand-unrolled steps: same bits (tests/
-test_regression.py, every stored method and config); speed in docs/benchmarks.md; a second process
-loads suzuki4_exact's step, step_driven, run_batch and run_batch_driven from the cache and compiles
-nothing (``NUMBA_DEBUG_CACHE=1``: 4 loaded, 0 saved).  Alternatives weighed: a
-``numba.literal_unroll`` loop over the table needs the base step as an argument (a dispatcher
-passed as a value is lowered to a raw pointer, which makes the caller uncacheable, driver.py);
-generated source would need ``exec``, which static readers cannot follow (kernels/entry.py avoids it too).
+itself.  ``compose_steps`` makes it a chain of small closures at import time, one per substep, each
+calling the base step with its constants and then the next link, each ``forceinline`` so that LLVM
+makes the chain one function body (numba treats a closure's free variables as compile-time constants,
+so ``c * dt`` is the same multiplication by the same double as a global ``C * dt``): lie_poisson4's
+substeps are a few dozen operations each, and unrolled they vectorise on the block path.
+``compose_kicks`` is a loop over the table instead, so its flow is called at one place: the exact
+Euler–Poinsot flow is a large function, and inlined at each of 3–7 substeps it made the exact
+splittings the slowest kernels of all to compile (split6_exact's run and driven kernels 124 s against
+strang_exact's 19 s; docs/benchmarks.md, "One call site of the exact flow"), while a ~200 ns flow hides
+the loop's few cycles.  The method file wraps ``composed`` in its cached ``step_driven`` (and
+``step``), which numba caches with the whole composition compiled in; lanes.py follows the chain
+through the closure cells to recompile it for the block path, where it is inlined like any helper.
+Measured against the hand-unrolled steps: same bits (tests/test_regression.py, every stored method
+and config; the loop gives the chain's bits too); speed in docs/benchmarks.md; a second process loads
+suzuki4_exact's step, step_driven, run_batch and run_batch_driven from the cache and compiles nothing
+(``NUMBA_DEBUG_CACHE=1``: 4 loaded, 0 saved).  Alternatives weighed: a ``numba.literal_unroll`` loop
+over the table needs the base step as an argument (a dispatcher passed as a value is lowered to a raw
+pointer, which makes the caller uncacheable, driver.py); generated source would need ``exec``, which
+static readers cannot follow (kernels/entry.py avoids it too).
 """
 
 from numba import njit
@@ -52,16 +57,28 @@ def compose_steps(base, weights):
 def compose_kicks(kick_at, flow, weights):
     """``composed(w, q, t, dt, body)``: the Strang steps kick_at(½ h) flow(h) kick_at(½ h), h =
     ``weights[k] * dt``, one after another with adjacent half kicks merged; ``kick_at(w, q, h, t,
-    body) -> w`` and ``flow(w, q, h, body) -> (w, q)``, times as in the module docstring."""
+    body) -> w`` and ``flow(w, q, h, body) -> (w, q)``, times as in the module docstring.
+
+    A loop over the table, not a chain: ``flow`` is called at one place, so LLVM inlines it once (the
+    module docstring)."""
     weights = _check(weights)
     kicks = merged_kicks(weights)
-    link = _last_kick(kick_at, kicks[-1])
-    for k in reversed(range(len(weights))):
-        link = _kick_and_flow(kick_at, flow, kicks[k], weights[k], link)
+    n = len(weights)
 
     @njit(error_model="numpy", forceinline=True)
     def composed(w, q, t, dt, body):
-        return link(w, q, t, t, dt, body)
+        s = t
+        # A step of zero length is the identity, exactly (the exact flow at h = 0 returns its input only
+        # to a few roundings).  It also makes the count one LLVM cannot know when compiling: a loop of a
+        # known 3 it unrolls, inlining the flow three times (strang_exact4's kernels 42 s to compile
+        # against 20 s; docs/benchmarks.md, "One call site of the exact flow").
+        flows = n if dt != 0.0 else 0
+        for k in range(flows):
+            w = kick_at(w, q, kicks[k] * dt, s, body)
+            w, q = flow(w, q, weights[k] * dt, body)
+            s = s + weights[k] * dt
+        # the last kick at t + dt (the running time s, which rounding has carried near t + dt, is not used)
+        return kick_at(w, q, kicks[n] * dt, t + dt, body), q
 
     return composed
 
@@ -113,27 +130,3 @@ def _substep(base, weight, start, rest):
         return rest(w, q, t, dt, body)
 
     return middle
-
-
-def _kick_and_flow(kick_at, flow, kick, weight, rest):
-    """Kick for ``kick * dt`` at time s, flow for ``weight * dt``, then ``rest`` from s + weight dt
-    (t is the step's start, for the last kick)."""
-
-    @njit(error_model="numpy", forceinline=True)
-    def kick_and_flow(w, q, t, s, dt, body):
-        w = kick_at(w, q, kick * dt, s, body)
-        w, q = flow(w, q, weight * dt, body)
-        return rest(w, q, t, s + weight * dt, dt, body)
-
-    return kick_and_flow
-
-
-def _last_kick(kick_at, kick):
-    """The closing kick for ``kick * dt`` at t + dt (t the step's start; the running time s, which
-    rounding has carried near t + dt, is not used)."""
-
-    @njit(error_model="numpy", forceinline=True)
-    def last_kick(w, q, t, s, dt, body):
-        return kick_at(w, q, kick * dt, t + dt, body), q
-
-    return last_kick

@@ -2,7 +2,8 @@
 
 What is checked: the substep sizes, start times and merged kicks the composers hand to the base
 step are exactly (bit for bit) the partial sums of the weights they replace in hand-unrolled code;
-a one-weight kick composition is the Strang step (lie_poisson's); weights that do not sum to 1 are refused.
+a one-weight kick composition is the Strang step (lie_poisson's); a kick composition of zero length is
+the identity bit for bit, and runs the whole table at any other dt; weights that do not sum to 1 are refused.
 The composed methods' bits against the stored data are tests/test_regression.py's, their order
 tests/test_methods.py's and tests/test_forced_body.py's.
 """
@@ -14,7 +15,7 @@ from numba import njit
 from gyrolab.kernels.body import Body
 from gyrolab.kernels.compose import compose_kicks, compose_steps
 from gyrolab.kernels.free_flow import free_flow, kick_at
-from gyrolab.kernels.methods import lie_poisson, suzuki4_exact
+from gyrolab.kernels.methods import lie_poisson, split6_exact, suzuki4_exact
 
 W1 = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
 W0 = 1.0 - 2.0 * W1
@@ -70,6 +71,24 @@ def test_one_weight_is_the_strang_step():
         q = tuple(q / np.linalg.norm(q))
         t, dt = float(rng.uniform(0, 10)), float(rng.uniform(1e-4, 1e-2))
         assert composed(w, q, t, dt, body) == lie_poisson.step_driven(w, q, t, dt, body)
+
+
+def test_a_kick_composition_of_zero_length_is_the_identity_and_any_other_runs_every_substep():
+    """dt = 0: (ω, q) back bit for bit through split6_exact's table and the exact flow, whose own h = 0
+    returns its input only to a few roundings; dt = ±1e-300 (the smallest steps): every flow runs."""
+    body = Body(0.02, 0.025, 0.008, 0.98, 0.29, 0.1, 0.1, -0.2, 0.3, 2.0, 0.0, 10.0)
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        w = tuple(rng.normal(scale=20.0, size=3))
+        q = rng.normal(size=4)
+        q = tuple(q / np.linalg.norm(q))
+        t = float(rng.uniform(0, 10))
+        assert split6_exact.step_driven(w, q, t, 0.0, body) == (w, q)
+        assert split6_exact.step(w, q, 0.0, body) == (w, q)
+    recorded = compose_kicks(_record_kick, _record_flow, split6_exact.WEIGHTS)
+    for dt in (1e-300, -1e-300, 1e-3):
+        _, q = recorded((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), 0.0, dt, Body(1.0, 1.0, 1.0, 0.0))
+        assert q[1:] == tuple(x * dt for x in split6_exact.WEIGHTS[-3:])  # the last three flows ran
 
 
 def test_suzuki_weights_are_the_fractal_table():
