@@ -97,14 +97,12 @@ def compile_one(name, paths):
     return name, time.perf_counter() - start
 
 
-def compile_weight(name):
-    """A sort key that ranks methods by their cold compile time: the exact-free-flow methods first (their
-    step inlines one to seven elliptic free flows: split6_exact 305 s, suzuki4_exact 173 s, strang_exact4
-    98 s against 25-60 s for the others, docs/benchmarks.md), higher orders (more substeps) before lower."""
-    from ..kernels.registry import get_method
+def compile_weight(name, paths):
+    """A sort key that ranks methods by their cold compile time: runner/execute.py's model summed over the
+    kernels ``paths`` (e.g. ["runs", "blocks", "driven"]), so the methods with block kernels go first."""
+    from .execute import compile_seconds
 
-    module = get_method(name)
-    return (bool(getattr(module, "FREE_EXACT", False)), module.ORDER)
+    return sum(compile_seconds(name, path) for path in paths)
 
 
 @contextlib.contextmanager
@@ -191,8 +189,8 @@ def _compile(todo, jobs, report, prefix):
         before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     pool = ProcessPoolExecutor(jobs, mp_context=context, initializer=_worker_init, **fresh)
     try:
-        # longest first, so that no worker is left alone with a 5-minute method at the end (LPT scheduling)
-        order = sorted(todo, key=compile_weight, reverse=True)
+        # longest first, so that no worker is left alone with a long method at the end (LPT scheduling)
+        order = sorted(todo, key=lambda name: compile_weight(name, todo[name]), reverse=True)
         try:
             futures = {pool.submit(_compile_task, (name, todo[name])): name for name in order}
         finally:
