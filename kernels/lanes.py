@@ -41,7 +41,7 @@ from numba import njit
 from numba.core.dispatcher import Dispatcher
 
 from . import rotation
-from .rotation import SMALL_ANGLE, WIDE_ANGLE, _cos_sinc_half
+from .rotation import SMALL_ANGLE, WIDE_ANGLE, WIDE_SERIES, _cos_sinc_half, cos_sinc_series
 
 _SMALL_ANGLE2 = SMALL_ANGLE * SMALL_ANGLE
 _WIDE_ANGLE2 = WIDE_ANGLE * WIDE_ANGLE
@@ -70,18 +70,10 @@ def _half_angle_or_nan(phi):
 @njit
 def _cos_sinc_half_or_nan(angle2):
     """rotation's _cos_sinc_half below SMALL_ANGLE², _cos_sinc_half_wide up to WIDE_ANGLE², cos = NaN beyond
-    (or for NaN); one polynomial, no branch: the wide series' operations in order, its last coefficients
-    selected to 0 below SMALL_ANGLE², where h2·(0 + h2·(0 + h2·0)) = +0 leaves _cos_sinc_half's own
-    operations and bits (1/40320 + 0 is 1/40320)."""
-    small = angle2 < _SMALL_ANGLE2
-    c14, c12, c10 = (0.0, 0.0, 0.0) if small else (-1.0 / 87178291200, 1.0 / 479001600, -1.0 / 3628800)
-    s12, s10 = (0.0, 0.0) if small else (1.0 / 12454041600, -1.0 / 79833600)
-    h2 = 0.25 * angle2
-    c = c12 + h2 * c14
-    c = 1.0 / 40320 + h2 * (c10 + h2 * c)
-    c = 1.0 + h2 * (-1.0 / 2 + h2 * (1.0 / 24 + h2 * (-1.0 / 720 + h2 * c)))
-    s = 1.0 / 725760 + h2 * (s10 + h2 * s12)
-    s = 0.5 + h2 * (-1.0 / 12 + h2 * (1.0 / 240 + h2 * (-1.0 / 10080 + h2 * s)))
+    (or for NaN); one polynomial, no branch: rotation.cos_sinc_series with its last coefficients selected
+    to 0 below SMALL_ANGLE², where it has _cos_sinc_half's own operations and bits."""
+    c10, c12, c14, s10, s12 = (0.0, 0.0, 0.0, 0.0, 0.0) if angle2 < _SMALL_ANGLE2 else WIDE_SERIES
+    c, s = cos_sinc_series(0.25 * angle2, c10, c12, c14, s10, s12)
     if not angle2 < _WIDE_ANGLE2:
         c = math.nan
     return c, s

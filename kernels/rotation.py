@@ -27,6 +27,8 @@ SMALL_ANGLE = 0.2
 # (lie_poisson4 at dt = 1e-3 s on the 50 Hz top turns up to ~0.5 rad a substep) stay on the
 # vectorised path of the block kernels (kernels/lanes.py).
 WIDE_ANGLE = 0.8
+# The Taylor coefficients the wide series adds: h^10, h^12, h^14 of cos h and h^10, h^12 of sin(h)/(2h).
+WIDE_SERIES = (-1.0 / 3628800, 1.0 / 479001600, -1.0 / 87178291200, -1.0 / 79833600, 1.0 / 12454041600)
 
 
 @njit(cache=True, error_model="numpy")
@@ -41,15 +43,23 @@ def _cos_sinc_half(angle2):
 @njit(cache=True, error_model="numpy")
 def _cos_sinc_half_wide(angle2):
     """(cos(h), sin(h)/(2h)) with h = √angle2 / 2, for angle2 < WIDE_ANGLE² (h² < 0.16): ``_cos_sinc_half``'s
-    series three terms (cos) and two terms (sinc) longer, by Horner's rule.  The first dropped terms,
-    h^16/16! and h^14/(2·15!), are < 3e-20 and < 1.1e-18.  Its first four levels are _cos_sinc_half's, so
-    kernels/lanes.py takes both from one polynomial whose last coefficients are 0 below SMALL_ANGLE (the
-    same operations in this order, the same bits)."""
-    h2 = 0.25 * angle2
-    c = 1.0 / 479001600 + h2 * (-1.0 / 87178291200)
-    c = 1.0 / 40320 + h2 * (-1.0 / 3628800 + h2 * c)
+    series three terms (cos) and two terms (sinc) longer (``cos_sinc_series`` with WIDE_SERIES).  The first
+    dropped terms, h^16/16! and h^14/(2·15!), are < 3e-20 and < 1.1e-18."""
+    c10, c12, c14, s10, s12 = WIDE_SERIES
+    return cos_sinc_series(0.25 * angle2, c10, c12, c14, s10, s12)
+
+
+@njit(cache=True, error_model="numpy")
+def cos_sinc_series(h2, c10, c12, c14, s10, s12):
+    """(cos(h), sin(h)/(2h)) from h² by Horner's rule, with the coefficients of h^10, h^12, h^14 (cos) and
+    h^10, h^12 (sin(h)/(2h)) given: the Taylor ones for ``_cos_sinc_half_wide``, or 0, which leaves
+    ``_cos_sinc_half``'s operations and bits (h2·(0 + h2·(0 + h2·0)) = +0 for h2 ≥ 0, and 1/40320 + 0 is
+    1/40320).  Its first four levels are _cos_sinc_half's, so kernels/lanes.py evaluates both series as
+    one polynomial with the last coefficients selected, without a branch."""
+    c = c12 + h2 * c14
+    c = 1.0 / 40320 + h2 * (c10 + h2 * c)
     c = 1.0 + h2 * (-1.0 / 2 + h2 * (1.0 / 24 + h2 * (-1.0 / 720 + h2 * c)))
-    s = 1.0 / 725760 + h2 * (-1.0 / 79833600 + h2 * (1.0 / 12454041600))
+    s = 1.0 / 725760 + h2 * (s10 + h2 * s12)
     s = 0.5 + h2 * (-1.0 / 12 + h2 * (1.0 / 240 + h2 * (-1.0 / 10080 + h2 * s)))
     return c, s
 
