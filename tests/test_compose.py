@@ -38,6 +38,19 @@ def _record_flow(w, q, h, body):
     return w, (q[1], q[2], q[3], h)
 
 
+# a heavy body with a drive (a torque that depends on time)
+DRIVEN_BODY = Body(0.02, 0.025, 0.008, 0.98, 0.29, 0.1, 0.1, -0.2, 0.3, 2.0, 0.0, 10.0)
+
+
+def _random_states(seed, n=20):
+    """n random (ω (rad/s), unit q, t (s), dt (s)), body frame."""
+    rng = np.random.default_rng(seed)
+    for _ in range(n):
+        w = tuple(rng.normal(scale=20.0, size=3))
+        q = rng.normal(size=4)
+        yield w, tuple(q / np.linalg.norm(q)), float(rng.uniform(0, 10)), float(rng.uniform(1e-4, 1e-2))
+
+
 def test_whole_substeps_start_at_the_partial_sums():
     """compose_steps over (w1, w0, w1): substeps of w1 dt, w0 dt, w1 dt from t, t + w1 dt,
     t + (w1 + w0) dt, the times lie_poisson4 computed by hand."""
@@ -63,28 +76,16 @@ def test_one_weight_is_the_strang_step():
     """compose_kicks(kick_at, free_flow, (1.0,)) is lie_poisson's step_driven (kick, flow, kick) bit
     for bit, on a driven heavy body at random states."""
     composed = compose_kicks(kick_at, free_flow, (1.0,))
-    body = Body(0.02, 0.025, 0.008, 0.98, 0.29, 0.1, 0.1, -0.2, 0.3, 2.0, 0.0, 10.0)
-    rng = np.random.default_rng(5)
-    for _ in range(20):
-        w = tuple(rng.normal(scale=20.0, size=3))
-        q = rng.normal(size=4)
-        q = tuple(q / np.linalg.norm(q))
-        t, dt = float(rng.uniform(0, 10)), float(rng.uniform(1e-4, 1e-2))
-        assert composed(w, q, t, dt, body) == lie_poisson.step_driven(w, q, t, dt, body)
+    for w, q, t, dt in _random_states(5):
+        assert composed(w, q, t, dt, DRIVEN_BODY) == lie_poisson.step_driven(w, q, t, dt, DRIVEN_BODY)
 
 
 def test_a_kick_composition_of_zero_length_is_the_identity_and_any_other_runs_every_substep():
     """dt = 0: (ω, q) back bit for bit through split6_exact's table and the exact flow, whose own h = 0
     returns its input only to a few roundings; dt = ±1e-300 (the smallest steps): every flow runs."""
-    body = Body(0.02, 0.025, 0.008, 0.98, 0.29, 0.1, 0.1, -0.2, 0.3, 2.0, 0.0, 10.0)
-    rng = np.random.default_rng(11)
-    for _ in range(20):
-        w = tuple(rng.normal(scale=20.0, size=3))
-        q = rng.normal(size=4)
-        q = tuple(q / np.linalg.norm(q))
-        t = float(rng.uniform(0, 10))
-        assert split6_exact.step_driven(w, q, t, 0.0, body) == (w, q)
-        assert split6_exact.step(w, q, 0.0, body) == (w, q)
+    for w, q, t, _ in _random_states(11):
+        assert split6_exact.step_driven(w, q, t, 0.0, DRIVEN_BODY) == (w, q)
+        assert split6_exact.step(w, q, 0.0, DRIVEN_BODY) == (w, q)
     recorded = compose_kicks(_record_kick, _record_flow, split6_exact.WEIGHTS)
     for dt in (1e-300, -1e-300, 1e-3):
         _, q = recorded((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), 0.0, dt, Body(1.0, 1.0, 1.0, 0.0))
