@@ -97,11 +97,34 @@ def compile_one(name, paths):
     return name, time.perf_counter() - start
 
 
-def compile_weight(name, paths):
-    """A sort key that ranks methods by their cold compile time: runner/execute.py's model summed over the
-    kernels ``paths`` (e.g. ["runs", "blocks", "driven"]), so the methods with block kernels go first."""
-    from .execute import compile_seconds
+# Seconds numba takes to compile one method's kernel of each path on a cold cache, in a compile worker
+# (a fresh interpreter per method, where warm_up sends two or more cold kernels), from
+# the workers' own lines on a fresh NUMBA_CACHE_DIR on the quiet 2-core machine, 2026-12-04: the verdict
+# study's 36 plain run and 19 driven kernels 2-3 s each; a 500-run sweep's run + block kernels 16-28 s a
+# method (rk4 22, lie_poisson4 28, seed_next 16); strang_exact, whose step inlines the exact
+# Euler-Poinsot flow, run and driven kernels 6 s each.  The model: COMPILE_SECONDS[path], plus
+# EXACT_FLOW_SECONDS[path] for a method whose step has the exact flow (FREE_EXACT).  The compositions of it
+# (strang_exact4, suzuki4_exact, split6_exact) call the flow at one place in a loop over their weights
+# (kernels/compose.py) and compile as strang_exact does (13.4-13.6 s each for the run kernel in a fresh
+# process, benchmarks/bench_compile.py); while they inlined one flow per substep they took 17, 29 and 43 s
+# (run) and 25, 34 and 59 s (driven), ~n^1.5 for n flows.  (Compiled one after another in the sweep's own
+# process, as before the compile workers, the same kernels took 1.5-3x these: numba keeps every module it
+# compiled.)
+COMPILE_SECONDS = {"runs": 3.0, "driven": 3.0, "blocks": 17.0}
+EXACT_FLOW_SECONDS = {"runs": 2.5, "driven": 3.3, "blocks": 2.5}
 
+
+def compile_seconds(method, path):
+    """Estimated seconds to compile ``method``'s kernel of ``path`` on a cold cache (the model above)."""
+    from ..kernels.registry import get_method
+
+    exact_flow = getattr(get_method(method), "FREE_EXACT", False)
+    return COMPILE_SECONDS[path] + (EXACT_FLOW_SECONDS[path] if exact_flow else 0.0)
+
+
+def compile_weight(name, paths):
+    """A sort key that ranks methods by their cold compile time: the model above summed over the kernels
+    ``paths`` (e.g. ["runs", "blocks", "driven"]), so the methods with block kernels go first."""
     return sum(compile_seconds(name, path) for path in paths)
 
 

@@ -30,7 +30,7 @@ import numpy as np
 from ..kernels.batch import MIN_BLOCK_RUNS, integrate
 from ..kernels.real import is_real
 from ..results.layout import solver_variables
-from .compile import compile_jobs, compile_kernels, die_with_parent, kernel_cached
+from .compile import compile_jobs, compile_kernels, compile_seconds, die_with_parent, kernel_cached
 from .grid import plan_chunks, runs_in_blocks, step_rate
 from .segments import SegmentedChunk, cut_in_time, integrate_segment, segment_length, segment_writing_seconds
 
@@ -69,21 +69,6 @@ def warm_up(grid):
 
 
 COMPILE_NOTICE_SECONDS = 3.0  # a warm-up still running after this long is compiling: say so on screen
-# Seconds numba takes to compile one method's kernel of each path on a cold cache, in a compile worker
-# (runner/compile.py: a fresh interpreter per method, where warm_up sends two or more cold kernels), from
-# the workers' own lines on a fresh NUMBA_CACHE_DIR on the quiet 2-core machine, 2026-12-04: the verdict
-# study's 36 plain run and 19 driven kernels 2-3 s each; a 500-run sweep's run + block kernels 16-28 s a
-# method (rk4 22, lie_poisson4 28, seed_next 16); strang_exact, whose step inlines the exact
-# Euler-Poinsot flow, run and driven kernels 6 s each.  The model: COMPILE_SECONDS[path], plus
-# EXACT_FLOW_SECONDS[path] for a method whose step has the exact flow (FREE_EXACT).  The compositions of it
-# (strang_exact4, suzuki4_exact, split6_exact) call the flow at one place in a loop over their weights
-# (kernels/compose.py) and compile as strang_exact does (13.4-13.6 s each for the run kernel in a fresh
-# process, benchmarks/bench_compile.py); while they inlined one flow per substep they took 17, 29 and 43 s
-# (run) and 25, 34 and 59 s (driven), ~n^1.5 for n flows.  (Compiled one after another in the sweep's own
-# process, as before the compile workers, the same kernels took 1.5-3x these: numba keeps every module it
-# compiled.)
-COMPILE_SECONDS = {"runs": 3.0, "driven": 3.0, "blocks": 17.0}
-EXACT_FLOW_SECONDS = {"runs": 2.5, "driven": 3.3, "blocks": 2.5}
 # Resident memory one kernel compiled in the sweep's process adds and keeps (numba holds every compiled
 # module), measured with benchmarks/peak_rss.py on a fresh NUMBA_CACHE_DIR against the warm run's 0.28 GB:
 # the default study (5 run kernels) 0.56 GB; rk4 + lie_poisson4 with blocks (2 run, 2 block kernels)
@@ -111,14 +96,6 @@ def warm_up_paths(grid):
 # multirun run one after the other in one process, so the first job that needs a cold kernel compiles
 # it and the later ones load it: a multirun's dry run counts each cold kernel once over its jobs.
 _COUNTED = set()
-
-
-def compile_seconds(method, path):
-    """Estimated seconds to compile ``method``'s kernel of ``path`` on a cold cache (the model above)."""
-    from ..kernels.registry import get_method
-
-    exact_flow = getattr(get_method(method), "FREE_EXACT", False)
-    return COMPILE_SECONDS[path] + (EXACT_FLOW_SECONDS[path] if exact_flow else 0.0)
 
 
 def compile_memory(cold):

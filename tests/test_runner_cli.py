@@ -127,7 +127,7 @@ def test_dry_run_of_the_default_study_estimates_and_writes_nothing(tmp_path):
 @pytest.mark.slow
 def test_dry_run_counts_compiling_from_the_numba_cache(tmp_path):
     """An empty numba cache: every kernel the sweep warms up is named and its compile time counted
-    (runner/execute.py compile_seconds: COMPILE_SECONDS["runs"] per method's run kernels, in parallel on the
+    (runner/compile.py compile_seconds: COMPILE_SECONDS["runs"] per method's run kernels, in parallel on the
     cores); the dry run compiles nothing."""
     empty = tmp_path / "cache"
     result = gyrolab("runner.dry_run=true", cwd=tmp_path, env=environment(NUMBA_CACHE_DIR=empty))
@@ -135,8 +135,8 @@ def test_dry_run_counts_compiling_from_the_numba_cache(tmp_path):
     methods = ("seed_next", "seed_prev", "rk4", "lie_poisson", "lie_poisson4")  # the default study: no blocks
     assert f"compiling: 5 kernels not in the numba cache: {', '.join(f'{m} (runs)' for m in methods)}" in result.stdout
     # COMPILE_SECONDS each, on this machine's cores as warm_up compiles them (compile_wall_seconds)
-    from gyrolab.runner.compile import compile_jobs
-    from gyrolab.runner.execute import COMPILE_SECONDS, compile_memory, compile_wall_seconds
+    from gyrolab.runner.compile import COMPILE_SECONDS, compile_jobs
+    from gyrolab.runner.execute import compile_memory, compile_wall_seconds
 
     assert f", {compile_wall_seconds([COMPILE_SECONDS['runs']] * 5):.0f} s compiling)" in result.stdout
     _, where = compile_memory([(m, "runs") for m in methods])
