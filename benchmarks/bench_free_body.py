@@ -7,13 +7,16 @@ Prints, from one process (ratios are taken under the same machine load):
    same batched njit prange harness (runs × steps, each run its own (ω, q), aggregate wall time / steps),
    1 and 2 threads, on generic asymmetric bodies (random moments and rates);
    then the same at ‖ω‖dt from 0.005 to 1.5 rad (|ω| = 10 rad/s, dt scaled), where the step's |λh| goes
-   from the very short to past the short-step branch (|λh| < 1); with --baseline REV, the exact flow of
+   from the very short to the longest the short-step branch takes (|λh| < SHORT_STEP, a few bodies past it
+   at 1.5 rad before SHORT_STEP was raised to 2); with --baseline REV, the exact flow of
    kernels/euler_poinsot.py at git revision REV timed in the same process, alternating with today's, and
    today's file loaded the same way ("exact, copied"): compare REV with that column.  A copy (the file
    re-imported from a scratch directory, its relative imports pointed at the installed package) measured
    12-16 % slower than the same source installed (2026-12-05, cause not found), so the installed column
    flatters today's code against REV; for an A/B of installed packages, ``pip install --target DIR`` the
    other revision and run this script with ``PYTHONPATH=DIR``;
+1c. the exact flow at a fixed |λh| (each body's ω scaled so that its elliptic argument advances by λh per
+   step: the cost of the short branch's doublings, and of a step past SHORT_STEP, K, R_F and two or three R_J);
 2. the exact Strang splitting (strang_exact) against lie_poisson (axis sub-splitting) on the asymmetric
    box of the free_asymmetric scene, I = (1e-4, 3e-4, 2e-4), ω = (1e-3 ω3, 0, ω3), f = 10 Hz ± 5 %,
    dt = 1e-4, in the same harness;
@@ -36,7 +39,7 @@ import numpy as np
 from numba import njit, prange
 
 from gyrolab.kernels.body import N_FIELDS, body_row
-from gyrolab.kernels.euler_poinsot import free_flow_exact
+from gyrolab.kernels.euler_poinsot import SERIES_BASE, SHORT_STEP, elliptic_rate, free_flow_exact
 from gyrolab.kernels.methods import lie_poisson, strang_exact
 
 try:
@@ -233,6 +236,19 @@ def main():
             + " |",
             flush=True,
         )
+
+    print(f"\n## 1c. exact free flow against |λh| (SHORT_STEP = {SHORT_STEP:g}; dt = 1e-2, 1 thread)\n")
+    print("| \\|λh\\| | doublings | exact ns/step | exact / rk4 at 1b's 0.005 rad |")
+    print("|---:|---:|---:|---:|")
+    W, Q, B = generic_inputs(args.runs)
+    rates = np.array([elliptic_rate(B[i, :3], W[i]) for i in range(args.runs)])
+    harness = harnesses["exact"]
+    rk4_ns = ns_per_step(harnesses["rk4"], inputs, 0.005 / 10.0, args.steps, 1, args.repeat)
+    for lam_h in (0.02, 0.1, 0.5, 0.9, 1.1, 1.5, 1.9, 2.1, 3.0):
+        scaled = (W * (lam_h / (rates * 1e-2))[:, None], Q, B)
+        ns = ns_per_step(harness, scaled, 1e-2, args.steps, 1, args.repeat)
+        doublings = max(math.ceil(math.log2(lam_h / SERIES_BASE)), 0) if lam_h < SHORT_STEP else "long"
+        print(f"| {lam_h} | {doublings} | {ns:.1f} | {ns / rk4_ns:.1f}x |", flush=True)
 
     print("\n## 2. asymmetric box, f = 10 Hz, dt = 1e-4\n")
     print("| method | " + " | ".join(f"{t} thread(s) ns/step" for t in threads) + " |")

@@ -6,7 +6,7 @@ order, any ω and any orientation: three distinct moments on either side of
 the separatrix and on it, two equal (the symmetric top, in closed form), all
 equal (the sphere).  ``free_body(I, omega0, q0, t)`` evaluates it on an array
 of times (and of bodies); ``flip_period(I, omega0)`` is the closed-form time
-between two flips, 2K(m)/λ.
+between two flips, 2K(m)/λ, ``elliptic_rate(I, omega0)`` the rate λ.
 
 Formulation: Celledoni, Fassò, Säfström & Zanna, "The exact computation of
 the free rigid body motion and its use in splitting methods", SIAM J. Sci.
@@ -48,7 +48,7 @@ corrections.  Our own choices on top of it:
   continuous (no sign flips);
 - P(t) m(t) = G e exactly up to rounding, so the lab angular momentum
   R m = G R0 P0ᵀ e is conserved to rounding whatever the error of ψ;
-- a short step (|λh| < 1, every step of a splitting at a sensible dt)
+- a short step (|λh| < SHORT_STEP = 2, every step of a splitting at a sensible dt)
   needs neither K nor F nor a half-period count: by the addition theorem
   of the third-kind integral (DLMF 19.26.9, Legendre form), the increment
   of Π − F from am u0 to am(u0 + λh) is (Π − F)(am λh) minus an R_C of sn
@@ -226,10 +226,21 @@ def _rj_close(x, y, z, p):
 # |w| ≤ 0.03, every m in [0, 1] (the first dropped terms are < 0.05 eps there).
 SERIES_BASE = 0.03
 
+# |λh| below which a step takes the short branch (no K, no F, no R_J of the endpoints).  Its three parts
+# hold beyond it; the bound is the doublings' conditioning.  The defect's R_C has x = P − δS² ≥ 1 for every
+# real u0, λh (_addition_defect), so its atan form holds everywhere; |λh| < 2 < π ≤ 2K keeps the change of
+# am, hence of θ, below π, where the atan2 of θ's increment is unambiguous; a doubling's input (|w| < 1)
+# has sn ≤ 0.85, so D = 1 − m sn⁴ ≥ 0.66 and cn, dn ≥ 0.54.  Measured against mpmath (300 random m, n, u0
+# each): sn, cn, dn at u0 + λh within 1.4e-15 for 1 ≤ |λh| < 2 by this branch, 1.5e-15 by the long one
+# (Bulirsch's sncndn); for 2 ≤ |λh| < π this branch lost up to 2.5e-14 against the long one's 2.8e-15.
+# Raised from 1 (2026-12-05): a step past the bound (K, one R_F, two or three R_J, four atan2) costs
+# ~2.1x a short one of 1 ≤ |λh| < 2 (benchmarks/bench_free_body.py, table 1c).
+SHORT_STEP = 2.0
+
 
 @njit(cache=True, error_model="numpy")
 def _short_step(v, mc, n):
-    """(sn, cn, dn)(v) and G(v) = (Π − F)(am v, n|m) for |v| < 1, by halving v to |w| ≤ SERIES_BASE and
+    """(sn, cn, dn)(v) and G(v) = (Π − F)(am v, n|m) for |v| < SHORT_STEP, by halving v to |w| ≤ SERIES_BASE and
     doubling back.
 
     At w: sn, cn, dn from their Maclaurin series (exact to rounding) and G(w) from one R_J whose arguments
@@ -239,9 +250,9 @@ def _short_step(v, mc, n):
     G(2w) = 2 G(w) − defect(w, w).  The half-
     and double-argument transformations T. Fukushima uses for incomplete elliptic integrals, applied to the
     step: ~1.5x faster than Bulirsch's sncndn and an R_J of v (docs/benchmarks.md), to a few eps
-    (tests/test_euler_poinsot.py::test_short_step_third_kind_increment).  |v| < 1 keeps every doubling
-    well conditioned (its input has sn ≤ sn(1/2) < 0.47: D ≥ 0.95, cn and dn ≥ 0.88); run up to K it lost
-    1e-9 in sn near the separatrix, where D = 1 − m s⁴ cancels as sn → 1."""
+    (tests/test_euler_poinsot.py::test_short_step_third_kind_increment).  |v| < SHORT_STEP keeps every
+    doubling well conditioned (its input has sn ≤ sn(1) < 0.85: D ≥ 0.66, cn and dn ≥ 0.54); run up to K it
+    lost 1e-9 in sn near the separatrix, where D = 1 − m s⁴ cancels as sn → 1."""
     m = 1.0 - mc
     a = -n
     w = abs(v)
@@ -275,7 +286,7 @@ def _elliptic_case(s0, c0, d0, lam, h, mc, n, S, C, cpi):
     cpi·[(Π − F)(am u1) − (Π − F)(am u0)] + (θ(am u1) − θ(am u0)) (θ continuous)."""
     m = 1.0 - mc
     v = lam * h
-    short = abs(v) < 1.0
+    short = abs(v) < SHORT_STEP
     if short:
         s2, c2, d2, g_v = _short_step(v, mc, n)
     else:
@@ -289,7 +300,7 @@ def _elliptic_case(s0, c0, d0, lam, h, mc, n, S, C, cpi):
         c1 *= r
         d1 = math.sqrt(c1 * c1 + mc * s1 * s1)
     if short:
-        # Short step (|v| < 1 < K: no half-period count, no K, no F): G(u1) − G(u0) = G(v) − defect(u0, v).
+        # Short step (|v| < 2 < 2K: no half-period count, no K, no F): G(u1) − G(u0) = G(v) − defect(u0, v).
         d_theta = math.atan2(C * S * (c0 * s1 - s0 * c1), C * C * c0 * c1 + S * S * s0 * s1)
         return s1, c1, d1, cpi * (g_v - _addition_defect(s0, s2, s1, -n, m)), d_theta
     sr0, cc0, phr0, thr0 = _reduced(s0, c0, S, C)
@@ -495,7 +506,10 @@ def free_flow_exact(w, q, h, body):
 
 
 @njit(cache=True, error_model="numpy")
-def _flip_period(I1, I2, I3, w1, w2, w3):
+def _modulus_and_rate(I1, I2, I3, w1, w2, w3):
+    """(m_c, λ): the complementary parameter 1 − m and the rate λ (1/s) of the elliptic argument u = λt − ν
+    of the motion from ω = (w1, w2, w3) (_sorted_flow's formulas); λ = 0 for a symmetric body or on the
+    separatrix (no elliptic motion)."""
     p0, p1, p2, par = _sort3(I1, I2, I3)
     I = (I1 + 0.0, I2 + 0.0, I3 + 0.0)
     J1 = I[p0]
@@ -506,7 +520,7 @@ def _flip_period(I1, I2, I3, w1, w2, w3):
     y = m[p1]
     z = m[p2]
     if J1 == J2 or J2 == J3:
-        return math.inf
+        return 1.0, 0.0
     J32 = J3 - J2
     J31 = J3 - J1
     J21 = J2 - J1
@@ -514,23 +528,26 @@ def _flip_period(I1, I2, I3, w1, w2, w3):
     D3 = -(x * x * J31 / J1 + y * y * J32 / J2)
     D2 = z * z * J32 / J3 - x * x * J21 / J1
     if D2 < 0.0:
-        mc = min(D2 * J31 / (D3 * J21), 1.0)
-        lam = math.sqrt(-D3 * J21 / (J1 * J2 * J3))
-    elif D2 > 0.0:
-        mc = min(D2 * J31 / (D1 * J32), 1.0)
-        lam = math.sqrt(D1 * J32 / (J1 * J2 * J3))
-    else:
-        return math.inf
-    return 2.0 * ellipk(mc) / lam
+        return min(D2 * J31 / (D3 * J21), 1.0), math.sqrt(-D3 * J21 / (J1 * J2 * J3))
+    if D2 > 0.0:
+        return min(D2 * J31 / (D1 * J32), 1.0), math.sqrt(D1 * J32 / (J1 * J2 * J3))
+    return 0.0, 0.0
 
 
 def flip_period(I, omega0):
     """Closed-form time (s) between two successive flips, 2 K(m) / λ: the half period of the body
     angular momentum m(t) (its intermediate component m2 ∝ sn changes sign every 2K/λ).  The full
     period of m(t) is twice this.  inf for a symmetric body or on the separatrix."""
-    I = np.asarray(I, dtype=float)
-    w = np.asarray(omega0, dtype=float)
-    return _flip_period(I[0], I[1], I[2], w[0], w[1], w[2])
+    mc, lam = _modulus_and_rate(*np.asarray(I, dtype=float), *np.asarray(omega0, dtype=float))
+    return math.inf if lam == 0.0 else 2.0 * ellipk(mc) / lam
+
+
+def elliptic_rate(I, omega0):
+    """λ (1/s): the rate of the elliptic argument u = λt − ν of the torque-free motion from the body rates
+    omega0 (rad/s) of principal moments I (kg m², any order); a step of h seconds advances u by λh, which
+    decides the branch it takes (SHORT_STEP) and its number of doublings.  0 for a symmetric body or on the
+    separatrix."""
+    return _modulus_and_rate(*np.asarray(I, dtype=float), *np.asarray(omega0, dtype=float))[1]
 
 
 @njit(cache=True, parallel=True, error_model="numpy")

@@ -286,6 +286,27 @@ def test_symmetric_and_spherical_bodies_agree_with_free_flow():
         assert np.abs(w2 - w1).max() <= 1e-13 and np.abs(q2 - q1).max() <= 1e-13
 
 
+def test_elliptic_rate_is_the_wobble_frequency_near_a_stable_axis():
+    """elliptic_rate near steady rotation Ω about the largest or the smallest axis is the linearised
+    wobble frequency Ω √((I_a − I_b)(I_a − I_c)/(I_b I_c)) (the small-oscillation limit, m → 0, where
+    sn = sin), in any axis order; 0 for a symmetric body."""
+    from gyrolab.kernels.euler_poinsot import elliptic_rate
+
+    I1, I2, I3 = 1.0, 2.0, 3.5
+    omega, eps = 7.0, 1e-7
+    about_largest = omega * math.sqrt((I3 - I1) * (I3 - I2) / (I1 * I2))
+    about_smallest = omega * math.sqrt((I2 - I1) * (I3 - I1) / (I2 * I3))
+    for order in ((0, 1, 2), (2, 0, 1), (1, 2, 0)):
+        I = np.array([I1, I2, I3])[list(order)]
+        w = np.full(3, eps * omega)
+        w[order.index(2)] = omega
+        assert elliptic_rate(I, w) == pytest.approx(about_largest, rel=1e-10)
+        w = np.full(3, eps * omega)
+        w[order.index(0)] = omega
+        assert elliptic_rate(I, w) == pytest.approx(about_smallest, rel=1e-10)
+    assert elliptic_rate([1.0, 2.0, 2.0], [1.0, 3.0, 0.5]) == 0.0
+
+
 def test_free_body_batches_and_flip_period_shapes():
     """free_body over (B bodies) × (n times) equals B single calls; flip_period is inf for a symmetric body."""
     I, w0, q0 = random_states(np.random.default_rng(16), 5)
@@ -409,18 +430,19 @@ def _third_kind_increment_30_digits(mp, u0, v, n, mc):
 
 @pytest.mark.slow
 def test_short_step_third_kind_increment():
-    """The short step (|λh| < 1: sn, cn, dn and Π − F of λh by halving and doubling, the addition theorem's
+    """The short step (|λh| < SHORT_STEP = 2: sn, cn, dn and Π − F of λh by halving and doubling, the addition theorem's
     R_C for the increment) against mpmath at 30 digits, on 240 random (n, m, u0, λh): n = −1e-3 .. −1e3
     (near-symmetric bodies at the far end), mc = 1 − m = 1e-15 .. 1 (near the separatrix to far from it),
-    u0 over ±3 half periods, |λh| = 1e-7 .. 1.  The increment of Π − F within 16 eps
-    relative, sn, cn, dn at u0 + λh within 8 eps.  Measured: increment median 1.3e-16, max 5.3e-16
-    (2.4 eps); sn, cn, dn max 4.8e-16 (2.2 eps).
+    u0 over ±3 half periods, |λh| = 1e-7 .. 2.  The increment of Π − F within 16 eps
+    relative, sn, cn, dn at u0 + λh within 8 eps.  Measured: increment median 1.4e-16, max 5.6e-16
+    (2.5 eps); sn, cn, dn max 1.1e-15 (5 eps; 4.8e-16 with |λh| < 1, the bound before 2026-12-05: the
+    addition theorem's rounding at u0 + λh, which Bulirsch's sncndn of λh gives as well).
     The code it replaced (5-point Gauss–Legendre for |λh| < 0.01, the difference of two R_J at the
     endpoints above) measured on the same samples: max 1.5e-13 below 0.01, median 1.1e-15 and max 1.6e-13
     above (680 and 720 eps; with mc ≥ 1e-8, the samples of kernels/euler_poinsot.py's docstring, 860 and
     320 eps, the new code 3.6 eps)."""
     mp = pytest.importorskip("mpmath", reason="mpmath is in the test extra: pip install '.[test]'")
-    from gyrolab.kernels.euler_poinsot import _elliptic_case
+    from gyrolab.kernels.euler_poinsot import SHORT_STEP, _elliptic_case
 
     mp.mp.dps = 30
     rng = np.random.default_rng(23)
@@ -430,7 +452,7 @@ def test_short_step_third_kind_increment():
         mc = 10.0 ** rng.uniform(-15, 0)
         u0 = rng.uniform(-6, 6)
         m = 1 - mp.mpf(mc)
-        v = rng.choice([-1.0, 1.0]) * 10.0 ** rng.uniform(-7, -1e-9)
+        v = rng.choice([-1.0, 1.0]) * 10.0 ** rng.uniform(-7, math.log10(SHORT_STEP) - 1e-9)
         # the state at u0 rounded from 30 digits (sncndn's own error near a zero of sn far from u = 0,
         # ~eps |u0| absolute, is not the step's)
         s0, c0, d0 = (float(mp.ellipfun(f, u0, m=m)) for f in ("sn", "cn", "dn"))
