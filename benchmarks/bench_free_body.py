@@ -22,7 +22,10 @@ Prints, from one process (ratios are taken under the same machine load):
    dt = 1e-4, in the same harness;
 3. (unless --no-lanes) the compile time of ``lanes.lane_step(step)`` (the forceinline recompilation of the
    vectorised block path) for strang_exact, called in a loop over a small array, and its ns/step there.
-Times are medians of --repeat repeats after a warm-up call.
+Times are medians of --repeat repeats after a warm-up call.  On the 2-core Xeon of 2026-12-05 a change of
+euler_poinsot.py's line numbers alone (one comment line) moved every row of the exact flow by 5-8 %, the
+same in every run of a build: compare a change with a control build of the old code so shifted, not only
+with the old build (docs/benchmarks.md, "the short branch up to |λh| = 2").
 """
 
 import argparse
