@@ -30,7 +30,7 @@ from numba import njit
 from .body import N_FIELDS as N_BODY
 from .body import body_lane, body_lane_free, body_lane_symmetric_top
 from .driver import STATUS_OK, _diverged, _record
-from .lanes import ieee_step, lane_step
+from .lanes import has_series, ieee_step, lane_step
 from .rigid_body import kinetic_energy, potential_scale
 
 # The loop over lanes always covers whole vectors of this many lanes (8 doubles
@@ -94,11 +94,72 @@ def make_block_steps(step):
     WIDE_ANGLE), with the vectorised libm pass; either is used for a stretch of
     the next intervals too (``wide`` counts them down; the stretch doubles while
     the fast pass keeps failing right after one; each has a SYMMETRIC_TOP and a
-    GENERAL pass only).
+    GENERAL pass only).  A step without rotation series (lanes.has_series) has
+    the fast pass alone: its non-finite lanes go straight to ``ieee_step``.
     """
-    fast, exact, libm = lane_step(step), ieee_step(step), ieee_step(step, inline=True)
+    fast, exact = lane_step(step), ieee_step(step)
     general, symmetric_pass, free_pass = (_make_pass(fast, mode) for mode in (GENERAL, SYMMETRIC_TOP, FREE))
-    wide_step = lane_step(step, wide=True)
+
+    @njit(error_model="numpy")
+    def count_bad(W, Q, BAD, n_lanes):
+        n_bad = 0
+        for j in range(n_lanes):
+            x = W[0, j] + W[1, j] + W[2, j] + Q[0, j] + Q[1, j] + Q[2, j] + Q[3, j]
+            bad = not x - x == 0.0  # inf or NaN somewhere
+            BAD[j] = bad
+            n_bad += bad
+        return n_bad
+
+    @njit(error_model="numpy")
+    def save(W, Q, S, n_lanes):
+        for j in range(n_lanes):
+            S[0, j], S[1, j], S[2, j] = W[0, j], W[1, j], W[2, j]
+            S[3, j], S[4, j], S[5, j], S[6, j] = Q[0, j], Q[1, j], Q[2, j], Q[3, j]
+
+    @njit(error_model="numpy")
+    def restore(W, Q, S, n_lanes):
+        for j in range(n_lanes):
+            W[0, j], W[1, j], W[2, j] = S[0, j], S[1, j], S[2, j]
+            Q[0, j], Q[1, j], Q[2, j], Q[3, j] = S[3, j], S[4, j], S[5, j], S[6, j]
+
+    @njit(error_model="numpy")
+    def redo_bad(W, Q, B, DT, S, BAD, n_lanes, m):
+        """The lanes marked in BAD, m steps of ``exact`` from their state in S, one lane at a time."""
+        for j in range(n_lanes):
+            if BAD[j]:
+                w, q = (S[0, j], S[1, j], S[2, j]), (S[3, j], S[4, j], S[5, j], S[6, j])
+                body = body_lane(B, j)
+                for _ in range(m):
+                    w, q = exact(w, q, DT[j], body)
+                W[0, j], W[1, j], W[2, j] = w
+                Q[0, j], Q[1, j], Q[2, j], Q[3, j] = q
+
+    @njit(error_model="numpy")
+    def with_fast(W, Q, B, DT, n_lanes, m, mode):
+        for _ in range(m):
+            if mode == SYMMETRIC_TOP:
+                symmetric_pass(W, Q, B, DT, n_lanes)
+            elif mode == FREE:
+                free_pass(W, Q, B, DT, n_lanes)
+            else:
+                general(W, Q, B, DT, n_lanes)
+
+    if not has_series(step):
+        # No rotation series in the step: the wide and libm passes would be the fast pass again
+        # (lanes.has_series), so a lane it leaves non-finite is redone by ``exact`` at once, and the
+        # four passes that would repeat it are never compiled (about half the block kernel's compile).
+
+        @njit(error_model="numpy")
+        def one_pass_steps(W, Q, B, DT, S, BAD, n_lanes, m, mode, wide, stretch):
+            save(W, Q, S, n_lanes)
+            with_fast(W, Q, B, DT, n_lanes, m, mode)
+            if count_bad(W, Q, BAD, n_lanes):
+                redo_bad(W, Q, B, DT, S, BAD, n_lanes, m)
+            return 0, 0
+
+        return one_pass_steps
+
+    wide_step, libm = lane_step(step, wide=True), ieee_step(step, inline=True)
     general_wide, symmetric_wide = _make_pass(wide_step, GENERAL), _make_pass(wide_step, SYMMETRIC_TOP)
     general_libm, symmetric_libm = _make_pass(libm, GENERAL), _make_pass(libm, SYMMETRIC_TOP)
 
@@ -119,39 +180,11 @@ def make_block_steps(step):
                 general_wide(W, Q, B, DT, n_lanes)
 
     @njit(error_model="numpy")
-    def count_bad(W, Q, BAD, n_lanes):
-        n_bad = 0
-        for j in range(n_lanes):
-            x = W[0, j] + W[1, j] + W[2, j] + Q[0, j] + Q[1, j] + Q[2, j] + Q[3, j]
-            bad = not x - x == 0.0  # inf or NaN somewhere
-            BAD[j] = bad
-            n_bad += bad
-        return n_bad
-
-    @njit(error_model="numpy")
-    def restore(W, Q, S, n_lanes):
-        for j in range(n_lanes):
-            W[0, j], W[1, j], W[2, j] = S[0, j], S[1, j], S[2, j]
-            Q[0, j], Q[1, j], Q[2, j], Q[3, j] = S[3, j], S[4, j], S[5, j], S[6, j]
-
-    @njit(error_model="numpy")
-    def with_fast(W, Q, B, DT, n_lanes, m, mode):
-        for _ in range(m):
-            if mode == SYMMETRIC_TOP:
-                symmetric_pass(W, Q, B, DT, n_lanes)
-            elif mode == FREE:
-                free_pass(W, Q, B, DT, n_lanes)
-            else:
-                general(W, Q, B, DT, n_lanes)
-
-    @njit(error_model="numpy")
     def steps(W, Q, B, DT, S, BAD, n_lanes, m, mode, wide, stretch):
         if wide < 0:
             with_libm(W, Q, B, DT, n_lanes, m, mode)
             return wide + 1, stretch
-        for j in range(n_lanes):
-            S[0, j], S[1, j], S[2, j] = W[0, j], W[1, j], W[2, j]
-            S[3, j], S[4, j], S[5, j], S[6, j] = Q[0, j], Q[1, j], Q[2, j], Q[3, j]
+        save(W, Q, S, n_lanes)
         ran_wide = wide > 0
         if ran_wide:
             with_wide(W, Q, B, DT, n_lanes, m, mode)
@@ -182,14 +215,7 @@ def make_block_steps(step):
             stretch = max(stretch, WIDE_INTERVALS)
             return -stretch, stretch
         if n_bad:
-            for j in range(n_lanes):
-                if BAD[j]:
-                    w, q = (S[0, j], S[1, j], S[2, j]), (S[3, j], S[4, j], S[5, j], S[6, j])
-                    body = body_lane(B, j)
-                    for _ in range(m):
-                        w, q = exact(w, q, DT[j], body)
-                    W[0, j], W[1, j], W[2, j] = w
-                    Q[0, j], Q[1, j], Q[2, j], Q[3, j] = q
+            redo_bad(W, Q, B, DT, S, BAD, n_lanes, m)
         return wide, stretch
 
     return steps

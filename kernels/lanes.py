@@ -113,6 +113,28 @@ def ieee_step(step, inline=False):
     return _recompile(step, {}, {}, {"forceinline": True} if inline else {})
 
 
+def has_series(step):
+    """Whether ``step`` calls (at any depth) a helper that ``lane_step`` replaces.  If not,
+    ``lane_step(step)``, ``lane_step(step, wide=True)`` and ``ieee_step(step, inline=True)`` are one
+    function (the same source with the same options), so a block kernel needs only the one pass: a lane
+    it leaves non-finite is a run that blows up, for ``ieee_step`` to redo (block.py)."""
+    return _reaches(step, set(_REPLACED), set())
+
+
+def _reaches(dispatcher, targets, seen):
+    """Whether ``dispatcher`` is in ``targets`` or calls one of them, following the same globals and
+    closure cells as ``_recompile``."""
+    if dispatcher in targets:
+        return True
+    if dispatcher in seen:
+        return False
+    seen.add(dispatcher)
+    func = dispatcher.py_func
+    callees = [func.__globals__.get(name) for name in func.__code__.co_names]
+    callees += [cell.cell_contents for cell in func.__closure__ or ()]
+    return any(isinstance(c, Dispatcher) and _reaches(c, targets, seen) for c in callees)
+
+
 def _recompile(dispatcher, done, replaced, options):
     """A fresh dispatcher of ``dispatcher``'s source, error_model="numpy", whose calls to
     other numba functions go to their recompiled copies (or to ``replaced[original]``)."""

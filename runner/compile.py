@@ -1,9 +1,10 @@
 """``gyrolab-compile [METHOD ...] [--jobs N]``: fill numba's cache with methods' kernels, in parallel.
 
-numba compiles on one thread, and a method's kernels (its run kernel, its block kernel of five lane
-passes unless it declares ``BLOCKS = False``, its driven kernel if it sees time) take 0.5-5 min of CPU
-cold (``benchmarks/bench_compile.py`` times them; docs/benchmarks.md).  A sweep or a test session that
-compiles them one after another in its own process uses one core and keeps every compiler's memory
+numba compiles on one thread, and a method's kernels (its run kernel; its block kernel unless it declares
+``BLOCKS = False``, seven lane passes or, for a step without rotation series, three (kernels/block.py);
+its driven kernel if it sees time) take 3-35 s of CPU a method cold (``benchmarks/bench_compile.py``
+times them; docs/benchmarks.md).  A sweep or a test session that compiles them one after another in its
+own process uses one core and keeps every compiler's memory
 (the suite's process grew to 8.7 GB compiling 27 methods; loading the same kernels from the cache
 takes 0.43 GB).  Here each method compiles in a worker process of its own (``spawn``; a fresh worker
 per method, so its memory goes back when it ends), ``--jobs`` at a time, into the same keyed cache
@@ -109,17 +110,25 @@ def compile_one(name, paths):
 # process, benchmarks/bench_compile.py); while they inlined one flow per substep they took 17, 29 and 43 s
 # (run) and 25, 34 and 59 s (driven), ~n^1.5 for n flows.  (Compiled one after another in the sweep's own
 # process, as before the compile workers, the same kernels took 1.5-3x these: numba keeps every module it
-# compiled.)
+# compiled.)  A block kernel whose step has no rotation series compiles its fast lane passes alone
+# (kernels/lanes.py has_series): BLOCK_ONE_PASS_SECONDS, from bench_compile.py --paths blocks on 2026-12-05
+# (the faster Intel machine, quiet): rk4 12.2 s and no_squish 13.1 s against seed_next 18.3 s and
+# lie_poisson4 30.4 s, each ~2 s of it the fresh interpreter's own start.
 COMPILE_SECONDS = {"runs": 3.0, "driven": 3.0, "blocks": 17.0}
+BLOCK_ONE_PASS_SECONDS = 10.0
 EXACT_FLOW_SECONDS = {"runs": 2.5, "driven": 3.3, "blocks": 2.5}
 
 
 def compile_seconds(method, path):
     """Estimated seconds to compile ``method``'s kernel of ``path`` on a cold cache (the model above)."""
+    from ..kernels.lanes import has_series
     from ..kernels.registry import get_method
 
-    exact_flow = getattr(get_method(method), "FREE_EXACT", False)
-    return COMPILE_SECONDS[path] + (EXACT_FLOW_SECONDS[path] if exact_flow else 0.0)
+    module = get_method(method)
+    seconds = COMPILE_SECONDS[path]
+    if path == "blocks" and not has_series(module.step):
+        seconds = BLOCK_ONE_PASS_SECONDS
+    return seconds + (EXACT_FLOW_SECONDS[path] if getattr(module, "FREE_EXACT", False) else 0.0)
 
 
 def compile_weight(name, paths):

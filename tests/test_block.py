@@ -20,6 +20,7 @@ from gyrolab.kernels.lanes import (
     _half_angle_wide_or_nan,
     _quat_from_rotvec_or_nan,
     _quat_from_rotvec_wide_or_nan,
+    has_series,
     ieee_step,
     lane_step,
 )
@@ -182,6 +183,33 @@ def test_overflowing_run_ends_nonfinite_and_leaves_its_block_alone():
         assert not np.isfinite(blocks[0][i, k]).all() and np.isnan(blocks[0][i, k + 1 :]).all()
     good = tuple(x[~bad] for x in inputs)
     assert_same(tuple(x[~bad] for x in blocks), integrate("rk4", *good, n_samples, 1e300, path="runs"))
+
+
+@pytest.mark.slow
+def test_a_step_without_rotation_series_has_one_lane_pass():
+    """lanes.has_series follows a step's calls to the helpers lane_step replaces: seed_next, lie_poisson4 and
+    cg4 reach them, rk4, mujoco_euler and no_squish do not (their fast, wide and libm passes would be one
+    function).  For those make_block_steps compiles the fast pass alone: with 4 of 8 rk4 lanes overflowing
+    (more than the quarter that sends a series method to its wide pass) steps() asks for no stretch, and
+    every lane ends with the bits of its bare steps, NaN where they overflow."""
+    assert [has_series(METHODS[name].step) for name in ("seed_next", "lie_poisson4", "cg4")] == [True] * 3
+    assert [has_series(METHODS[name].step) for name in ("rk4", "mujoco_euler", "no_squish")] == [False] * 3
+    step = METHODS["rk4"].step
+    bare, steps = ieee_step(step), make_block_steps(step)
+    sc = build_scene("heavy_top", 50.0, 45.0)
+    n, dt, m = VECTOR, 2e-3, 100
+    W = np.array([[0.0] * n, [0.0] * n, [2 * np.pi * f for f in (50.0, 400.0) * (n // 2)]])
+    Q, B, DT = np.tile(np.array(sc.q0)[:, None], (1, n)), np.tile(np.array(sc.body)[:, None], (1, n)), np.full(n, dt)
+    expected = []
+    for j in range(n):
+        w, q = tuple(W[:, j]), tuple(Q[:, j])
+        for _ in range(m):
+            w, q = bare(w, q, dt, sc.body)
+        expected.append(w + q)
+    expected = np.array(expected)
+    assert np.isnan(expected[1::2]).any(axis=1).all() and np.isfinite(expected[::2]).all()
+    assert steps(W, Q, B, DT, np.empty((7, n)), np.zeros(n, np.uint8), n, m, True, 0, -1) == (0, 0)
+    np.testing.assert_array_equal(np.vstack([W, Q]).T, expected)
 
 
 def test_runs_path_reports_the_overflowing_run():
