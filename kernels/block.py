@@ -97,7 +97,9 @@ def make_block_steps(step):
     GENERAL pass only).  A step without rotation series (lanes.has_series) has
     the fast pass alone: its non-finite lanes go straight to ``ieee_step``.
     """
-    fast, exact = lane_step(step), ieee_step(step)
+    series = has_series(step)
+    fast = lane_step(step)
+    exact = ieee_step(step) if series else fast  # the same function without series (lanes.has_series)
     general, symmetric_pass, free_pass = (_make_pass(fast, mode) for mode in (GENERAL, SYMMETRIC_TOP, FREE))
 
     @njit(error_model="numpy")
@@ -144,7 +146,7 @@ def make_block_steps(step):
             else:
                 general(W, Q, B, DT, n_lanes)
 
-    if not has_series(step):
+    if not series:
         # No rotation series in the step: the wide and libm passes would be the fast pass again
         # (lanes.has_series), so a lane it leaves non-finite is redone by ``exact`` at once, and the
         # four passes that would repeat it are never compiled (about half the block kernel's compile).

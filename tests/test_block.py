@@ -5,6 +5,7 @@ both sides of WIDE_ANGLE, so the libm fix-up runs), tilts and dt (several
 strides, so step counts differ), with runs that diverge mid-block and drop out.
 """
 
+import functools
 import itertools
 
 import numba
@@ -266,12 +267,18 @@ def test_lane_step_is_step_for_small_rotations_and_nan_for_large(method, wide):
             assert np.isnan(got[1]).all()
 
 
+@functools.cache
+def seed_next_block_steps():
+    """make_block_steps(seed_next's step), compiled once per test process (~7 s) for the tests below."""
+    return make_block_steps(METHODS["seed_next"].step)
+
+
 @pytest.mark.slow
 def test_block_loop_is_vectorised():
     """The loop over lanes compiles to packed double arithmetic (SSE2 and up: <2 x double> or wider).
     Guards against a change to a step that LLVM cannot vectorise (a libm call outside the two helpers
     lanes.py replaces, a helper called as module.function, a Python-error-model division)."""
-    steps = make_block_steps(METHODS["seed_next"].step)
+    steps = seed_next_block_steps()
     n = VECTOR
     W, Q, B, DT = np.zeros((3, n)), np.zeros((4, n)), np.ones((4, n)), np.zeros(n)
     Q[0] = 1.0
@@ -295,7 +302,7 @@ def large_rotation_lanes(scale):
         for _ in range(100):
             w, q = step(w, q, dt, sc.body)
         expected.append(w + q)
-    return make_block_steps(step), (W, Q, B, DT, np.empty((7, n)), np.zeros(n, np.uint8), n), np.array(expected)
+    return seed_next_block_steps(), (W, Q, B, DT, np.empty((7, n)), np.zeros(n, np.uint8), n), np.array(expected)
 
 
 @pytest.mark.slow
