@@ -20,9 +20,10 @@ from pathlib import Path
 # numba runs a parallel kernel on its OpenMP layer (libgomp), whose idle threads keep spinning after each
 # parallel region for GOMP_SPINCOUNT iterations (300,000 unless set: about a millisecond) before they sleep.
 # Where another process wants the cores (the test suite's second worker, two sweeps, Dask workers on one
-# machine) the spinning threads take them from it: the advisor's 6000 small batches (tests/test_advice.py,
-# mujoco_implicit) took 35 s instead of 6 beside a busy process, and 4.1 s against 4.5 alone
-# (benchmarks/bench_contention.py).  So a short spin, unless the user chose a wait policy or a spin count.
+# machine) the spinning threads take them from it: the advisor's 6000 small batches (mujoco_implicit, 200
+# bodies) took 20.5 s with libgomp's spin beside a second process doing the same, 5.6 s with this one, and
+# 3.8 s against 4.5 alone (benchmarks/bench_contention.py, docs/benchmarks.md).  So a short spin, unless the
+# user chose a wait policy or a spin count.
 # libgomp reads them when it loads, at numba's first parallel call (after this import).
 if "OMP_WAIT_POLICY" not in os.environ:
     os.environ.setdefault("GOMP_SPINCOUNT", "10000")
