@@ -18,7 +18,7 @@ steps until the nearest lane's next sample, records the lanes due, and a run
 that is finished or diverged (driver._diverged) leaves the block by swapping
 with the last active lane, so it costs the others nothing.
 
-entry.py builds ``advance_queue = make_advance_queue(step)`` for each method
+entry.py builds ``advance_block = make_advance_block(step)`` for each method
 and a cached parallel ``run_blocks``, one prange iteration per thread, each
 running its queue of blocks planned by ``plan_blocks`` (as for ``run_batch``,
 the step is bound as a global so that the kernel can be cached).
@@ -99,7 +99,9 @@ def make_block_steps(step):
     """
     series = has_series(step)
     fast = lane_step(step)
-    exact = ieee_step(step) if series else fast  # the same function without series (lanes.has_series)
+    # A lane left non-finite is redone by the step's own IEEE code, inlined: the libm pass's function, or
+    # without rotation series the fast pass's (the same function then, lanes.has_series).
+    exact = ieee_step(step, inline=True) if series else fast
     general, symmetric_pass, free_pass = (_make_pass(fast, mode) for mode in (GENERAL, SYMMETRIC_TOP, FREE))
 
     @njit(error_model="numpy")
@@ -161,7 +163,7 @@ def make_block_steps(step):
 
         return one_pass_steps
 
-    wide_step, libm = lane_step(step, wide=True), ieee_step(step, inline=True)
+    wide_step, libm = lane_step(step, wide=True), exact
     general_wide, symmetric_wide = _make_pass(wide_step, GENERAL), _make_pass(wide_step, SYMMETRIC_TOP)
     general_libm, symmetric_libm = _make_pass(libm, GENERAL), _make_pass(libm, SYMMETRIC_TOP)
 
@@ -292,14 +294,16 @@ def make_advance_block(step):
             TOL[j] = threshold * (kinetic_energy(w, body) + potential_scale(body))
             status[i] = STATUS_OK
             n_steps[i] = 0
-        mode, wide, stretch = block_mode(B, size), 0, -1  # -1: the fast pass not yet tried
+        # np.int64, here and for j below: a variable first set to a literal is typed Literal[int] until
+        # its loop's other assignments are seen, and numba compiled ``steps`` (and _swap_lanes) for both.
+        mode, wide, stretch = block_mode(B, size), np.int64(0), np.int64(-1)  # -1: the fast pass not yet tried
         active = n if out.shape[1] > 1 else 0
         while active > 0:
             m = LEFT[0]
             for j in range(1, active):
                 m = min(m, LEFT[j])
             wide, stretch = steps(W, Q, B, DT, S, BAD, -(-active // VECTOR) * VECTOR, m, mode, wide, stretch)
-            j = 0
+            j = np.int64(0)
             while j < active:
                 LEFT[j] -= m
                 if LEFT[j] > 0:
@@ -319,21 +323,6 @@ def make_advance_block(step):
                 j += 1
 
     return advance_block
-
-
-def make_advance_queue(step):
-    """``advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status,
-    n_steps, state)``: the blocks of queue t (see plan_blocks), one after another, with make_advance_block."""
-    advance_block = make_advance_block(step)
-
-    @njit(error_model="numpy")
-    def advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, state):
-        for b in range(queues[t], queues[t + 1]):
-            advance_block(
-                runs[starts[b] : starts[b + 1]], w0, q0, bodies, dts, strides, threshold, out, status, n_steps, state
-            )
-
-    return advance_queue
 
 
 @njit(cache=True, error_model="numpy")

@@ -17,8 +17,8 @@ A method module defines ``step`` (and its declarations, see methods/README.md);
 
 So the path from the runner into a method's step reads statically: kernels/batch.py calls
 ``module.run_batch`` (``run_blocks``, ``run_batch_driven``), which is the function of that name
-below; its ``_advance_run`` (``_advance_queue``, ``_advance_driven``) is the loop that
-driver.make_advance (block.make_advance_queue, driver.make_advance_driven) builds around the
+below; its ``_advance_run`` (``_advance_block``, ``_advance_driven``) is the loop that
+driver.make_advance (block.make_advance_block, driver.make_advance_driven) builds around the
 method's ``step``.
 
 The copies must be cached (the block kernel takes seconds to compile), and numba
@@ -38,9 +38,10 @@ numbers of this one.)
 
 import types
 
+import numpy as np
 from numba import njit, prange
 
-from .block import make_advance_queue
+from .block import make_advance_block
 from .driver import make_advance, make_advance_carried, make_advance_driven
 
 
@@ -55,29 +56,36 @@ def _bound_per_method(factory):
 
 
 _advance_run = _bound_per_method("driver.make_advance(step)")
-_advance_queue = _bound_per_method("block.make_advance_queue(step)")
+_advance_block = _bound_per_method("block.make_advance_block(step)")
 _advance_driven = _bound_per_method("driver.make_advance_driven(step_driven)")
 
 # The line numbers of these defs become part of the cache file names (numba's index is named
 # <method>.<function>-<line>); an edit here changes the core key, so no stale copy can load.
+# A loop is called with np.int64 of the prange index: numba types the loop signed before it
+# becomes a parfor, whose gufunc's index is unsigned, and compiled the whole loop once for each
+# (about a second of every kernel's cold compile).  The block queue is looped here, not in a
+# function of its own: each numba function optimises and emits again the code of all it calls.
 
 
 def run_batch(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, iterations):
     """Integrate every run one by one, in parallel over runs (driver.make_advance)."""
     for i in prange(w0.shape[0]):
-        _advance_run(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, iterations)
+        _advance_run(np.int64(i), w0, q0, bodies, dts, strides, threshold, out, status, n_steps, iterations)
 
 
 def run_blocks(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, runs, starts, queues, state):
-    """Integrate the runs in vectorised blocks, one queue of blocks per thread (block.py)."""
+    """Integrate the runs in vectorised blocks, one queue of blocks per thread (block.py plan_blocks)."""
     for t in prange(queues.size - 1):
-        _advance_queue(t, runs, starts, queues, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, state)
+        for b in range(queues[t], queues[t + 1]):
+            _advance_block(
+                runs[starts[b] : starts[b + 1]], w0, q0, bodies, dts, strides, threshold, out, status, n_steps, state
+            )
 
 
 def run_batch_driven(w0, q0, bodies, dts, strides, threshold, out, status, n_steps, iterations):
     """Integrate driven bodies (a torque that depends on time), in parallel over runs."""
     for i in prange(w0.shape[0]):
-        _advance_driven(i, w0, q0, bodies, dts, strides, threshold, out, status, n_steps, iterations)
+        _advance_driven(np.int64(i), w0, q0, bodies, dts, strides, threshold, out, status, n_steps, iterations)
 
 
 def uses_blocks(module):
@@ -138,7 +146,7 @@ def _compiled_copy(function, module, tag, **loops):
     """``function`` re-homed in ``module`` (its file and module name) with ``loops`` as its globals,
     compiled, cached and parallel like every entry point; ``tag`` appended to its qualified name (a
     variant's, kernels/variants.py) names its own cache file."""
-    namespace = {"__name__": module.__name__, "__file__": module.__file__, "prange": prange, **loops}
+    namespace = {"__name__": module.__name__, "__file__": module.__file__, "np": np, "prange": prange, **loops}
     code = function.__code__.replace(co_filename=module.__file__)
     copy = types.FunctionType(code, namespace, function.__name__)
     copy.__qualname__, copy.__doc__ = function.__qualname__ + tag, function.__doc__
@@ -199,7 +207,7 @@ def add_entry_points(module, tag=""):
         advance = make_advance(counted(module), counts_iterations(module))
     module.run_batch = _compiled_copy(run_batch, module, tag, _advance_run=advance)
     if uses_blocks(module):
-        module.run_blocks = _compiled_copy(run_blocks, module, tag, _advance_queue=make_advance_queue(module.step))
+        module.run_blocks = _compiled_copy(run_blocks, module, tag, _advance_block=make_advance_block(module.step))
     if hasattr(module, "step_driven"):
         module.run_batch_driven = _compiled_copy(
             run_batch_driven,
