@@ -113,9 +113,13 @@ def compile_one(name, paths):
 # compiled.)  A block kernel whose step has no rotation series compiles its fast lane passes alone
 # (kernels/lanes.py has_series): BLOCK_ONE_PASS_SECONDS, from bench_compile.py --paths blocks on 2026-12-05
 # (the faster Intel machine, quiet): rk4 12.2 s and no_squish 13.1 s against seed_next 18.3 s and
-# lie_poisson4 30.4 s, each ~2 s of it the fresh interpreter's own start.
-COMPILE_SECONDS = {"runs": 3.0, "driven": 3.0, "blocks": 17.0}
-BLOCK_ONE_PASS_SECONDS = 10.0
+# lie_poisson4 30.4 s, each ~2 s of it the fresh interpreter's own start.  Since each loop compiles once
+# and the block kernel's helpers are inlined into it (kernels/entry.py, kernels/block.py; 2026-12-05), the
+# workers' lines of gyrolab-compile on an empty cache: a method without a block kernel 2-4 s for its run
+# and driven kernels; run + block kernels 7-9 s where the step has no rotation series; run, block and
+# driven kernels 18-20 s for seed_next, rkmk4 and lie_poisson, 25-27 s for cg4 and lie_poisson4.
+COMPILE_SECONDS = {"runs": 2.0, "driven": 2.0, "blocks": 15.0}
+BLOCK_ONE_PASS_SECONDS = 6.0
 EXACT_FLOW_SECONDS = {"runs": 2.5, "driven": 3.3, "blocks": 2.5}
 
 
