@@ -167,25 +167,7 @@ def make_block_steps(step):
 
         return one_pass_steps
 
-    wide_step, libm = lane_step(step, wide=True), exact
-    general_wide, symmetric_wide = _make_pass(wide_step, GENERAL), _make_pass(wide_step, SYMMETRIC_TOP)
-    general_libm, symmetric_libm = _make_pass(libm, GENERAL), _make_pass(libm, SYMMETRIC_TOP)
-
-    @njit(error_model="numpy")
-    def with_libm(W, Q, B, DT, n_lanes, m, mode):
-        for _ in range(m):
-            if mode == SYMMETRIC_TOP:
-                symmetric_libm(W, Q, B, DT, n_lanes)
-            else:
-                general_libm(W, Q, B, DT, n_lanes)
-
-    @njit(error_model="numpy")
-    def with_wide(W, Q, B, DT, n_lanes, m, mode):
-        for _ in range(m):
-            if mode == SYMMETRIC_TOP:
-                symmetric_wide(W, Q, B, DT, n_lanes)
-            else:
-                general_wide(W, Q, B, DT, n_lanes)
+    with_wide, with_libm = _two_mode_passes(lane_step(step, wide=True)), _two_mode_passes(exact)
 
     @njit(error_model="numpy", inline="always")
     def steps(W, Q, B, DT, S, BAD, n_lanes, m, mode, wide, stretch):
@@ -227,6 +209,23 @@ def make_block_steps(step):
         return wide, stretch
 
     return steps
+
+
+def _two_mode_passes(step):
+    """``passes(W, Q, B, DT, n_lanes, m, mode)``: m steps of ``step`` on every lane, by the SYMMETRIC_TOP
+    pass where ``mode`` is that and the GENERAL pass otherwise (the wide and libm passes have no FREE pass
+    of their own: blocks rarely need them)."""
+    general, symmetric = _make_pass(step, GENERAL), _make_pass(step, SYMMETRIC_TOP)
+
+    @njit(error_model="numpy")
+    def passes(W, Q, B, DT, n_lanes, m, mode):
+        for _ in range(m):
+            if mode == SYMMETRIC_TOP:
+                symmetric(W, Q, B, DT, n_lanes)
+            else:
+                general(W, Q, B, DT, n_lanes)
+
+    return passes
 
 
 def _make_pass(fast, mode):
