@@ -239,3 +239,33 @@ def test_many_methods_are_all_drawn_in_groups():
     groups = method_groups(sub.integrator.values)
     assert [m for g in groups for m in g] == list(METHODS)
     assert len(groups) == -(-len(METHODS) // MAX_METHODS) and max(map(len, groups)) - min(map(len, groups)) <= 1
+
+
+def test_log_ticks_outside_the_view_are_never_made_and_the_figure_is_the_same():
+    """io.ticks_in_view (save_figure): a log axis's locators stop at the view, and the PNG is the one
+    matplotlib's own locators give, byte for byte, with a tick at a view limit still drawn."""
+    import io as bytes_io
+
+    from gyrolab.analysis.io import ticks_in_view
+
+    def png(in_view):
+        fig, axes = plt.subplots(1, 2)
+        axes[0].plot([3e-5, 3e-2], [0.4, 80.0])
+        axes[1].plot([1e-4, 1e-2], [1.0, 100.0])  # limits on decades: those ticks are drawn
+        for ax in axes:
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+        axes[1].set_xlim(1e-4, 1e-2)
+        if in_view:
+            ticks_in_view(fig)
+            fig.canvas.draw()
+            locs = axes[0].xaxis.get_minorticklocs()
+            lo, hi = axes[0].get_xlim()
+            assert len(locs) and all(lo <= t <= hi for t in locs)
+            assert {1e-4, 1e-2} <= set(axes[1].xaxis.get_majorticklocs())
+        out = bytes_io.BytesIO()
+        fig.savefig(out, format="png", dpi=60)
+        plt.close(fig)
+        return out.getvalue()
+
+    assert png(True) == png(False)

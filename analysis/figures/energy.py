@@ -13,15 +13,15 @@ marked "diverged" in the legend.
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ...kernels.invariants import needed_variables
+from ...kernels.invariants import invariant, needed_variables
 from ...results.layout import conserved
 from ..io import (
     DT_STYLES,
     FLOOR,
     QUANTITY_LABELS,
     drawable_invariants,
+    error_series,
     fmt_dt,
-    invariant_error,
     line_style,
     missing_variable_error,
     relative_error,
@@ -81,20 +81,40 @@ def _check_quantity(ds, quantity):
         )
 
 
-def _series(sub, quantity, f, th, envelope, methods):
-    """{(method, dt): error series} of one panel; the running maximum when ``envelope``."""
+RUN_DIMS = ("integrator", "f", "theta0", "dt")
+
+
+def run_errors(sub, quantity):
+    """{(method, f, θ0, dt): (error series, status)} of every run of ``sub``: the invariant computed once
+    over the whole selection and each run's row taken from it (a figure draws thousands of runs, and
+    selecting each run of the Dataset in turn took seconds)."""
+    values = invariant(sub, quantity)
+    values = values.transpose(*RUN_DIMS, "time", *(["xyz"] if "xyz" in values.dims else [])).values
+    status = sub.status.transpose(*RUN_DIMS).values
+    labels = [sub[d].values for d in RUN_DIMS]
+    return {
+        (str(m), float(f), float(th), float(dt)): (error_series(values[i, j, k, n]), int(status[i, j, k, n]))
+        for i, m in enumerate(labels[0])
+        for j, f in enumerate(labels[1])
+        for k, th in enumerate(labels[2])
+        for n, dt in enumerate(labels[3])
+    }
+
+
+def _series(errors, f, th, envelope, methods, dts):
+    """{(method, dt): error series} of one panel from ``run_errors``; the running maximum when ``envelope``."""
     out = {}
     for m in methods:
-        for dt in sub.dt.values:
-            err = invariant_error(sub.sel({"integrator": m, "f": f, "theta0": th, "dt": dt}), quantity)
+        for dt in dts:
+            err = errors[(str(m), float(f), float(th), float(dt))][0]
             out[(str(m), float(dt))] = np.fmax.accumulate(err) if envelope else err
     return out
 
 
-def _kept_exactly(run, err):
+def _kept_exactly(err, status):
     """The run finished (status 0) with error 0 at every sample: a run that stopped in its first step
     has only its t = 0 sample finite, and that zero says nothing."""
-    return int(run.status) == 0 and bool(np.all(err[np.isfinite(err)] == 0))
+    return status == 0 and bool(np.all(err[np.isfinite(err)] == 0))
 
 
 def _coincidences(series):
@@ -106,24 +126,27 @@ def _coincidences(series):
         per_dt.append({frozenset(g) for g in coincident(logs, 0.02)})
     common = set.intersection(*per_dt) if per_dt else set()
     order = [m for m, _ in series]
-    return [sorted(g, key=order.index) for g in common]
+    # in the panel's method order: a set's order changes with the process's string hashing
+    return sorted((sorted(g, key=order.index) for g in common), key=lambda g: order.index(g[0]))
 
 
-def _panel(ax, sub, quantity, f, th, envelope=True, methods=None):
+def _panel(ax, sub, quantity, f, th, envelope=True, methods=None, errors=None):
     """One panel: the drift of ``quantity`` of ``methods`` (default: all) at (f, θ0), colour and marker =
-    method, line style = dt; a run that stopped ends in an ×."""
+    method, line style = dt; a run that stopped ends in an ×.  ``errors``: ``run_errors(sub, quantity)``
+    when the caller has it."""
     time = sub.time.values
     t_plot = np.where(time > 0, time, np.nan)  # log-x friendly; t=0 error is 0 by definition
     methods = [str(m) for m in sub.integrator.values] if methods is None else methods
-    series = _series(sub, quantity, f, th, envelope, methods)
+    errors = run_errors(sub, quantity) if errors is None else errors
+    series = _series(errors, f, th, envelope, methods, sub.dt.values)
     any_zero = False
     for (m, dt), err in series.items():
         k = list(sub.dt.values).index(dt)
-        run = sub.sel({"integrator": m, "f": f, "theta0": th, "dt": dt})
-        any_zero |= _kept_exactly(run, err)
+        status = errors[(m, float(f), float(th), dt)][1]
+        any_zero |= _kept_exactly(err, status)
         label = f"{m}" + (f", {fmt_dt(dt)}" if sub.dt.size > 1 else "")
         style = line_style(m)
-        if int(run.status) != 0:
+        if status != 0:
             label += " (diverged)"
             last = np.flatnonzero(np.isfinite(err))
             if last.size:
@@ -181,8 +204,9 @@ def drift_figure(ds, quantity="energy", sel=None, envelope=True):
         fig, grid = plt.subplots(rows, cols, figsize=panel_size(rows, cols, 4.2, 3.0), squeeze=False, sharey=True)
         cells = [(grid[r, c], f, th, g) for r, (f, th) in enumerate(panels) for c, g in enumerate(groups)]
         axes = list(grid.ravel())
+    errors = run_errors(sub, quantity)
     for ax, f, th, methods in cells:
-        _panel(ax, sub, quantity, f, th, envelope, methods)
+        _panel(ax, sub, quantity, f, th, envelope, methods, errors)
     _limits(axes)
     sym = QUANTITY_LABELS[quantity]
     suptitle(
@@ -222,21 +246,16 @@ def invariants_figure(ds, sel=None, envelope=True):
     groups = method_groups(sub.integrator.values, per_panel)
     panels = [(f, th) for f in sub.f.values for th in sub.theta0.values]
     exact, quantities_drawn = [], []
+    errors = {q: run_errors(sub, q) for q in quantities}
     for q in quantities:
-        runs = [
-            sub.sel({"integrator": m, "f": f, "theta0": th, "dt": dt})
-            for m in sub.integrator.values
-            for f, th in panels
-            for dt in sub.dt.values
-        ]
-        (exact if all(_kept_exactly(r, invariant_error(r, q)) for r in runs) else quantities_drawn).append(q)
+        (exact if all(_kept_exactly(*e) for e in errors[q].values()) else quantities_drawn).append(q)
     quantities_drawn = quantities_drawn or quantities[:1]
     rows = [(q, g) for q in quantities_drawn for g in range(n_groups)]
     width, height = panel_size(len(rows), len(panels), 4.4, 2.9)
     fig, axes = plt.subplots(len(rows), len(panels), figsize=(width, height), squeeze=False, sharex=True)
     for r, (q, g) in enumerate(rows):
         for c, (f, th) in enumerate(panels):
-            _panel(axes[r, c], sub, q, f, th, envelope, groups[g])
+            _panel(axes[r, c], sub, q, f, th, envelope, groups[g], errors[q])
             if r < len(rows) - 1:
                 axes[r, c].set_xlabel("")
             if r > 0:
