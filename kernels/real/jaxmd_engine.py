@@ -107,7 +107,10 @@ class Backend:
             raise ValueError(f"jax-md's rigid-body backend has no mode {mode!r}; it has {', '.join(MODES)}")
         import jax
 
+        from .jax_cache import use_compilation_cache
+
         jax.config.update("jax_enable_x64", True)
+        use_compilation_cache(jax)
         self.name, self.mode, self.jax = name, mode, jax
         self.init, step = free_body_nve()
 

@@ -40,7 +40,10 @@ class Backend(mujoco_engine.Backend):
             raise ValueError(f"MJX has no integrator {mode!r}; it has {', '.join(MODES)}")
         import jax
 
+        from .jax_cache import use_compilation_cache
+
         jax.config.update("jax_enable_x64", True)
+        use_compilation_cache(jax)
         import mujoco
         from mujoco import mjx
 
