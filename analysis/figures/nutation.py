@@ -57,9 +57,10 @@ def _theta_panel(ax, sub, f, th, lo, hi, exact_t, exact_theta, nut, flips, metho
     time = sub.time.values
     mask = (time >= lo - 1e-12) & (time <= hi + 1e-12)
     series = {}
+    lean = sub[["theta", "status"]]  # a run selected from the whole file indexes every variable
     for m in methods:
         for k, dt in enumerate(sub.dt.values):
-            run = sub.sel({"integrator": m, "f": f, "theta0": th, "dt": dt})
+            run = lean.sel({"integrator": m, "f": f, "theta0": th, "dt": dt})
             label = f"{m}" + (f", {fmt_dt(dt)}" if sub.dt.size > 1 else "")
             if int(run.status) != 0:
                 label += " (diverged)"
