@@ -283,8 +283,12 @@ class _InView(Locator):
     def tick_values(self, vmin, vmax):
         lo, hi = sorted((vmin, vmax))
         ticks = np.asarray(self.inner.tick_values(vmin, vmax))
-        slack = 1e-9 * (hi - lo)  # a tick at a limit is drawn (matplotlib allows it the same rounding)
-        return ticks[(ticks >= lo - slack) & (ticks <= hi + slack)]
+        if not lo > 0:  # no log view yet: matplotlib sorts them out
+            return ticks
+        # A tick at a limit is drawn: matplotlib keeps those within 1e-10 of the view's width in log
+        # coordinates; keep those within 1e-9 (a factor, not a difference: the view spans decades).
+        pad = (hi / lo) ** 1e-9
+        return ticks[(ticks >= lo / pad) & (ticks <= hi * pad)]
 
     def view_limits(self, vmin, vmax):
         return self.inner.view_limits(vmin, vmax)
