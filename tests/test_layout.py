@@ -119,6 +119,46 @@ def test_a_fresh_file_selects_one_integrator_with_sel_and_opens_with_netcdf_c(fr
         )
 
 
+@pytest.mark.parametrize("lazy", [False, True])
+def test_the_reader_gives_what_xarray_opens(fresh, files, layout_1, lazy):
+    """The reader opens through a file that keeps its lookups (gyrolab/results/reader.py ``_LookupsKept``):
+    the Dataset is the one ``xr.open_dataset(engine="h5netcdf")`` gives, values, attrs and encodings."""
+    import xarray as xr
+
+    from gyrolab.results.migrate import current
+    from gyrolab.results.reader import open_file
+
+    for path in (fresh, *files, layout_1):
+        with xr.open_dataset(path, engine="h5netcdf", phony_dims="access") as ds:
+            expected = current(ds.load())
+        got, version = open_file(path, lazy=lazy)
+        with got:
+            got.load()
+            xr.testing.assert_identical(got, expected)
+            assert version == file_layout_version(expected)
+            for name in expected.variables:  # repr: a NaN _FillValue is never == itself
+                assert repr(got[name].encoding) == repr(expected[name].encoding), (path, name)
+
+
+def test_a_lazily_opened_file_is_closed_with_its_dataset(fresh, tmp_path):
+    """``ds.close()`` of a lazy Dataset closes its file (it stayed open, read-only, until the Dataset was
+    collected: HDF5 then refused to open it for writing in the same process)."""
+    import shutil
+
+    import h5py
+
+    from gyrolab.results.reader import open_file
+
+    path = shutil.copy(fresh, tmp_path / "results.h5")
+    ds, _ = open_file(path, lazy=True)
+    with pytest.raises(OSError, match="already open"):
+        h5py.File(path, "r+")
+    assert float(ds["energy"].isel(time=-1).max()) > 0  # read lazily, from the open file
+    ds.close()
+    with h5py.File(path, "r+") as h5:  # closed: HDF5 lets it open for writing
+        assert "energy" in h5
+
+
 @pytest.mark.slow
 def test_older_layouts_open_with_integrator_not_method(files, layout_1, layout_2, stored_rk4):
     """Every older layout (0, 1, 2 and the stored regression data) reads with the dim ``integrator``:
