@@ -58,7 +58,8 @@ class _LookupsKept(h5py.File):
 def _open_dataset(path):
     """``xr.open_dataset(path, engine="h5netcdf", phony_dims="access")`` through a file whose lookups are
     kept (``_LookupsKept``): the same Dataset, variables, attrs and encodings, lazy.  ``ds.close()``
-    closes the file; a Dataset made from it (``assign``) needs ``set_close(ds._close)`` to do so."""
+    closes the file; a Dataset made from it (``assign``, a rename) closes it only once given
+    ``set_close(ds.close)``."""
     h5 = _LookupsKept(path)
     try:
         # h5netcdf takes an open h5py file (and then leaves closing it to its owner); the kwargs are the
