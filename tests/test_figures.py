@@ -99,13 +99,12 @@ def all_text(fig):
     return " ".join(text.split())
 
 
-def drawn_or_listed(fig, key, value, ds=None):
-    """``value`` of grid axis ``key`` appears in the figure: in a title/label as 'f = 10 Hz', in a note, or
-    (with the file ``ds``) as the title of a grid point with that value in the problem's own terms
-    (figure.run_title: a peer problem's initial body rates)."""
+def drawn_or_listed(text, key, value, ds=None):
+    """``value`` of grid axis ``key`` appears in a figure whose ``all_text`` is ``text``: in a title/label as
+    'f = 10 Hz', in a note, or (with the file ``ds``) as the title of a grid point with that value in the
+    problem's own terms (figure.run_title: a peer problem's initial body rates)."""
     from gyrolab.analysis.figures.record import run_title
 
-    text = all_text(fig)
     v = f"{value:g}"
     pattern = {
         "f": rf"f = {v} Hz|f=[\d.,]*\b{v}\b|f = [\d., ]*\b{v}\b",
@@ -134,12 +133,12 @@ def test_figure_renders_truthfully(kind, shape, scene, files):
     box = fig.get_tightbbox(fig.canvas.get_renderer())
     assert box.width * 110 / fig.dpi <= MAX_PX and box.height * 110 / fig.dpi <= MAX_PX, (box.width, box.height)
     assert not overlaps(fig), overlaps(fig)
+    text = all_text(fig)  # every text's extent is measured once: the figure no longer changes
     for key in ("f", "theta0"):
         for value in ds[key].values:
             if kind in ("stability",) and key == "f":
                 continue  # the f axis of the map holds every f
-            assert drawn_or_listed(fig, key, float(value), ds), (key, value, all_text(fig)[:400])
-    text = all_text(fig)
+            assert drawn_or_listed(text, key, float(value), ds), (key, value, text[:400])
     if scene == "free_asymmetric":
         assert "L_3" not in text  # not conserved by an asymmetric free body
     if scene != "heavy_top":
