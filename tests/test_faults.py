@@ -10,6 +10,7 @@ import contextlib
 import os
 import random
 import resource
+import shutil
 import signal
 import time
 from pathlib import Path
@@ -332,7 +333,7 @@ def combine_case(tmp_path, good, case):
     d = tmp_path / "in"
     d.mkdir()
     if case in BAD_FILES:
-        make_file(d / "a.h5", "sweep.f=[10]")
+        shutil.copyfile(good, d / "a.h5")  # the file make_file(..., "sweep.f=[10]") writes, made once
         BAD_FILES[case](d / "b.h5", good)
         return [str(d / "a.h5"), str(d / "b.h5")], "b.h5"
     if case == "overlap":
