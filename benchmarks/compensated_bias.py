@@ -1,0 +1,206 @@
+"""Where does compensated lie_poisson4's residual energy bias on the heavy top come from? (issue 22, item 4)
+
+    python benchmarks/compensated_bias.py curve [--runs 32] [--steps 1e8] [--seed 1]
+    python benchmarks/compensated_bias.py probe [--runs 8] [--steps 1e6] [--seed 1] [--variant NAME --amplitude A]
+
+``lie_poisson4(accumulate=compensated)`` on benchmarks/brouwer.py's heavy-top ensemble (50 Hz, 45°,
+released, dt = 2.5e-5 s, ω0 perturbed by 1e-9 relative) walks as Brouwer's √t, but the mean over the
+runs of E/E0 − 1 moves away from zero in proportion to t: a rounding bias common to the runs.
+
+``curve`` runs the registered variant (brouwer.py ``run_compensated``, checked bit for bit against
+integrate()) and prints that mean, its standard error and the RMS at 25 times, then the line fitted
+through the mean: a bias grows as a t, a walk keeps the mean within its error.
+
+``probe`` finds which rounding it is not.  It runs a copy of the variant's step (kernels/compensated.py:
+Yoshida's triple jump of kick(h/2), the symmetric body's exact free flow, kick(h/2)), checked bit for
+bit against the registered variant, with one suspected rounding amplified at a time.  A rounding that
+makes a bias b per step, amplified A times, moves the mean by about A b per step: at 1e6 steps the bias
+itself (~6e-19) is below the walk's spread (~3e-18), amplified 1e3 or more it would stand out.
+Variants (name: what is amplified):
+
+- ``copy``: nothing (the registered variant's map, bit for bit);
+- ``axis_ratio``: the rounding of I3/I1 in the first turn's axis (ω1 h, ω2 h, (I3/I1) ω3 h), which is
+  the same on every step since ω3 is conserved: the ratio scaled by 1 + 1e-8 (~1e8 times its rounding);
+- ``turn_rate``: likewise the rate c = (1 − I3/I1) ω3 of the turn of L about e3 (and the body's second
+  turn): scaled by 1 + 1e-8;
+- ``kick_low_parts``: the kick's torque is taken from q's high part only; here from q + A ql (first
+  order in ql), A = ±1000 (A = 1 would be the torque of the whole q);
+- ``norm_coarse``: the projection to |q| = 1 computes |q|² − 1 in double; here from q rounded to
+  multiples of 1e-12 (its error ~1e4 times larger);
+- ``turn_low_parts``: the body's turn adds q ⊗ (α, u) from q's high part only; here plus A ql ⊗ (α, u),
+  A = ±1000 (A = 1: the low part turned with the body, the increment of the whole q).
+
+``--variant NAME --amplitude A`` runs that one variant (e.g. ``turn_low_parts`` at A = 1, over 1e8 steps,
+to see whether the bias is left when that rounding is corrected rather than amplified).
+"""
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from numba import njit, prange
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from brouwer import energy_extended, ensemble, run_compensated  # noqa: E402
+
+from gyrolab.kernels.compensated import _add3, _add4, _minus_one, _normalize, _shear_turn  # noqa: E402
+from gyrolab.kernels.methods.lie_poisson4 import WEIGHTS  # noqa: E402
+from gyrolab.kernels.rigid_body import gravity_torque  # noqa: E402
+from gyrolab.kernels.rotation import half_angle, quat_from_rotvec, quat_mul  # noqa: E402
+
+# name: (code, amplitudes): each amplitude is one run of the ensemble
+VARIANTS = {
+    "copy": (0, (0.0,)),
+    "axis_ratio": (1, (1e-8,)),
+    "turn_rate": (2, (1e-8,)),
+    "kick_low_parts": (3, (1000.0, -1000.0)),
+    "norm_coarse": (4, (1e12,)),
+    "turn_low_parts": (5, (1000.0, -1000.0)),
+}
+W1, W0 = WEIGHTS[0], WEIGHTS[1]
+
+
+@njit(error_model="numpy")
+def _kick(w, wl, q, ql, h, body, code, amp):
+    """kernels/compensated.kick; with code 3 the torque from q + amp ql (first order in ql; the top's
+    torque m3 (γ2, −γ1, 0) with γ = Rᵀ ẑ, kernels/rotation.lab_up_in_body)."""
+    if code != 3:
+        t0, t1, t2 = gravity_torque(q, body)
+        return _add3(w, wl, h * t0 / body[0], h * t1 / body[1], h * t2 / body[2])
+    a, b, c, d = q
+    al, bl, cl, dl = amp * ql[0], amp * ql[1], amp * ql[2], amp * ql[3]
+    g1 = 2.0 * (b * d - a * c) + 2.0 * ((bl * d + b * dl) - (al * c + a * cl))
+    g2 = 2.0 * (c * d + a * b) + 2.0 * ((cl * d + c * dl) + (al * b + a * bl))
+    m3 = body[3]
+    return _add3(w, wl, h * (m3 * g2) / body[0], h * (-m3 * g1) / body[1], 0.0)
+
+
+@njit(error_model="numpy")
+def _normalize_coarse(q, ql, scale):
+    """kernels/compensated._normalize with |q|² − 1 from q rounded to multiples of 1/scale."""
+    r0, r1 = round(q[0] * scale) / scale, round(q[1] * scale) / scale
+    r2, r3 = round(q[2] * scale) / scale, round(q[3] * scale) / scale
+    k = -0.5 * (r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3 - 1.0)
+    return _add4(q, ql, (k * q[0], k * q[1], k * q[2], k * q[3]))
+
+
+@njit(error_model="numpy")
+def _flow(w, wl, q, ql, h, body, code, amp):
+    """kernels/compensated._symmetric_flow, with the variant ``code``'s rounding amplified by ``amp``."""
+    I1, I3 = body[0], body[2]
+    ratio = I3 / I1
+    k = ratio * (1.0 + amp) if code == 1 else ratio
+    c = (1.0 - ratio) * (1.0 + amp) * w[2] if code == 2 else (1.0 - ratio) * w[2]
+    a1, u0, u1, u2 = quat_from_rotvec(w[0] * h, w[1] * h, k * w[2] * h)
+    al1 = _minus_one(a1, u0, u1, u2)
+    ch, sh = half_angle(c * h)
+    al2 = _minus_one(ch, 0.0, 0.0, sh)
+    alpha = al1 + al2 + (al1 * al2 - u2 * sh)
+    v0 = u0 + (al2 * u0 + u1 * sh)
+    v1 = u1 + (al2 * u1 - u0 * sh)
+    v2 = sh + u2 + (al1 * sh + al2 * u2)
+    dq = quat_mul(q, (alpha, v0, v1, v2))
+    if code == 5:
+        e = quat_mul(ql, (alpha, v0, v1, v2))
+        dq = (dq[0] + amp * e[0], dq[1] + amp * e[1], dq[2] + amp * e[2], dq[3] + amp * e[3])
+    q, ql = _add4(q, ql, dq)
+    q, ql = _normalize_coarse(q, ql, amp) if code == 4 else _normalize(q, ql)
+    x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], sh / ch, 2.0 * sh * ch, 1.0, 1.0)
+    return (x, y, w[2]), (xl, yl, wl[2]), q, ql
+
+
+@njit(parallel=True, error_model="numpy")
+def _run(w0, q0, body, dt, n, code, amp, out):
+    """out[i] = (ω, ωl, q, ql) after n steps of run i."""
+    for i in prange(w0.shape[0]):
+        w = (w0[i, 0], w0[i, 1], w0[i, 2])
+        q = (q0[i, 0], q0[i, 1], q0[i, 2], q0[i, 3])
+        wl = (0.0, 0.0, 0.0)
+        ql = (0.0, 0.0, 0.0, 0.0)
+        for _ in range(n):
+            for h in (W1 * dt, W0 * dt, W1 * dt):
+                w, wl = _kick(w, wl, q, ql, 0.5 * h, body, code, amp)
+                w, wl, q, ql = _flow(w, wl, q, ql, h, body, code, amp)
+                w, wl = _kick(w, wl, q, ql, 0.5 * h, body, code, amp)
+        for j in range(3):
+            out[i, j], out[i, 3 + j] = w[j], wl[j]
+        for j in range(4):
+            out[i, 6 + j], out[i, 10 + j] = q[j], ql[j]
+
+
+def relative_energy_error(states, body, w0, q0):
+    """E/E0 − 1 of states (..., 14) = (ω, ωl, q, ql), evaluated from hi + lo in long double."""
+    w = states[..., 0:3].astype(np.longdouble) + states[..., 3:6]
+    q = states[..., 6:10].astype(np.longdouble) + states[..., 10:14]
+    E = energy_extended(w, q, body)
+    E0 = energy_extended(w0, q0, body)
+    return np.asarray(E / (E0 if E.ndim == 1 else E0[:, None]) - 1, dtype=np.float64)
+
+
+def probe(runs, steps, seed, variants=VARIANTS):
+    body, w0, q0, dt = ensemble("heavy_top", runs, seed)
+    check = np.empty((1, 14))
+    _run(w0[:1], q0[:1], body, dt, 1000, 0, 0.0, check)
+    registered = run_compensated("lie_poisson4", w0[:1], q0[:1], body, dt, 1000, 2)[0, 1]
+    if not np.array_equal(check[0], registered):
+        raise SystemExit(f"the copy and lie_poisson4(accumulate=compensated) differ: {check[0]} {registered}")
+    print(f"{runs} runs x {steps:.3g} steps, heavy top 50 Hz, dt = {dt:g} s; the copy equals the registered variant")
+    print(f"{'variant':<16} {'amplitude':>10} {'mean of E/E0 - 1 ± s.e.':>24} {'per step':>10} {'s':>5}")
+    for name, (code, amps) in variants.items():
+        for amp in amps:
+            out = np.empty((runs, 14))
+            t0 = time.perf_counter()
+            _run(w0, q0, body, dt, int(steps), code, amp, out)
+            wall = time.perf_counter() - t0
+            e = relative_energy_error(out, body, w0, q0)
+            mean, se = e.mean(), e.std(ddof=1) / np.sqrt(runs)
+            print(f"{name:<16} {amp:10.3g} {mean:12.3e} ± {se:8.1e} {mean / steps:10.2e} {wall:5.1f}", flush=True)
+
+
+def curve(runs, steps, seed, samples=1000):
+    body, w0, q0, dt = ensemble("heavy_top", runs, seed)
+    stride = max(1, round(steps / samples))
+    t0 = time.perf_counter()
+    states = run_compensated("lie_poisson4", w0, q0, body, dt, stride, samples + 1)
+    wall = time.perf_counter() - t0
+    e = relative_energy_error(states[:, 1:], body, w0, q0)
+    t = np.arange(1, samples + 1) * stride * dt
+    mean, se, rms = e.mean(0), e.std(0, ddof=1) / np.sqrt(runs), np.sqrt((e**2).mean(0))
+    head = f"lie_poisson4(accumulate=compensated), {runs} runs (seed {seed}) x {stride * samples:.3g} steps"
+    print(f"{head}, {wall:.0f} s")
+    print(f"{'t (s)':>9} {'mean of E/E0 - 1 ± s.e.':>24} {'RMS':>10}")
+    for k in np.unique(np.geomspace(1, samples, 25).astype(int)) - 1:
+        print(f"{t[k]:9.4g} {mean[k]:12.3e} ± {se[k]:8.1e} {rms[k]:10.3e}")
+    a, b = np.polyfit(t, mean, 1)
+    # no error for a: the means at different times share the walk up to the earlier one (judge the trend
+    # by the end's mean against its standard error, and by another seed)
+    print(f"mean = a t + b: a = {a:.3g} /s ({a * dt:.2g} per step), b = {b:.3g}")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("what", choices=("curve", "probe"))
+    ap.add_argument("--runs", type=int, default=None, help="runs (default: curve 32, probe 8)")
+    ap.add_argument("--steps", type=float, default=None, help="steps a run (default: curve 1e8, probe 1e6)")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--variant", choices=list(VARIANTS), help="probe: this variant only (with --amplitude)")
+    ap.add_argument("--amplitude", type=float, default=None, help="probe: the variant's amplitude")
+    args = ap.parse_args(argv)
+    runs = args.runs or (32 if args.what == "curve" else 8)
+    steps = args.steps or (1e8 if args.what == "curve" else 1e6)
+    if runs < 2 or steps < 1000:
+        ap.error("--runs: at least 2; --steps: at least 1000")
+    if (args.variant is None) != (args.amplitude is None) or (args.variant and args.what != "probe"):
+        ap.error("--variant and --amplitude go together, with probe")
+    if args.what == "curve":
+        curve(runs, steps, args.seed)
+    elif args.variant:
+        probe(runs, steps, args.seed, {args.variant: (VARIANTS[args.variant][0], (args.amplitude,))})
+    else:
+        probe(runs, steps, args.seed)
+
+
+if __name__ == "__main__":
+    main()
