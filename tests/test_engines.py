@@ -603,7 +603,7 @@ def reference_final(w0, q0, body, t_end, damping=0.0, gyro=True):
 @functools.lru_cache(maxsize=None)
 def order_reference(f, t_end, damping=0.0, gyro=True):
     """reference_final of the f Hz top's release at t_end (s): one DOP853 solve per (f, equation) and test
-    process, not one per method (~0.8 s each at 50 Hz); read-only."""
+    process, not one per method (~0.3 s each at 50 Hz); read-only."""
     w0, q0 = top_state(f)
     w, axis = reference_final(w0, q0, TOP, t_end, damping=damping, gyro=gyro)
     w.flags.writeable = axis.flags.writeable = False
