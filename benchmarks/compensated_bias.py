@@ -45,9 +45,8 @@ from numba import njit, prange
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from brouwer import energy_extended, ensemble, run_compensated  # noqa: E402
 
-from gyrolab.kernels.compensated import _add3, _add4, _minus_one, _normalize, _shear_turn  # noqa: E402
+from gyrolab.kernels.compensated import _add3, _add4, _minus_one, _normalize, _shear_turn, kick  # noqa: E402
 from gyrolab.kernels.methods.lie_poisson4 import WEIGHTS  # noqa: E402
-from gyrolab.kernels.rigid_body import gravity_torque  # noqa: E402
 from gyrolab.kernels.rotation import half_angle, quat_from_rotvec, quat_mul  # noqa: E402
 
 # name: (code, amplitudes): each amplitude is one run of the ensemble
@@ -67,8 +66,7 @@ def _kick(w, wl, q, ql, h, body, code, amp):
     """kernels/compensated.kick; with code 3 the torque from q + amp ql (first order in ql; the top's
     torque m3 (γ2, −γ1, 0) with γ = Rᵀ ẑ, kernels/rotation.lab_up_in_body)."""
     if code != 3:
-        t0, t1, t2 = gravity_torque(q, body)
-        return _add3(w, wl, h * t0 / body[0], h * t1 / body[1], h * t2 / body[2])
+        return kick(w, wl, q, h, body)
     a, b, c, d = q
     al, bl, cl, dl = amp * ql[0], amp * ql[1], amp * ql[2], amp * ql[3]
     g1 = 2.0 * (b * d - a * c) + 2.0 * ((bl * d + b * dl) - (al * c + a * cl))
