@@ -2,6 +2,9 @@
 figure shares: faceting (panels wrap into rows, bounded size), every method drawn (method groups of
 at most MAX_METHODS curves a panel), selections of f, θ0, dt that say what they drew, notes where
 curves coincide, panel titles in the problem's own terms, and the load a timing ran under.
+
+It imports neither matplotlib nor xarray (analysis/io.py only where a figure is written): the dry run
+costs the figure step from these limits (analysis/figures/cost.py) without them.
 """
 
 import math
@@ -9,8 +12,6 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-
-from ..io import absent_variable, missing_variable_error, save_figure
 
 MAX_COLS = 3  # panels per row before wrapping
 MAX_PANELS = 9  # panels drawn before values are selected (and the figure says which)
@@ -47,6 +48,8 @@ class Figure:
     def write(self, ds, out, sel=None, formats=("png",), notes=None, **options):
         """Draw into ``out`` (suffix replaced per format); the written path.  ``notes`` (a list), when
         given, receives the figure's selection notes (what it drew, how to draw the rest)."""
+        from ..io import absent_variable, missing_variable_error, save_figure
+
         try:
             if self.render is not None:
                 return self.render(ds, out, sel=sel, **options)

@@ -1,8 +1,9 @@
 """The figure registry, and the figures a sweep writes after it finishes.
 
 A figure kind is a ``Figure`` record (analysis/figures/record.py) defined in its own module and listed
-once in ``FIGURES``; ``gyrolab-plot KIND`` (analysis/figures/cli.py), the runner's
-figure step and the tests all iterate over this registry.  A study names the
+once in ``ENTRIES`` (``FIGURES`` maps each name to its record, importing the modules on first use);
+``gyrolab-plot KIND`` (analysis/figures/cli.py), the runner's figure step and the tests all iterate over
+this registry.  A study names the
 figures it wants in its config (``output.figures: [stability, energy]``;
 ``true`` means ``DEFAULT``, ``false`` none); the resolved config is stored in
 the results file, so ``gyrolab-plot standard FILE`` draws the same set.
@@ -18,40 +19,50 @@ is reported on stderr and skipped, so a sweep's results are never lost to a
 plotting problem; each figure drawn is reported on one progress line.
 """
 
+import functools
 import sys
 import time
 from pathlib import Path
 
-from ...results import open_results
-from ..io import MissingVariableError
 from .record import Figure  # noqa: F401 (the record each figure module defines)
 
-# One line per figure kind: "<module of analysis/>.<its Figure record>".
-ENTRIES = (
-    "nutation.THETA",
-    "nutation.TIP",
-    "energy.DRIFT",
-    "energy.INVARIANTS",
-    "work_precision.FIGURE",
-    "sciml.FIGURE",
-    "stability.FIGURE",
-    "animation.FIGURE",
-)
-
-
-def _registry():
-    import importlib
-
-    figures = []
-    for entry in ENTRIES:
-        module, _, record = entry.partition(".")
-        figures.append(getattr(importlib.import_module(f".{module}", __package__), record))
-    return {f.name: f for f in figures}
-
-
-FIGURES = _registry()
+# One line per figure kind: its name, and "<module of analysis/figures>.<its Figure record>".  The names
+# are known without importing the figure modules (matplotlib, xarray): a dry run checks ``output.figures``
+# and costs the figure step from them alone.
+ENTRIES = {
+    "nutation": "nutation.THETA",
+    "tip": "nutation.TIP",
+    "energy": "energy.DRIFT",
+    "invariants": "energy.INVARIANTS",
+    "work-precision": "work_precision.FIGURE",
+    "sciml": "sciml.FIGURE",
+    "stability": "stability.FIGURE",
+    "animation": "animation.FIGURE",
+}
 # What a sweep draws when its config says ``output.figures: true``.
 DEFAULT = ("nutation", "tip", "energy", "invariants")
+
+
+@functools.cache
+def _registry():
+    """{name: Figure} of every entry, importing the figure modules (once)."""
+    import importlib
+
+    figures = {}
+    for name, entry in ENTRIES.items():
+        module, _, record = entry.partition(".")
+        figure = getattr(importlib.import_module(f".{module}", __package__), record)
+        if figure.name != name:
+            raise RuntimeError(f"figure registry: {entry} is named {figure.name!r}, listed as {name!r}")
+        figures[name] = figure
+    return figures
+
+
+def __getattr__(attr):
+    """``FIGURES`` ({name: Figure}), imported on first use: the figure modules bring matplotlib."""
+    if attr == "FIGURES":
+        return _registry()
+    raise AttributeError(f"module {__name__!r} has no attribute {attr!r}")
 
 
 def figure_names(setting):
@@ -63,9 +74,9 @@ def figure_names(setting):
         return DEFAULT
     names = [setting] if isinstance(setting, str) else list(setting)
     for name in names:
-        if name not in FIGURES:
+        if name not in ENTRIES:
             raise ValueError(
-                f"output.figures={name}: unknown figure; choose from {', '.join(FIGURES)} "
+                f"output.figures={name}: unknown figure; choose from {', '.join(ENTRIES)} "
                 "(or true for the default set, false for none)"
             )
     return tuple(names)
@@ -90,6 +101,9 @@ def standard_figures(results_path, out_dir, names=None, log=print, ds=None, labe
     (or of its opened Dataset ``ds``: one member of a combined file) into ``out_dir`` (created);
     return the written paths.  One progress line per figure through ``log`` (and each figure's
     selection note, with ``label``, default the file's path, in its command)."""
+    from ...results import open_results
+    from ..io import MissingVariableError
+
     if ds is None:  # read lazily: each figure reads the slabs it draws, never the whole file
         ds = open_results(results_path, lazy=True)
         try:
@@ -103,7 +117,7 @@ def standard_figures(results_path, out_dir, names=None, log=print, ds=None, labe
     names = requested_figures(ds) if names is None else figure_names(names)
     paths = []
     for k, name in enumerate(names, 1):
-        figure = FIGURES[name]
+        figure = _registry()[name]
         started = time.perf_counter()
         notes = []
         try:
