@@ -3,10 +3,9 @@
 A figure kind is a ``Figure`` record (analysis/figures/record.py) defined in its own module and listed
 once in ``ENTRIES`` (``FIGURES`` maps each name to its record, importing the modules on first use);
 ``gyrolab-plot KIND`` (analysis/figures/cli.py), the runner's figure step and the tests all iterate over
-this registry.  A study names the
-figures it wants in its config (``output.figures: [stability, energy]``;
-``true`` means ``DEFAULT``, ``false`` none); the resolved config is stored in
-the results file, so ``gyrolab-plot standard FILE`` draws the same set.
+this registry.  A study names the figures it wants in its config (``output.figures: [stability,
+energy]``; ``true`` means ``DEFAULT``, ``false`` none); the resolved config is stored in the results
+file, so ``gyrolab-plot standard FILE`` draws the same set.
 
 Any grid shape: each figure facets its panels (analysis/figures/record.py: rows of at
 most 3, bounded size) and draws every method it is given (past 8 curves a panel,
