@@ -5,7 +5,8 @@
   attrs), ``tiny_reference(root)``;
 - ``build_dataset(path, grid, scene, ...)``: a small results file made
   through the batch kernels and gyrolab/results/layout.py, without the runner;
-- one method's steps: ``DRIVEN_BODY``, ``random_states(n, seed)``, ``step_run(name, ...)``.
+- one method's steps: ``DRIVEN_BODY``, ``random_states(n, seed)``, ``step_run(name, ...)``;
+- the order tests' final states: ``final_samples``, ``state_error``, ``reference_final``.
 """
 
 import os
@@ -19,6 +20,7 @@ import xarray as xr
 
 from gyrolab.kernels.batch import integrate, sample_schedule
 from gyrolab.kernels.body import Body
+from gyrolab.kernels.reference import dop853_with_error
 from gyrolab.kernels.registry import get_method, stepper
 from gyrolab.kernels.scenes import build_scene, get_scene
 from gyrolab.results.identity import VOLATILE_ATTRS
@@ -190,6 +192,26 @@ def final_samples(name, scene, dts, t_end):
         1e9,
     )
     return samples[:, -1, :], status
+
+
+def state_error(final, reference, scene):
+    """The order tests' error of final samples (..., driver.N_FIELDS) against a reference sample: the larger
+    of the axis's largest component error and ω's (rad/s) over the scene's ω3, so relative."""
+    final, reference = np.asarray(final), np.asarray(reference)
+    return np.maximum(
+        np.max(np.abs(final[..., :3] - reference[:3]), axis=-1),
+        np.max(np.abs(final[..., 3:6] - reference[3:6]), axis=-1) / scene.omega0[2],
+    )
+
+
+def reference_final(scene, t_end):
+    """(the scene's sample at t_end (s) by DOP853 at rtol = atol = 1e-13, read-only; that sample's own error
+    in state_error's measure, dop853_with_error's estimate |y(1e-13) − y(1e-12)|): an order fit leaves out
+    the errors below it (classify.fit_order ``reference_error``), which measure the reference."""
+    samples, estimate = dop853_with_error(scene, t_end, t_end, tol=1e-13)
+    final = samples[-1]
+    final.flags.writeable = False
+    return final, float(state_error(estimate[-1], np.zeros_like(final), scene))
 
 
 def build_dataset(path, grid=None, scene="heavy_top", t_end=1.0, every=1e-3, threshold=10.0, **options):

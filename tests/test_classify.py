@@ -30,10 +30,11 @@ from gyrolab.analysis.verdicts.classify import (
     method_stability_threshold,
     stability_threshold,
 )
-from gyrolab.kernels.reference import dop853_with_error
 from gyrolab.kernels.registry import stepper
 from gyrolab.kernels.rigid_body import axis_lab, energy, lab_momentum
 from gyrolab.kernels.scenes import build_scene
+
+from helpers import reference_final, state_error
 
 TRUE_ORDER = {
     "seed_next": 1,
@@ -516,16 +517,14 @@ def test_method_stability_threshold_runs_batches():
 
 @pytest.fixture(scope="module")
 def heavy_top_reference():
-    """(scene, final sample at 1 s by DOP853 at 1e-13, its own error in final_state_error's measure: 7.8e-12)."""
+    """(scene, final sample at 1 s, its own error: 7.8e-12; helpers.reference_final)."""
     sc = build_scene("heavy_top", 50.0, 45.0)
-    samples, estimate = dop853_with_error(sc, 1.0, 1.0, tol=1e-13)
-    return sc, samples[-1], max(estimate[-1, :3].max(), estimate[-1, 3:6].max() / sc.omega0[2])
+    return (sc, *reference_final(sc, 1.0))
 
 
 def final_state_error(name, sc, reference, dt, t_end=1.0):
     _, s = run_samples(name, sc, dt, t_end, t_end)
-    final = s[-1]
-    return max(np.max(np.abs(final[:3] - reference[:3])), np.max(np.abs(final[3:6] - reference[3:6])) / sc.omega0[2])
+    return float(state_error(s[-1], reference, sc))
 
 
 @pytest.mark.slow

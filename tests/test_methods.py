@@ -23,7 +23,7 @@ from gyrolab.kernels import entry as entry_points
 from gyrolab.kernels.batch import MIN_BLOCK_RUNS, integrate
 from gyrolab.kernels.closed_form import free_symmetric_solution
 from gyrolab.kernels.invariants import INVARIANTS
-from gyrolab.kernels.reference import dop853, dop853_with_error
+from gyrolab.kernels.reference import dop853
 from gyrolab.kernels.registry import METHODS, register, uses_blocks
 from gyrolab.kernels.rigid_body import potential_scale
 from gyrolab.kernels.rotation import ck_matrix
@@ -38,6 +38,8 @@ from helpers import (
     final_samples,
     method_params,
     own_methods,
+    reference_final,
+    state_error,
 )
 
 # Error level below which a run is at its rounding floor, not its truncation error
@@ -247,11 +249,8 @@ def test_free_body_conserves_lab_angular_momentum(name, scene, f, options, step_
 def final_state_errors(name, scene, reference, dts, t_end):
     """Error of the final state (max of |axis − ref| and |ω − ref|/ω3) for each dt, in one batch."""
     final, status = final_samples(name, scene, dts, t_end)
-    errors = np.maximum(
-        np.max(np.abs(final[:, :3] - reference[:3]), axis=1),
-        np.max(np.abs(final[:, 3:6] - reference[3:6]), axis=1) / scene.omega0[2],
-    )
-    return np.where(status == 0, errors, np.nan)  # a step too coarse to stay bounded has no error to fit
+    # a step too coarse to stay bounded has no error to fit
+    return np.where(status == 0, state_error(final, reference, scene), np.nan)
 
 
 ORDER_CASES = {
@@ -282,17 +281,13 @@ ORDER_T_END = 1.0  # s
 
 @functools.lru_cache(maxsize=None)
 def order_reference(case):
-    """(scene, its final sample at ORDER_T_END by DOP853 at rtol = atol = 1e-13, that sample's own error in
-    final_state_errors' measure) for ORDER_CASES[case]: one pair of solves per case and test process, not one
-    per method (the 50 Hz top's takes ~0.8 s); read-only.  The error is dop853_with_error's estimate
-    |y(1e-13) − y(1e-12)|: 7.8e-12, 7.1e-12 and 1.9e-12 for the three cases, 30 times the 1e3 eps below
-    which fit_order drops a point as rounding, so a method's error under it measures the reference."""
+    """(scene, its final sample at ORDER_T_END and that sample's own error: helpers.reference_final) for
+    ORDER_CASES[case]: one pair of DOP853 solves per case and test process, not one per method (the 50 Hz
+    top's takes ~0.8 s).  The errors: 7.8e-12, 7.1e-12 and 1.9e-12 for the three cases, 30 times the 1e3 eps
+    below which fit_order drops a point as rounding, so a method's error under them measures the reference."""
     scene, f, theta0, options = ORDER_CASES[case]
     sc = build_scene(scene, f, theta0, **options)
-    samples, estimate = dop853_with_error(sc, ORDER_T_END, ORDER_T_END, tol=1e-13)
-    final, estimate = samples[-1], estimate[-1]
-    final.flags.writeable = False
-    return sc, final, max(estimate[:3].max(), estimate[3:6].max() / sc.omega0[2])
+    return (sc, *reference_final(sc, ORDER_T_END))
 
 
 @pytest.mark.slow
