@@ -6,7 +6,7 @@
 - ``build_dataset(path, grid, scene, ...)``: a small results file made
   through the batch kernels and gyrolab/results/layout.py, without the runner;
 - one method's steps: ``DRIVEN_BODY``, ``random_states(n, seed)``, ``step_run(name, ...)``;
-- the order tests' final states: ``final_samples``, ``state_error``, ``reference_final``.
+- the order tests' final states: ``final_samples``, ``state_error``, ``final_with_error``.
 """
 
 import os
@@ -204,7 +204,7 @@ def state_error(final, reference, scene):
     )
 
 
-def reference_final(scene, t_end):
+def final_with_error(scene, t_end):
     """(the scene's sample at t_end (s) by DOP853 at rtol = atol = 1e-13, read-only; that sample's own error
     in state_error's measure, dop853_with_error's estimate |y(1e-13) − y(1e-12)|): an order fit leaves out
     the errors below it (classify.fit_order ``reference_error``), which measure the reference."""

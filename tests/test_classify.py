@@ -34,7 +34,7 @@ from gyrolab.kernels.registry import stepper
 from gyrolab.kernels.rigid_body import axis_lab, energy, lab_momentum
 from gyrolab.kernels.scenes import build_scene
 
-from helpers import reference_final, state_error
+from helpers import final_with_error, state_error
 
 TRUE_ORDER = {
     "seed_next": 1,
@@ -517,9 +517,9 @@ def test_method_stability_threshold_runs_batches():
 
 @pytest.fixture(scope="module")
 def heavy_top_reference():
-    """(scene, final sample at 1 s, its own error: 7.8e-12; helpers.reference_final)."""
+    """(scene, final sample at 1 s, its own error: 7.8e-12; helpers.final_with_error)."""
     sc = build_scene("heavy_top", 50.0, 45.0)
-    return (sc, *reference_final(sc, 1.0))
+    return (sc, *final_with_error(sc, 1.0))
 
 
 def final_state_error(name, sc, reference, dt, t_end=1.0):

@@ -36,9 +36,9 @@ from helpers import (
     block_path_args,
     environment,
     final_samples,
+    final_with_error,
     method_params,
     own_methods,
-    reference_final,
     state_error,
 )
 
@@ -281,13 +281,13 @@ ORDER_T_END = 1.0  # s
 
 @functools.lru_cache(maxsize=None)
 def order_reference(case):
-    """(scene, its final sample at ORDER_T_END and that sample's own error: helpers.reference_final) for
+    """(scene, its final sample at ORDER_T_END and that sample's own error: helpers.final_with_error) for
     ORDER_CASES[case]: one pair of DOP853 solves per case and test process, not one per method (the 50 Hz
     top's takes ~0.8 s).  The errors: 7.8e-12, 7.1e-12 and 1.9e-12 for the three cases, 30 times the 1e3 eps
     below which fit_order drops a point as rounding, so a method's error under them measures the reference."""
     scene, f, theta0, options = ORDER_CASES[case]
     sc = build_scene(scene, f, theta0, **options)
-    return (sc, *reference_final(sc, ORDER_T_END))
+    return (sc, *final_with_error(sc, ORDER_T_END))
 
 
 @pytest.mark.slow
