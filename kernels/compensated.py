@@ -17,10 +17,13 @@ IAS15, Rein & Spiegel, MNRAS 446 (2015) 1424, §2.3, and WHFast, Rein & Tamayo, 
   every step — the bias benchmarks/roundoff_bias.py found in lie_poisson4 (variant 3 there);
 - q is projected back to |q| = 1 by the increment −q (|q|² − 1)/2, |q|² from hi and lo.
 
+- the elliptic flow of an asymmetric body (kernels/euler_poinsot.py) adds ω(h) − ω, formed from the
+  increments of sn, cn, dn without cancellation (``free_flow_increment``); its attitude is not an
+  increment and is taken as it is.
+
 What is left per step is the rounding of the increments themselves, ~|increment|·eps.  The flows are
 those of kernels/free_flow.py (the exact symmetric free flow, or the axis splitting in a given order)
-and of kernels/euler_poinsot.py (whose elliptic flow of an asymmetric body is not an increment and is
-taken as it is), with gravity's kicks of an undriven body; ``strang_composition`` and
+and of kernels/euler_poinsot.py, with gravity's kicks of an undriven body; ``strang_composition`` and
 ``kick_composition`` compose them as kernels/compose.py does (the same maps to rounding), for the
 ``accumulate=compensated`` variants of lie_poisson4 and split6_exact.  Those variants carry the low
 parts (ωl, ql) from step to step (kernels/variants.py ``carried``).  benchmarks/brouwer.py measures
@@ -30,7 +33,7 @@ what it buys: the energy error against t over 1e8 steps, and its cost.
 from numba import njit
 
 from .compose import merged_kicks
-from .euler_poinsot import free_flow_exact
+from .euler_poinsot import free_flow_increment
 from .free_flow import resolve_axes
 from .rigid_body import gravity_torque
 from .rotation import half_angle, quat_from_rotvec, quat_mul
@@ -152,14 +155,17 @@ def free_flow(w, wl, q, ql, h, body, axes):
 
 @njit(cache=True, error_model="numpy")
 def exact_flow(w, wl, q, ql, h, body):
-    """kernels/euler_poinsot.free_flow_exact, compensated where it is written as increments: the closed-form
-    flow of a body with I1 = I2.  Any other body's elliptic flow computes ω(h) and q(h) afresh from the
-    state, not as increments: taken as it is (its rounding, ~eps |ω| a step, is not compensated), with
-    the low parts dropped."""
+    """kernels/euler_poinsot.free_flow_exact, compensated: a body with I1 = I2 by its closed form as
+    increments (_symmetric_flow); any other body's elliptic flow by euler_poinsot.free_flow_increment, whose
+    change of ω (from the increments of sn, cn, dn) is added error-free.  Its attitude q(h) = q P0ᵀ Y(ψ) P
+    is computed afresh from the state, not as an increment: taken as it is (rounded by ~eps a step), q's
+    low part dropped.  A free body's energy and |L| depend on ω alone; a heavy asymmetric body's kicks see
+    q's rounding."""
     if body[0] == body[1]:
         return _symmetric_flow(w, wl, q, ql, h, body)
-    w, q = free_flow_exact(w, q, h, body)
-    return w, (0.0, 0.0, 0.0), q, (0.0, 0.0, 0.0, 0.0)
+    dw, q = free_flow_increment(w, q, h, body)
+    w, wl = _add3(w, wl, dw[0], dw[1], dw[2])
+    return w, wl, q, (0.0, 0.0, 0.0, 0.0)
 
 
 @njit(cache=True, error_model="numpy")

@@ -71,6 +71,17 @@ def sncndn_series(u, k):
 
 
 @njit(cache=True, error_model="numpy")
+def one_minus_cndn_series(u, k):
+    """(1 − cn u, 1 − dn u) from sncndn_series' series without their leading 1, each within a few eps of itself
+    (1 − cn formed from sncndn_series' cn keeps cn's rounding, ~eps, against a value ~u²/2)."""
+    u2 = u * u
+    return (
+        -u2 * (-0.5 + u2 * (k[4] + u2 * (k[5] + u2 * k[6]))),
+        -u2 * (-0.5 * k[10] + u2 * (k[7] + u2 * (k[8] + u2 * k[9]))),
+    )
+
+
+@njit(cache=True, error_model="numpy")
 def sncndn(u, mc):
     """(sn u, cn u, dn u) at parameter m = 1 − mc, 0 ≤ mc ≤ 1 (Bulirsch's algorithm)."""
     if mc <= 0.0:

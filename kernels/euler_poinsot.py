@@ -4,7 +4,9 @@
 over h seconds (the gravity fields of the body are ignored) for any positive principal moments in any
 order, any ω and any orientation: three distinct moments on either side of
 the separatrix and on it, two equal (the symmetric top, in closed form), all
-equal (the sphere).  ``free_body(I, omega0, q0, t)`` evaluates it on an array
+equal (the sphere); ``free_flow_increment`` is the same flow with ω's change
+as an increment formed without cancellation, for compensated sums.
+``free_body(I, omega0, q0, t)`` evaluates it on an array
 of times (and of bodies); ``flip_period(I, omega0)`` is the closed-form time
 between two flips, 2K(m)/λ, ``elliptic_rate(I, omega0)`` the rate λ.
 
@@ -74,7 +76,17 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .elliptic import ellipk, rc1, rf, rj, rj_series, series_coefficients, sncndn, sncndn_series
+from .elliptic import (
+    ellipk,
+    one_minus_cndn_series,
+    rc1,
+    rf,
+    rj,
+    rj_series,
+    series_coefficients,
+    sncndn,
+    sncndn_series,
+)
 from .rotation import half_angle, quat_mul, quat_normalize, rotate_body_step
 
 _PI = math.pi
@@ -174,6 +186,34 @@ def _add_sncndn(s0, c0, d0, s2, c2, d2, m):
 
 
 @njit(cache=True, error_model="numpy")
+def _add_sncndn_increment(s0, c0, d0, s2, c2, d2, e2, f2, mc):
+    """(sn, cn, dn)(u + v) − (sn, cn, dn)(u) from the values at u, those at v and e2 = 1 − cn v, f2 = 1 − dn v,
+    without the cancellation of the difference of _add_sncndn's results.  With x = m s0² s2² and the
+    denominator D = 1 − x:
+    sn(u + v) − s0 = (s0 T + s2 c0 d0)/D with T = m s0² s2² − 1 + c2 d2 = −d2 (d2 − c2) − m c0² s2²,
+    d2 − c2 = mc s2²/(d2 + c2) (both terms of T ≤ 0: T's parts, ~v² each, cancel to ~mc v² near the
+    separatrix where sn is near ±1, and the direct form lost 1e-13 there);
+    cn(u + v) − c0 = (c0 (x − e2) − s0 s2 d0 d2)/D and dn(u + v) − d0 = (d0 (x − f2) − m s0 s2 c0 c2)/D.
+    Each increment is within a few eps of the largest of the three (tests/test_euler_poinsot.py
+    ::test_short_step_third_kind_increment), not of sn, cn, dn."""
+    m = 1.0 - mc
+    ss2 = s2 * s2
+    x = m * s0 * s0 * ss2
+    if x < 0.5:
+        den = 1.0 - x
+    else:
+        den = c0 * c0 + s0 * s0 * d2 * d2
+    gap = mc * ss2 / (d2 + c2) if c2 >= 0.0 else d2 - c2  # dn − cn ≥ 0; d2 + c2 ≥ d2 > 0 there
+    t = -d2 * gap - m * c0 * c0 * ss2
+    r = 1.0 / den
+    return (
+        (s0 * t + s2 * c0 * d0) * r,
+        (c0 * (x - e2) - s0 * s2 * d0 * d2) * r,
+        (d0 * (x - f2) - m * s0 * s2 * c0 * c2) * r,
+    )
+
+
+@njit(cache=True, error_model="numpy")
 def _reduced(s, c, S, C):
     """(sin φr, cos² φr, φr, θr) with am = Jπ + φr, |φr| ≤ π/2, and θr = atan2(S sin φr, C cos φr)."""
     sr = s if c >= 0.0 else -s
@@ -240,8 +280,8 @@ SHORT_STEP = 2.0
 
 @njit(cache=True, error_model="numpy")
 def _short_step(v, mc, n):
-    """(sn, cn, dn)(v) and G(v) = (Π − F)(am v, n|m) for |v| < SHORT_STEP, by halving v to |w| ≤ SERIES_BASE and
-    doubling back.
+    """(sn, cn, dn)(v), G(v) = (Π − F)(am v, n|m), 1 − cn(v) and 1 − dn(v) for |v| < SHORT_STEP, by halving v
+    to |w| ≤ SERIES_BASE and doubling back.
 
     At w: sn, cn, dn from their Maclaurin series (exact to rounding) and G(w) from one R_J whose arguments
     differ by a w² at most (``_rj_close``: its series alone, unless a ≳ 1 calls for a duplication or two).
@@ -260,11 +300,16 @@ def _short_step(v, mc, n):
     while w > SERIES_BASE:
         w *= 0.5  # exact
         k += 1
-    s, c, d = sncndn_series(w, series_coefficients(m))
+    coefficients = series_coefficients(m)
+    s, c, d = sncndn_series(w, coefficients)
     ss = s * s
     g = -(a / 3.0) * ss * s * _rj_close(c * c, c * c + mc * ss, 1.0, 1.0 + a * ss)
     e = 1.0 - c
     f = 1.0 - d
+    # the 1 − cn, 1 − dn returned for free_flow_increment: without a doubling, from their own series (1 − c keeps
+    # c's rounding); a doubling forms them afresh from s, c, d without cancellation.  e and f stay 1 − c and
+    # 1 − d, so that the doublings and free_flow_exact keep their bits.
+    e_out, f_out = one_minus_cndn_series(w, coefficients)
     for _ in range(k):
         r = 1.0 / (1.0 - m * ss * ss)
         c = 1.0 - e
@@ -275,24 +320,32 @@ def _short_step(v, mc, n):
         g = 2.0 * g - _addition_defect(s, s, s2, a, m)
         s = s2
         ss = s * s
+        e_out = e
+        f_out = f
     if v < 0.0:  # sn and G are odd, cn and dn even
-        return -s, 1.0 - e, 1.0 - f, -g
-    return s, 1.0 - e, 1.0 - f, g
+        return -s, 1.0 - e, 1.0 - f, -g, e_out, f_out
+    return s, 1.0 - e, 1.0 - f, g, e_out, f_out
 
 
 @njit(cache=True, error_model="numpy")
 def _elliptic_case(s0, c0, d0, lam, h, mc, n, S, C, cpi):
-    """(sn, cn, dn) at u1 = u0 + λh and the non-linear part of ψ:
-    cpi·[(Π − F)(am u1) − (Π − F)(am u0)] + (θ(am u1) − θ(am u0)) (θ continuous)."""
+    """(sn, cn, dn) at u1 = u0 + λh, the non-linear part of ψ,
+    cpi·[(Π − F)(am u1) − (Π − F)(am u0)] + (θ(am u1) − θ(am u0)) (θ continuous), and the increments
+    (sn, cn, dn)(u1) − (s0, c0, d0) without cancellation (_add_sncndn_increment; on the long branch
+    1 − cn λh and 1 − dn λh are formed from cn and dn, which |λh| ≥ SHORT_STEP keeps away from 1 except
+    near a whole period 4K)."""
     m = 1.0 - mc
     v = lam * h
     short = abs(v) < SHORT_STEP
     if short:
-        s2, c2, d2, g_v = _short_step(v, mc, n)
+        s2, c2, d2, g_v, e2, f2 = _short_step(v, mc, n)
     else:
         s2, c2, d2 = sncndn(v, mc)
         g_v = 0.0
+        e2 = 1.0 - c2
+        f2 = 1.0 - d2
     s1, c1, d1 = _add_sncndn(s0, c0, d0, s2, c2, d2, m)
+    ds, dc, dd = _add_sncndn_increment(s0, c0, d0, s2, c2, d2, e2, f2, mc)
     if s2 != 0.0:
         # restore sn² + cn² = 1 and dn² + m sn² = 1 to rounding (energy and |L| to a few ULP)
         r = 1.0 / math.sqrt(s1 * s1 + c1 * c1)
@@ -302,7 +355,7 @@ def _elliptic_case(s0, c0, d0, lam, h, mc, n, S, C, cpi):
     if short:
         # Short step (|v| < 2 < 2K: no half-period count, no K, no F): G(u1) − G(u0) = G(v) − defect(u0, v).
         d_theta = math.atan2(C * S * (c0 * s1 - s0 * c1), C * C * c0 * c1 + S * S * s0 * s1)
-        return s1, c1, d1, cpi * (g_v - _addition_defect(s0, s2, s1, -n, m)), d_theta
+        return s1, c1, d1, cpi * (g_v - _addition_defect(s0, s2, s1, -n, m)), d_theta, ds, dc, dd
     sr0, cc0, phr0, thr0 = _reduced(s0, c0, S, C)
     sr1, cc1, phr1, thr1 = _reduced(s1, c1, S, C)
     # half periods: J0 from the quadrant, J1 from u1 = u0 + λh (|am u − πu/2K| < π/2)
@@ -322,7 +375,7 @@ def _elliptic_case(s0, c0, d0, lam, h, mc, n, S, C, cpi):
     d_theta = thr1 - thr0
     if dj != 0.0:
         d_theta += dj * _PI
-    return s1, c1, d1, cpi * (n / 3.0) * d_pf, d_theta
+    return s1, c1, d1, cpi * (n / 3.0) * d_pf, d_theta, ds, dc, dd
 
 
 @njit(cache=True, error_model="numpy")
@@ -348,9 +401,11 @@ def _separatrix(t0, s0, v):
 def _sorted_flow(x, y, z, J1, J2, J3, par, h):
     """Flow of the body momentum in the sorted frame J1 < J2 < J3 (par = parity of the sort).
 
-    Returns (x0, y0, z0, x1, y1, z1, psi, pole, pole_sign, sx, sy, sz): the sign-adjusted momentum
-    at 0 (rebuilt from the elliptic parametrisation) and at h, ψ(h) − ψ(0), the sorted pole index
-    (0 or 2) and the signs σ with m'_k = σ_k m_k (det = +1)."""
+    Returns (x0, y0, z0, x1, y1, z1, psi, pole, pole_sign, sx, sy, sz, dx, dy, dz): the sign-adjusted
+    momentum at 0 (rebuilt from the elliptic parametrisation) and at h, ψ(h) − ψ(0), the sorted pole index
+    (0 or 2), the signs σ with m'_k = σ_k m_k (det = +1) and the increment m'(h) − m'(0) (before
+    free_flow_exact's rescaling; from the increments of sn, cn, dn, without the cancellation of the
+    difference; on the separatrix the plain difference)."""
     J32 = J3 - J2
     J31 = J3 - J1
     J21 = J2 - J1
@@ -376,11 +431,12 @@ def _sorted_flow(x, y, z, J1, J2, J3, par, h):
         d0 = x / B13
         n = -J1 * J32 / (J3 * J21)
         cpi = -G * J31 / (lam * J1 * J3)
-        s1, c1, d1, p_pi, d_th = _elliptic_case(
+        s1, c1, d1, p_pi, d_th, ds, dc, dd = _elliptic_case(
             s0, c0, d0, lam, h, mc, n, math.sqrt(J2 * J31), math.sqrt(J3 * J21), cpi
         )
         psi = G / J3 * h + p_pi - d_th
-        return (B13 * d0, -B21 * s0, B31 * c0, B13 * d1, -B21 * s1, B31 * c1, psi, 0, 1.0, sx, sy, sz)
+        d_m = (B13 * dd, -B21 * ds, B31 * dc)
+        return (B13 * d0, -B21 * s0, B31 * c0, B13 * d1, -B21 * s1, B31 * c1, psi, 0, 1.0, sx, sy, sz) + d_m
     if D2 > 0.0:
         # (ii): around e3
         sz = _sign(z)
@@ -396,11 +452,12 @@ def _sorted_flow(x, y, z, J1, J2, J3, par, h):
         d0 = z / B31
         n = -J3 * J21 / (J1 * J32)
         cpi = G * J31 / (lam * J1 * J3)
-        s1, c1, d1, p_pi, d_th = _elliptic_case(
+        s1, c1, d1, p_pi, d_th, ds, dc, dd = _elliptic_case(
             s0, c0, d0, lam, h, mc, n, math.sqrt(J2 * J31), math.sqrt(J1 * J32), cpi
         )
         psi = G / J1 * h + p_pi + d_th
-        return (B13 * c0, -B23 * s0, B31 * d0, B13 * c1, -B23 * s1, B31 * d1, psi, 2, 1.0, sx, sy, sz)
+        d_m = (B13 * dc, -B23 * ds, B31 * dd)
+        return (B13 * c0, -B23 * s0, B31 * d0, B13 * c1, -B23 * s1, B31 * d1, psi, 2, 1.0, sx, sy, sz) + d_m
     # (iii): on the separatrix, m = (B13 sech, G tanh, B31 sech)(λ2 t − ν)
     sx = _sign(x)
     sz = _sign(z)
@@ -420,7 +477,8 @@ def _sorted_flow(x, y, z, J1, J2, J3, par, h):
     else:
         psi = G / J2 * h + 2.0 * (math.atan2((B31 - G) * tau1, B13) - math.atan2((B31 - G) * tau0, B13))
         pole = 2
-    return (B13 * s0, G * t0, B31 * s0, B13 * s1, G * t1, B31 * s1, psi, pole, 1.0, sx, sy, sz)
+    d_m = (B13 * (s1 - s0), G * (t1 - t0), B31 * (s1 - s0))
+    return (B13 * s0, G * t0, B31 * s0, B13 * s1, G * t1, B31 * s1, psi, pole, 1.0, sx, sy, sz) + d_m
 
 
 @njit(cache=True, error_model="numpy")
@@ -446,26 +504,49 @@ def _project(x, y, z, x0, y0, z0):
 @njit(cache=True, error_model="numpy")
 def free_flow_exact(w, q, h, body):
     """(ω, q) after the torque-free motion for h seconds (any h, any sign); only I1, I2, I3 of the body are read."""
+    w1, q1, _ = _flow(w, q, h, body)
+    return w1, q1
+
+
+@njit(cache=True, error_model="numpy")
+def free_flow_increment(w, q, h, body):
+    """(ω(h) − ω, q(h)): free_flow_exact's flow with ω's change as an increment (rad/s, body frame) for a
+    compensated sum (kernels/compensated.py).  For three distinct moments the increment comes from those
+    of sn, cn, dn (_add_sncndn_increment, within ~2 eps of the largest of them), times the B's: adding it
+    to ω rounds ω by ~eps |ω(h) − ω|, where free_flow_exact's ω(h), rebuilt from the elliptic functions,
+    is rounded by ~eps |ω| at every step (and rescaled to |L(0)| against the drift that leaves; an
+    increment needs no rescaling).  On the separatrix, and for a symmetric body (kernels/compensated.py
+    has that flow as increments of its own), the increment is the plain difference."""
+    w1, q1, dw = _flow(w, q, h, body)
+    return dw, q1
+
+
+@njit(cache=True, error_model="numpy")
+def _flow(w, q, h, body):
+    """(ω(h), q(h), ω(h) − ω): free_flow_exact and free_flow_increment, written once."""
     I1, I2, I3 = body[0], body[1], body[2]
     p0, p1, p2, par = _sort3(I1, I2, I3)
     I = (I1 + 0.0, I2 + 0.0, I3 + 0.0)
     J1 = I[p0]
     J2 = I[p1]
     J3 = I[p2]
+    still = (0.0, 0.0, 0.0)
     if J1 == J3:
         # sphere: ω constant, R(h) = R0 Rot(ω h)
-        return (w[0], w[1], w[2]), quat_normalize(rotate_body_step(q, w[0] * h, w[1] * h, w[2] * h))
-    if J1 == J2:
-        return _symmetric(w, q, h, p2, J1, J3)
-    if J2 == J3:
-        return _symmetric(w, q, h, p0, J2, J1)
+        return (w[0], w[1], w[2]), quat_normalize(rotate_body_step(q, w[0] * h, w[1] * h, w[2] * h)), still
+    if J1 == J2 or J2 == J3:
+        if J1 == J2:
+            w1, q1 = _symmetric(w, q, h, p2, J1, J3)
+        else:
+            w1, q1 = _symmetric(w, q, h, p0, J2, J1)
+        return w1, q1, (w1[0] - w[0], w1[1] - w[1], w1[2] - w[2])
     m = (I1 * w[0], I2 * w[1], I3 * w[2])
     x = m[p0]
     y = m[p1]
     z = m[p2]
     big = max(abs(x), abs(y), abs(z))
     if big == 0.0:
-        return (w[0], w[1], w[2]), q
+        return (w[0], w[1], w[2]), q, still
     scale = 1.0
     if big < 1e-100 or big > 1e100:
         # the flow of m/s over s h is the flow of m over h, scaled by 1/s; s a power of 2 (exact)
@@ -477,8 +558,10 @@ def free_flow_exact(w, q, h, body):
     D3 = x * x * (J3 - J1) / J1 + y * y * (J3 - J2) / J2
     if D1 == 0.0 or D3 == 0.0:
         # steady rotation about the smallest or the largest axis: ω constant
-        return (w[0], w[1], w[2]), quat_normalize(rotate_body_step(q, w[0] * h, w[1] * h, w[2] * h))
-    xa, ya, za, xb, yb, zb, psi, pole, _, sx, sy, sz = _sorted_flow(x, y, z, J1, J2, J3, par, h * scale)
+        return (w[0], w[1], w[2]), quat_normalize(rotate_body_step(q, w[0] * h, w[1] * h, w[2] * h)), still
+    flow = _sorted_flow(x, y, z, J1, J2, J3, par, h * scale)
+    xa, ya, za, xb, yb, zb, psi, pole, _, sx, sy, sz, dx, dy, dz = flow
+    dm = _unsort(sx * dx, sy * dy, sz * dz, p0, p1, p2)
     if h != 0.0:
         xb, yb, zb = _project(xb, yb, zb, x, y, z)
     # back to the original axes: m[p_k] = σ_k m'_k (still divided by scale)
@@ -502,7 +585,8 @@ def free_flow_exact(w, q, h, body):
         y_rot = (cy, 0.0, 0.0, sy_)
     pa_conj = (pa[0], -pa[1], -pa[2], -pa[3])
     q1 = quat_mul(quat_mul(q, pa_conj), quat_mul(y_rot, pb))
-    return (scale * mb[0] / I1, scale * mb[1] / I2, scale * mb[2] / I3), quat_normalize(q1)
+    w1 = (scale * mb[0] / I1, scale * mb[1] / I2, scale * mb[2] / I3)
+    return w1, quat_normalize(q1), (scale * dm[0] / I1, scale * dm[1] / I2, scale * dm[2] / I3)
 
 
 @njit(cache=True, error_model="numpy")

@@ -436,7 +436,10 @@ def test_short_step_third_kind_increment():
     u0 over ±3 half periods, |λh| = 1e-7 .. 2.  The increment of Π − F within 16 eps
     relative, sn, cn, dn at u0 + λh within 8 eps.  Measured: increment median 1.4e-16, max 5.6e-16
     (2.5 eps); sn, cn, dn max 1.1e-15 (5 eps; 4.8e-16 with |λh| < 1, the bound before 2026-12-05: the
-    addition theorem's rounding at u0 + λh, which Bulirsch's sncndn of λh gives as well).
+    addition theorem's rounding at u0 + λh, which Bulirsch's sncndn of λh gives as well).  The increments
+    of sn, cn, dn (free_flow_increment's, for the compensated splittings) within 8 eps of the largest of
+    them plus λh²; measured max 4.4e-16 (2 eps), median 1.5e-16.  Without their own care (1 − cn from
+    the series' rounded cn, or the direct T of _add_sncndn_increment) they lost up to 5e-8 and 1e-13.
     The code it replaced (5-point Gauss–Legendre for |λh| < 0.01, the difference of two R_J at the
     endpoints above) measured on the same samples: max 1.5e-13 below 0.01, median 1.1e-15 and max 1.6e-13
     above (680 and 720 eps; with mc ≥ 1e-8, the samples of kernels/euler_poinsot.py's docstring, 860 and
@@ -446,7 +449,7 @@ def test_short_step_third_kind_increment():
 
     mp.mp.dps = 30
     rng = np.random.default_rng(23)
-    errors, state_errors = [], []
+    errors, state_errors, step_errors = [], [], []
     for _ in range(240):
         n = -(10.0 ** rng.uniform(-3, 3))
         mc = 10.0 ** rng.uniform(-15, 0)
@@ -455,21 +458,39 @@ def test_short_step_third_kind_increment():
         v = rng.choice([-1.0, 1.0]) * 10.0 ** rng.uniform(-7, math.log10(SHORT_STEP) - 1e-9)
         # the state at u0 rounded from 30 digits (sncndn's own error near a zero of sn far from u = 0,
         # ~eps |u0| absolute, is not the step's)
-        s0, c0, d0 = (float(mp.ellipfun(f, u0, m=m)) for f in ("sn", "cn", "dn"))
-        s1, c1, d1, increment, _ = _elliptic_case(s0, c0, d0, v, 1.0, mc, n, 1.0, 1.0, 1.0)  # cpi = 1
+        at_u0 = [mp.mpf(float(mp.ellipfun(f, u0, m=m))) for f in ("sn", "cn", "dn")]
+        s0, c0, d0 = (float(x) for x in at_u0)
+        s1, c1, d1, increment, _, ds, dc, dd = _elliptic_case(s0, c0, d0, v, 1.0, mc, n, 1.0, 1.0, 1.0)  # cpi = 1
         truth = _third_kind_increment_30_digits(mp, u0, v, n, mc)
         errors.append(float(abs(increment - truth) / abs(truth)))
         u1 = mp.mpf(u0) + mp.mpf(v)
-        exact = (mp.ellipfun(f, u1, m=m) for f in ("sn", "cn", "dn"))
+        exact = tuple(mp.ellipfun(f, u1, m=m) for f in ("sn", "cn", "dn"))
         state_errors.append(max(float(abs(x - y)) for x, y in zip((s1, c1, d1), exact)))
-    errors, state_errors = np.array(errors), np.array(state_errors)
+        # the increments of sn, cn, dn that the addition theorems give from the rounded state at u0, at 30
+        # digits, relative to the largest of them plus v²: the rounded sn² + cn² at u0 is 1 only to ~eps,
+        # and the kernel's formulas use sn² + cn² = 1 where the direct ones do not, which moves the increment
+        # by ~eps v² (eps·0.7 at v = 1.2 near the separatrix, 1e-14 of an increment 1e-2 there)
+        s2, c2, d2 = (mp.ellipfun(f, mp.mpf(v), m=m) for f in ("sn", "cn", "dn"))
+        a0, b0, e0 = at_u0
+        den = 1 - m * a0**2 * s2**2
+        after = (
+            (a0 * c2 * d2 + s2 * b0 * e0) / den,
+            (b0 * c2 - a0 * s2 * e0 * d2) / den,
+            (e0 * d2 - m * a0 * s2 * b0 * c2) / den,
+        )
+        true_steps = [x - y for x, y in zip(after, at_u0)]
+        size = max(abs(x) for x in true_steps)
+        step_errors.append(max(float(abs(x - y) / (size + v * v)) for x, y in zip((ds, dc, dd), true_steps)))
+    errors, state_errors, step_errors = np.array(errors), np.array(state_errors), np.array(step_errors)
     eps = np.finfo(float).eps
     print(
         f"short step: increment of Pi - F median {np.median(errors):.2g}, max {errors.max():.2g} relative; "
-        f"sn, cn, dn max {state_errors.max():.2g}"
+        f"sn, cn, dn max {state_errors.max():.2g}; their increments median {np.median(step_errors):.2g}, "
+        f"max {step_errors.max():.2g} relative"
     )
     assert errors.max() <= 16 * eps
     assert state_errors.max() <= 8 * eps
+    assert step_errors.max() <= 8 * eps
 
 
 @pytest.mark.slow

@@ -10,11 +10,11 @@ Source: H. Yoshida, "Construction of higher order symplectic integrators",
 Phys. Lett. A 150 (1990) 262, Table 1 (solution A); the exact free flow as in
 Celledoni, Fassò, Säfström & Zanna, SIAM J. Sci. Comput. 30 (2008) 2084.
 
-Parameter ``accumulate`` (default plain): ``compensated`` keeps ω and q as hi + lo and adds the kicks
-and the closed-form free flow of a body with I1 = I2 as error-free increments (kernels/compensated.py);
-an asymmetric body's elliptic flow is computed afresh each substep and stays uncompensated.  That
-variant carries the low parts from step to step, runs one run after another, and integrates undriven
-bodies only.
+Parameter ``accumulate`` (default plain): ``compensated`` keeps ω and q as hi + lo and adds the kicks,
+the closed-form free flow of a body with I1 = I2 and an asymmetric body's elliptic change of ω (from the
+increments of sn, cn, dn) as error-free increments (kernels/compensated.py); an asymmetric body's
+attitude is computed afresh each substep and stays uncompensated.  That variant carries the low parts
+from step to step, runs one run after another, and integrates undriven bodies only.
 """
 
 from numba import njit
