@@ -15,8 +15,7 @@ IAS15, Rein & Spiegel, MNRAS 446 (2015) 1424, §2.3, and WHFast, Rein & Tamayo, 
   s = sin φ; Paeth 1986): each shear has determinant 1 whatever its rounded coefficient, where the
   matrix (cos, sin; −sin, cos) of rounded entries scales |L⊥| by a factor that rounds the same way
   every step — the bias benchmarks/roundoff_bias.py found in lie_poisson4 (variant 3 there);
-- q is projected back to |q| = 1 by the increment −q (|q|² − 1)/2, |q|² from hi and lo.
-
+- q is projected back to |q| = 1 by the increment −q (|q|² − 1)/2, |q|² from hi and lo;
 - the elliptic flow of an asymmetric body (kernels/euler_poinsot.py) adds ω(h) − ω, formed from the
   increments of sn, cn, dn without cancellation (``free_flow_increment``); its attitude is not an
   increment and is taken as it is.
