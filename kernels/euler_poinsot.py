@@ -171,13 +171,19 @@ def _symmetric(w, q, h, axis, I_perp, I_axis):
 
 
 @njit(cache=True, error_model="numpy")
-def _add_sncndn(s0, c0, d0, s2, c2, d2, m):
-    """(sn, cn, dn)(u + v) from the values at u and at v (addition theorems)."""
+def _addition_denominator(s0, c0, s2, d2, m):
+    """(x, D) = (m s0² s2², 1 − x): the addition theorems' denominator at u + v from sn, cn at u and sn, dn
+    at v; for x ≥ 0.5 D = c0² + s0² d2², the same without cancellation."""
     x = m * s0 * s0 * s2 * s2
     if x < 0.5:
-        den = 1.0 - x
-    else:
-        den = c0 * c0 + s0 * s0 * d2 * d2  # = 1 − m s0² s2² without cancellation
+        return x, 1.0 - x
+    return x, c0 * c0 + s0 * s0 * d2 * d2
+
+
+@njit(cache=True, error_model="numpy")
+def _add_sncndn(s0, c0, d0, s2, c2, d2, m):
+    """(sn, cn, dn)(u + v) from the values at u and at v (addition theorems)."""
+    den = _addition_denominator(s0, c0, s2, d2, m)[1]
     return (
         (s0 * c2 * d2 + s2 * c0 * d0) / den,
         (c0 * c2 - s0 * s2 * d0 * d2) / den,
@@ -198,11 +204,7 @@ def _add_sncndn_increment(s0, c0, d0, s2, c2, d2, e2, f2, mc):
     ::test_short_step_third_kind_increment), not of sn, cn, dn."""
     m = 1.0 - mc
     ss2 = s2 * s2
-    x = m * s0 * s0 * ss2
-    if x < 0.5:
-        den = 1.0 - x
-    else:
-        den = c0 * c0 + s0 * s0 * d2 * d2
+    x, den = _addition_denominator(s0, c0, s2, d2, m)
     gap = mc * ss2 / (d2 + c2) if c2 >= 0.0 else d2 - c2  # dn − cn ≥ 0; d2 + c2 ≥ d2 > 0 there
     t = -d2 * gap - m * c0 * c0 * ss2
     r = 1.0 / den
