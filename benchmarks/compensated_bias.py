@@ -30,6 +30,11 @@ Variants (name: what is amplified):
 - ``turn_low_parts``: the body's turn adds q ⊗ (α, u) from q's high part only; here plus A ql ⊗ (α, u),
   A = ±1000 (A = 1: the low part turned with the body, the increment of the whole q).
 
+- ``shear_pair``: the shears' s = sin φ (with its low part, which closes (s + sl)(1 + t²) = 2t) given a
+  relative error A = ±1e-10, the same on every step: the map is then no rotation of L by that much;
+- ``shear_unclosed``: that low part times 1 − A: A = 1 is the rounded pair alone (the kernel before
+  _sin_low), A = 10 ten times its miss.
+
 ``--variant NAME --amplitude A`` runs that one variant (e.g. ``turn_low_parts`` at A = 1, over 1e8 steps,
 to see whether the bias is left when that rounding is corrected rather than amplified).
 """
@@ -45,7 +50,7 @@ from numba import njit, prange
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from brouwer import energy_extended, ensemble, run_compensated  # noqa: E402
 
-from gyrolab.kernels.compensated import _add3, _add4, _minus_one, _normalize, _shear_turn, kick  # noqa: E402
+from gyrolab.kernels.compensated import _add, _add3, _add4, _minus_one, _normalize, _sin_low, kick  # noqa: E402
 from gyrolab.kernels.methods.lie_poisson4 import WEIGHTS  # noqa: E402
 from gyrolab.kernels.rotation import half_angle, quat_from_rotvec, quat_mul  # noqa: E402
 
@@ -57,6 +62,8 @@ VARIANTS = {
     "kick_low_parts": (3, (1000.0, -1000.0)),
     "norm_coarse": (4, (1e12,)),
     "turn_low_parts": (5, (1000.0, -1000.0)),
+    "shear_pair": (6, (1e-10, -1e-10)),
+    "shear_unclosed": (7, (1.0, 10.0)),
 }
 W1, W0 = WEIGHTS[0], WEIGHTS[1]
 
@@ -105,7 +112,15 @@ def _flow(w, wl, q, ql, h, body, code, amp):
         dq = (dq[0] + amp * e[0], dq[1] + amp * e[1], dq[2] + amp * e[2], dq[3] + amp * e[3])
     q, ql = _add4(q, ql, dq)
     q, ql = _normalize_coarse(q, ql, amp) if code == 4 else _normalize(q, ql)
-    x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], sh / ch, 2.0 * sh * ch, 1.0, 1.0)
+    t, sp = sh / ch, 2.0 * sh * ch
+    sl = _sin_low(t, sp)  # kernels/compensated._shear_turn's low part of s, here with its amplitudes
+    if code == 6:
+        sl += amp * sp
+    elif code == 7:
+        sl *= 1.0 - amp
+    x, xl = _add(w[0], wl[0], t * w[1])
+    y, yl = _add(w[1], wl[1], -(sp * x) - sl * x)
+    x, xl = _add(x, xl, t * y)
     return (x, y, w[2]), (xl, yl, wl[2]), q, ql
 
 

@@ -14,7 +14,12 @@ IAS15, Rein & Spiegel, MNRAS 446 (2015) 1424, §2.3, and WHFast, Rein & Tamayo, 
 - a turn of L_b in a plane by −φ is three shears (x += t y; y −= s x; x += t y with t = tan(φ/2),
   s = sin φ; Paeth 1986): each shear has determinant 1 whatever its rounded coefficient, where the
   matrix (cos, sin; −sin, cos) of rounded entries scales |L⊥| by a factor that rounds the same way
-  every step — the bias benchmarks/roundoff_bias.py found in lie_poisson4 (variant 3 there);
+  every step — the bias benchmarks/roundoff_bias.py found in lie_poisson4 (variant 3 there).  The three
+  are a rotation only if s (1 + t²) = 2t, which the rounded pair misses by ~eps (and ω's shears by the
+  rounding of I_y/I_x · I_x/I_y besides); where the pair is the same every step (a symmetric body's ω3
+  is conserved) that miss drifts the energy linearly, ~6.6e-9 of it per step on the 50 Hz top
+  (benchmarks/compensated_bias.py ``shear_pair``), so s and I_x/I_y carry low parts that close both
+  conditions to ~eps²;
 - q is projected back to |q| = 1 by the increment −q (|q|² − 1)/2, |q|² from hi and lo;
 - the elliptic flow of an asymmetric body (kernels/euler_poinsot.py) adds ω(h) − ω, formed from the
   increments of sn, cn, dn without cancellation (``free_flow_increment``); its attitude is not an
@@ -87,11 +92,47 @@ def kick(w, wl, q, h, body):
 
 
 @njit(cache=True, error_model="numpy")
-def _shear_turn(x, xl, y, yl, t, s, kx, ky):
+def _two_prod(a, b):
+    """(p, e): p = a b rounded and its rounding error, a b = p + e exactly (Dekker 1971's splitting; numba
+    has no fma).  For |a|, |b| well below 1e290."""
+    p = a * b
+    sa = 134217729.0 * a  # 2^27 + 1
+    ah = sa - (sa - a)
+    sb = 134217729.0 * b
+    bh = sb - (sb - b)
+    al, bl = a - ah, b - bh
+    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
+
+
+@njit(cache=True, error_model="numpy")
+def _reciprocal_low(k):
+    """(r, rl): 1/k rounded and its low part, k (r + rl) = 1 to ~eps²."""
+    r = 1.0 / k
+    p, e = _two_prod(k, r)
+    return r, ((1.0 - p) - e) / k  # 1 − p exact (p within an ulp of 1)
+
+
+@njit(cache=True, error_model="numpy")
+def _sin_low(t, s):
+    """sl with (s + sl)(1 + t²) = 2t to ~eps²: with it the shears (t, s + sl, t) are a rotation (by
+    2 atan t) to ~eps², whatever the rounding of t and s."""
+    t2, t2e = _two_prod(t, t)
+    dh = 1.0 + t2
+    b = dh - t2
+    dl = ((1.0 - b) + (t2 - (dh - b))) + t2e  # 1 + t² = dh + dl (two-sum)
+    p, pe = _two_prod(s, dh)
+    return -(((p - 2.0 * t) + pe) + s * dl) / dh  # p − 2t exact: p is within 2x of 2t
+
+
+@njit(cache=True, error_model="numpy")
+def _shear_turn(x, xl, y, yl, t, s, kx, ky, kyl):
     """Turn (x, y) by −φ as three shears, x += t y; y −= s x; x += t y (t = tan(φ/2), s = sin φ), with
-    x and y the components of ω whose L = I ω turn: kx = I_y/I_x and ky = I_x/I_y carry L's shear to ω."""
+    x and y the components of ω whose L = I ω turn: kx = I_y/I_x and ky + kyl = 1/kx carry L's shear to ω.
+    s is closed to 2t/(1 + t²) (``_sin_low``) and ky to 1/kx, so that the map is a rotation of L to ~eps²
+    and what is left is the rounding of the increments, different on every step."""
+    sl = _sin_low(t, s)
     x, xl = _add(x, xl, t * kx * y)
-    y, yl = _add(y, yl, -s * ky * x)
+    y, yl = _add(y, yl, -(s * ky * x) - (s * kyl + sl * ky) * x)
     x, xl = _add(x, xl, t * kx * y)
     return x, xl, y, yl
 
@@ -104,13 +145,14 @@ def _axis_turn(w, wl, q, ql, axis, h, body):
     q, ql = _add4(q, ql, quat_mul(q, (_minus_one(c, 0.0, 0.0, s), u[0], u[1], u[2])))
     t, sp = s / c, 2.0 * s * c  # tan(φ/2), sin φ
     # L_b turns in the plane (e_i, e_j), i, j = axis + 1, axis + 2 (mod 3): x = L_i, y = L_j
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    kx = body[j] / body[i]
+    ky, kyl = _reciprocal_low(kx)
+    x, xl, y, yl = _shear_turn(w[i], wl[i], w[j], wl[j], t, sp, kx, ky, kyl)
     if axis == 0:
-        x, xl, y, yl = _shear_turn(w[1], wl[1], w[2], wl[2], t, sp, body[2] / body[1], body[1] / body[2])
         return (w[0], x, y), (wl[0], xl, yl), q, ql
     if axis == 1:
-        x, xl, y, yl = _shear_turn(w[2], wl[2], w[0], wl[0], t, sp, body[0] / body[2], body[2] / body[0])
         return (y, w[1], x), (yl, wl[1], xl), q, ql
-    x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], t, sp, body[1] / body[0], body[0] / body[1])
     return (x, y, w[2]), (xl, yl, wl[2]), q, ql
 
 
@@ -131,7 +173,7 @@ def _symmetric_flow(w, wl, q, ql, h, body):
     v2 = sh + u2 + (al1 * sh + al2 * u2)
     q, ql = _add4(q, ql, quat_mul(q, (alpha, v0, v1, v2)))
     q, ql = _normalize(q, ql)
-    x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], sh / ch, 2.0 * sh * ch, 1.0, 1.0)
+    x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], sh / ch, 2.0 * sh * ch, 1.0, 1.0, 0.0)
     return (x, y, w[2]), (xl, yl, wl[2]), q, ql
 
 

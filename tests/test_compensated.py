@@ -94,3 +94,32 @@ def test_the_parameter_names_its_choice_canonically():
     }
     with pytest.raises(ValueError, match="not one of plain, compensated"):
         canonical_name("lie_poisson4(accumulate=kahan)")
+
+
+def test_the_shears_are_a_rotation_to_eps_squared():
+    """The three shears (t, s + sl, t) turn L exactly when (s + sl)(1 + t²) = 2t, and the ω shears when
+    kx (ky + kyl) = 1: with the rounded pair alone each misses by ~eps, the same on every step where the
+    pair is (a symmetric body's ω3 is conserved), which drifts the energy linearly
+    (benchmarks/compensated_bias.py shear_pair).  Checked in exact rationals on random angles and ratios."""
+    from fractions import Fraction
+
+    from gyrolab.kernels.compensated import _reciprocal_low, _sin_low
+    from gyrolab.kernels.rotation import half_angle
+
+    rng = np.random.default_rng(3)
+    worst_pair = worst_closed = worst_k = worst_k_closed = 0.0
+    for phi in np.concatenate([rng.uniform(-3, 3, 300), 10 ** rng.uniform(-9, 0, 300)]):
+        ch, sh = half_angle(phi)
+        t, s = sh / ch, 2.0 * sh * ch
+        two_t = 2 * Fraction(t)
+        sl = _sin_low(t, s)
+        worst_pair = max(worst_pair, abs(float((Fraction(s) * (1 + Fraction(t) ** 2) - two_t) / two_t)))
+        miss = ((Fraction(s) + Fraction(sl)) * (1 + Fraction(t) ** 2) - two_t) / two_t
+        worst_closed = max(worst_closed, abs(float(miss)))
+    for kx in 10 ** rng.uniform(-3, 3, 300):
+        ky, kyl = _reciprocal_low(kx)
+        assert ky == 1.0 / kx
+        worst_k = max(worst_k, abs(float(Fraction(kx) * Fraction(ky) - 1)))
+        worst_k_closed = max(worst_k_closed, abs(float(Fraction(kx) * (Fraction(ky) + Fraction(kyl)) - 1)))
+    assert 1e-17 < worst_pair < 1e-15 and 1e-17 < worst_k < 1e-15  # the misses the low parts close
+    assert worst_closed < 1e-30 and worst_k_closed < 1e-30, (worst_closed, worst_k_closed)
