@@ -50,7 +50,7 @@ from numba import njit, prange
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from brouwer import energy_extended, ensemble, run_compensated  # noqa: E402
 
-from gyrolab.kernels.compensated import _add, _add3, _add4, _minus_one, _normalize, _sin_low, kick  # noqa: E402
+from gyrolab.kernels.compensated import _add3, _add4, _minus_one, _normalize, _shear_turn, _sin_low, kick  # noqa: E402
 from gyrolab.kernels.methods.lie_poisson4 import WEIGHTS  # noqa: E402
 from gyrolab.kernels.rotation import half_angle, quat_from_rotvec, quat_mul  # noqa: E402
 
@@ -113,14 +113,10 @@ def _flow(w, wl, q, ql, h, body, code, amp):
     q, ql = _add4(q, ql, dq)
     q, ql = _normalize_coarse(q, ql, amp) if code == 4 else _normalize(q, ql)
     t, sp = sh / ch, 2.0 * sh * ch
-    sl = _sin_low(t, sp)  # kernels/compensated._shear_turn's low part of s, here with its amplitudes
-    if code == 6:
-        sl += amp * sp
-    elif code == 7:
-        sl *= 1.0 - amp
-    x, xl = _add(w[0], wl[0], t * w[1])
-    y, yl = _add(w[1], wl[1], -(sp * x) - sl * x)
-    x, xl = _add(x, xl, t * y)
+    # _shear_turn's s is s + s kyl + sl (ky = 1); kyl carries the variant: a relative error amp of s, or
+    # −amp sl/s, which takes amp times _sin_low's low part off again (0 for the other variants)
+    kyl = amp if code == 6 else (-amp * _sin_low(t, sp) / sp if code == 7 else 0.0)
+    x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], t, sp, 1.0, 1.0, kyl)
     return (x, y, w[2]), (xl, yl, wl[2]), q, ql
 
 
