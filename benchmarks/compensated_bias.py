@@ -115,8 +115,8 @@ def _flow(w, wl, q, ql, h, body, code, amp):
     t, sp = sh / ch, 2.0 * sh * ch
     # _shear_turn's s is s + s kyl + sl (ky = 1); kyl carries the variant: a relative error amp of s, or
     # −amp sl/s, which takes amp times _sin_low's low part off again (0 for the other variants)
-    kyl = amp if code == 6 else (-amp * _sin_low(t, sp) / sp if code == 7 else 0.0)
-    x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], t, sp, 1.0, 1.0, kyl)
+    kyl = amp if code == 6 else (-amp * _sin_low(t, sp, ch * ch) / sp if code == 7 else 0.0)
+    x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], t, sp, ch * ch, 1.0, 1.0, kyl)
     return (x, y, w[2]), (xl, yl, wl[2]), q, ql
 
 

@@ -34,7 +34,8 @@ parts (ωl, ql) from step to step (kernels/variants.py ``carried``).  benchmarks
 what it buys: the energy error against t over 1e8 steps, and its cost.
 """
 
-from numba import njit
+from numba import njit, types
+from numba.extending import intrinsic
 
 from .compose import merged_kicks
 from .euler_poinsot import free_flow_increment
@@ -91,17 +92,26 @@ def kick(w, wl, q, h, body):
     return _add3(w, wl, h * t0 / body[0], h * t1 / body[1], h * t2 / body[2])
 
 
+@intrinsic
+def _fma(typingctx, a, b, c):
+    """a b + c rounded once (LLVM's llvm.fma.f64: one vfmadd on a CPU with FMA, as numba compiles for the
+    host; libm's fma elsewhere).  numba has no math.fma."""
+    if not all(isinstance(x, types.Float) for x in (a, b, c)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.fma(*args)
+
+    return types.float64(types.float64, types.float64, types.float64), codegen
+
+
 @njit(cache=True, error_model="numpy")
 def _two_prod(a, b):
-    """(p, e): p = a b rounded and its rounding error, a b = p + e exactly (Dekker 1971's splitting; numba
-    has no fma).  For |a|, |b| well below 1e290."""
+    """(p, e): p = a b rounded and its rounding error, a b = p + e exactly (the fma's single rounding of
+    a b − p, which is representable; the same e as Dekker 1971's splitting, in two operations instead of
+    seventeen).  Exact unless e underflows (|a b| below ~1e-292)."""
     p = a * b
-    sa = 134217729.0 * a  # 2^27 + 1
-    ah = sa - (sa - a)
-    sb = 134217729.0 * b
-    bh = sb - (sb - b)
-    al, bl = a - ah, b - bh
-    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
+    return p, _fma(a, b, -p)
 
 
 @njit(cache=True, error_model="numpy")
@@ -109,28 +119,30 @@ def _reciprocal_low(k):
     """(r, rl): 1/k rounded and its low part, k (r + rl) = 1 to ~eps²."""
     r = 1.0 / k
     p, e = _two_prod(k, r)
-    return r, ((1.0 - p) - e) / k  # 1 − p exact (p within an ulp of 1)
+    return r, ((1.0 - p) - e) * r  # 1 − p exact (p within an ulp of 1); r for 1/k: rl needs eps, not eps²
 
 
 @njit(cache=True, error_model="numpy")
-def _sin_low(t, s):
+def _sin_low(t, s, c2):
     """sl with (s + sl)(1 + t²) = 2t to ~eps²: with it the shears (t, s + sl, t) are a rotation (by
-    2 atan t) to ~eps², whatever the rounding of t and s."""
+    2 atan t) to ~eps², whatever the rounding of t and s.  c2 = cos²(φ/2) stands for 1/(1 + t²): it is
+    that to a few eps, and sl (~eps s) needs no more."""
     t2, t2e = _two_prod(t, t)
     dh = 1.0 + t2
     b = dh - t2
     dl = ((1.0 - b) + (t2 - (dh - b))) + t2e  # 1 + t² = dh + dl (two-sum)
     p, pe = _two_prod(s, dh)
-    return -(((p - 2.0 * t) + pe) + s * dl) / dh  # p − 2t exact: p is within 2x of 2t
+    return -(((p - 2.0 * t) + pe) + s * dl) * c2  # p − 2t exact: p is within 2x of 2t
 
 
 @njit(cache=True, error_model="numpy")
-def _shear_turn(x, xl, y, yl, t, s, kx, ky, kyl):
-    """Turn (x, y) by −φ as three shears, x += t y; y −= s x; x += t y (t = tan(φ/2), s = sin φ), with
-    x and y the components of ω whose L = I ω turn: kx = I_y/I_x and ky + kyl = 1/kx carry L's shear to ω.
-    s is closed to 2t/(1 + t²) (``_sin_low``) and ky to 1/kx, so that the map is a rotation of L to ~eps²
-    and what is left is the rounding of the increments, different on every step."""
-    sl = _sin_low(t, s)
+def _shear_turn(x, xl, y, yl, t, s, c2, kx, ky, kyl):
+    """Turn (x, y) by −φ as three shears, x += t y; y −= s x; x += t y (t = tan(φ/2), s = sin φ,
+    c2 = cos²(φ/2)), with x and y the components of ω whose L = I ω turn: kx = I_y/I_x and ky + kyl = 1/kx
+    (``shear_ratios``) carry L's shear to ω.  s is closed to 2t/(1 + t²) (``_sin_low``) and ky to 1/kx, so
+    that the map is a rotation of L to ~eps² and what is left is the rounding of the increments, different
+    on every step."""
+    sl = _sin_low(t, s, c2)
     x, xl = _add(x, xl, t * kx * y)
     y, yl = _add(y, yl, -(s * ky * x) - (s * kyl + sl * ky) * x)
     x, xl = _add(x, xl, t * kx * y)
@@ -138,17 +150,28 @@ def _shear_turn(x, xl, y, yl, t, s, kx, ky, kyl):
 
 
 @njit(cache=True, error_model="numpy")
-def _axis_turn(w, wl, q, ql, axis, h, body):
-    """The flow of L_k²/(2 I_k) for h seconds, compensated: the body turns by φ = ω_k h about e_k, L_b by −φ."""
+def shear_ratios(body):
+    """Per axis k, (kx, ky, kyl): kx = I_j/I_i and ky + kyl = 1/kx to ~eps², i, j = k + 1, k + 2 (mod 3),
+    the body constants of ``_axis_turn``'s shears; computed once per step, not on each of its turns."""
+    k0, k1, k2 = body[2] / body[1], body[0] / body[2], body[1] / body[0]
+    r0, rl0 = _reciprocal_low(k0)
+    r1, rl1 = _reciprocal_low(k1)
+    r2, rl2 = _reciprocal_low(k2)
+    return (k0, r0, rl0), (k1, r1, rl1), (k2, r2, rl2)
+
+
+@njit(cache=True, error_model="numpy")
+def _axis_turn(w, wl, q, ql, axis, h, ratios):
+    """The flow of L_k²/(2 I_k) for h seconds, compensated: the body turns by φ = ω_k h about e_k, L_b by −φ.
+    ``ratios`` is ``shear_ratios(body)``."""
     c, s = half_angle(w[axis] * h)
     u = (s if axis == 0 else 0.0, s if axis == 1 else 0.0, s if axis == 2 else 0.0)
     q, ql = _add4(q, ql, quat_mul(q, (_minus_one(c, 0.0, 0.0, s), u[0], u[1], u[2])))
     t, sp = s / c, 2.0 * s * c  # tan(φ/2), sin φ
     # L_b turns in the plane (e_i, e_j), i, j = axis + 1, axis + 2 (mod 3): x = L_i, y = L_j
     i, j = (axis + 1) % 3, (axis + 2) % 3
-    kx = body[j] / body[i]
-    ky, kyl = _reciprocal_low(kx)
-    x, xl, y, yl = _shear_turn(w[i], wl[i], w[j], wl[j], t, sp, kx, ky, kyl)
+    kx, ky, kyl = ratios[axis]
+    x, xl, y, yl = _shear_turn(w[i], wl[i], w[j], wl[j], t, sp, c * c, kx, ky, kyl)
     if axis == 0:
         return (w[0], x, y), (wl[0], xl, yl), q, ql
     if axis == 1:
@@ -173,23 +196,24 @@ def _symmetric_flow(w, wl, q, ql, h, body):
     v2 = sh + u2 + (al1 * sh + al2 * u2)
     q, ql = _add4(q, ql, quat_mul(q, (alpha, v0, v1, v2)))
     q, ql = _normalize(q, ql)
-    x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], sh / ch, 2.0 * sh * ch, 1.0, 1.0, 0.0)
+    x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], sh / ch, 2.0 * sh * ch, ch * ch, 1.0, 1.0, 0.0)
     return (x, y, w[2]), (xl, yl, wl[2]), q, ql
 
 
 @njit(cache=True, error_model="numpy")
-def free_flow(w, wl, q, ql, h, body, axes):
+def free_flow(w, wl, q, ql, h, body, axes, ratios):
     """kernels/free_flow.free_flow_axes compensated: the exact flow when I1 = I2, else the axis splitting
-    a(h/2) b(h/2) c(h) b(h/2) a(h/2) in the order ``axes`` (kernels/parameters.py codes, resolve_axes)."""
+    a(h/2) b(h/2) c(h) b(h/2) a(h/2) in the order ``axes`` (kernels/parameters.py codes, resolve_axes);
+    ``ratios`` is ``shear_ratios(body)``."""
     if body[0] == body[1]:
         return _symmetric_flow(w, wl, q, ql, h, body)
     a, b, c = resolve_axes(body, axes)
     half = 0.5 * h
-    w, wl, q, ql = _axis_turn(w, wl, q, ql, a, half, body)
-    w, wl, q, ql = _axis_turn(w, wl, q, ql, b, half, body)
-    w, wl, q, ql = _axis_turn(w, wl, q, ql, c, h, body)
-    w, wl, q, ql = _axis_turn(w, wl, q, ql, b, half, body)
-    w, wl, q, ql = _axis_turn(w, wl, q, ql, a, half, body)
+    w, wl, q, ql = _axis_turn(w, wl, q, ql, a, half, ratios)
+    w, wl, q, ql = _axis_turn(w, wl, q, ql, b, half, ratios)
+    w, wl, q, ql = _axis_turn(w, wl, q, ql, c, h, ratios)
+    w, wl, q, ql = _axis_turn(w, wl, q, ql, b, half, ratios)
+    w, wl, q, ql = _axis_turn(w, wl, q, ql, a, half, ratios)
     q, ql = _normalize(q, ql)
     return w, wl, q, ql
 
@@ -210,10 +234,10 @@ def exact_flow(w, wl, q, ql, h, body):
 
 
 @njit(cache=True, error_model="numpy")
-def strang_step(w, wl, q, ql, h, body, axes):
+def strang_step(w, wl, q, ql, h, body, axes, ratios):
     """lie_poisson's step of an undriven body compensated: kick(h/2) free_flow(h) kick(h/2)."""
     w, wl = kick(w, wl, q, 0.5 * h, body)
-    w, wl, q, ql = free_flow(w, wl, q, ql, h, body, axes)
+    w, wl, q, ql = free_flow(w, wl, q, ql, h, body, axes, ratios)
     w, wl = kick(w, wl, q, 0.5 * h, body)
     return w, wl, q, ql
 
@@ -232,8 +256,9 @@ def strang_composition(weights, axes):
     @njit(error_model="numpy")
     def step_carried(w, q, c, dt, body):
         wl, ql = c
+        ratios = shear_ratios(body)
         for k in range(len(weights)):
-            w, wl, q, ql = strang_step(w, wl, q, ql, weights[k] * dt, body, axes)
+            w, wl, q, ql = strang_step(w, wl, q, ql, weights[k] * dt, body, axes, ratios)
         return w, q, (wl, ql)
 
     return step_carried

@@ -103,16 +103,19 @@ def test_the_shears_are_a_rotation_to_eps_squared():
     (benchmarks/compensated_bias.py shear_pair).  Checked in exact rationals on random angles and ratios."""
     from fractions import Fraction
 
-    from gyrolab.kernels.compensated import _reciprocal_low, _sin_low
+    from gyrolab.kernels.compensated import _reciprocal_low, _sin_low, _two_prod
     from gyrolab.kernels.rotation import half_angle
 
     rng = np.random.default_rng(3)
+    for a, b in (rng.standard_normal((300, 2)) * 10 ** rng.uniform(-100, 100, (300, 2))).tolist():
+        p, e = _two_prod(a, b)  # the low parts' exact products
+        assert p == a * b and Fraction(a) * Fraction(b) == Fraction(p) + Fraction(e)
     worst_pair = worst_closed = worst_k = worst_k_closed = 0.0
     for phi in np.concatenate([rng.uniform(-3, 3, 300), 10 ** rng.uniform(-9, 0, 300)]):
         ch, sh = half_angle(phi)
         t, s = sh / ch, 2.0 * sh * ch
         two_t = 2 * Fraction(t)
-        sl = _sin_low(t, s)
+        sl = _sin_low(t, s, ch * ch)
         worst_pair = max(worst_pair, abs(float((Fraction(s) * (1 + Fraction(t) ** 2) - two_t) / two_t)))
         miss = ((Fraction(s) + Fraction(sl)) * (1 + Fraction(t) ** 2) - two_t) / two_t
         worst_closed = max(worst_closed, abs(float(miss)))
