@@ -16,7 +16,8 @@ Prints, from one process (ratios are taken under the same machine load):
    flatters today's code against REV; for an A/B of installed packages, ``pip install --target DIR`` the
    other revision and run this script with ``PYTHONPATH=DIR``;
 1c. the exact flow at a fixed |λh| (each body's ω scaled so that its elliptic argument advances by λh per
-   step: the cost of the short branch's doublings, and of a step past SHORT_STEP, K, R_F and two or three R_J);
+   step: the cost of the short branch's doublings, of its pieces from SHORT_STEP to SHORT_STEP·SHORT_PIECES,
+   and of a step past them, K, R_F and two or three R_J);
 2. the exact Strang splitting (strang_exact) against lie_poisson (axis sub-splitting) on the asymmetric
    box of the free_asymmetric scene, I = (1e-4, 3e-4, 2e-4), ω = (1e-3 ω3, 0, ω3), f = 10 Hz ± 5 %,
    dt = 1e-4, in the same harness;
@@ -43,6 +44,11 @@ from numba import njit, prange
 
 from gyrolab.kernels.body import N_FIELDS, body_row
 from gyrolab.kernels.euler_poinsot import SERIES_BASE, SHORT_STEP, elliptic_rate, free_flow_exact
+
+try:
+    from gyrolab.kernels.euler_poinsot import SHORT_PIECES
+except ImportError:  # before the short branch went in pieces (2026-12-06)
+    SHORT_PIECES = 1
 from gyrolab.kernels.methods import lie_poisson, strang_exact
 
 try:
@@ -240,17 +246,22 @@ def main():
             flush=True,
         )
 
-    print(f"\n## 1c. exact free flow against |λh| (SHORT_STEP = {SHORT_STEP:g}; dt = 1e-2, 1 thread)\n")
-    print("| \\|λh\\| | doublings | exact ns/step | exact / rk4 at 1b's 0.005 rad |")
+    print(
+        f"\n## 1c. exact free flow against |λh| (SHORT_STEP = {SHORT_STEP:g}, SHORT_PIECES = {SHORT_PIECES}; "
+        "dt = 1e-2, 1 thread)\n"
+    )
+    print("| \\|λh\\| | pieces × doublings | exact ns/step | exact / rk4 at 1b's 0.005 rad |")
     print("|---:|---:|---:|---:|")
     W, Q, B = generic_inputs(args.runs)
     rates = np.array([elliptic_rate(B[i, :3], W[i]) for i in range(args.runs)])
     harness = harnesses["exact"]
     rk4_ns = ns_per_step(harnesses["rk4"], inputs, 0.005 / 10.0, args.steps, 1, args.repeat)
-    for lam_h in (0.02, 0.1, 0.5, 0.9, 1.1, 1.5, 1.9, 2.1, 3.0):
+    for lam_h in (0.02, 0.1, 0.5, 0.9, 1.1, 1.5, 1.9, 2.1, 3.0, 3.9, 5.0, 7.5, 8.5):
         scaled = (W * (lam_h / (rates * 1e-2))[:, None], Q, B)
         ns = ns_per_step(harness, scaled, 1e-2, args.steps, 1, args.repeat)
-        doublings = max(math.ceil(math.log2(lam_h / SERIES_BASE)), 0) if lam_h < SHORT_STEP else "long"
+        pieces = 1 if lam_h < SHORT_STEP else int(lam_h / SHORT_STEP) + 1
+        doublings = max(math.ceil(math.log2(lam_h / pieces / SERIES_BASE)), 0)
+        doublings = f"{pieces} × {doublings}" if lam_h < SHORT_STEP * SHORT_PIECES else "long"
         print(f"| {lam_h} | {doublings} | {ns:.1f} | {ns / rk4_ns:.1f}x |", flush=True)
 
     print("\n## 2. asymmetric box, f = 10 Hz, dt = 1e-4\n")

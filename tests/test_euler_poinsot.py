@@ -126,7 +126,8 @@ def test_t0_reproduces_initial_state_near_separatrix():
 def test_forward_then_back():
     """Forward by t then back by −t (two calls of free_flow_exact) on 1e5 random states, t uniform in
     [0, one flip period]: within 1e3 ULP for states at relative distance ≥ 1e-3 from the separatrix.
-    Measured: ω 613 ULP, q 508 ULP (99.9 %: 45 / 113).
+    Measured: ω 522 ULP, q 492 ULP (99.9 %: 46 / 58; 613 and 508 ULP, 45 / 113, when every
+    step past |λt| = 2 took the long branch, before 2026-12-06).
 
     Closer to the separatrix the problem itself is ill-conditioned: the state at t is rounded, its energy
     level moves by ~ eps G², i.e. its distance δ to the separatrix by eps/δ relative, and the period
@@ -491,6 +492,59 @@ def test_short_step_third_kind_increment():
     assert errors.max() <= 16 * eps
     assert state_errors.max() <= 8 * eps
     assert step_errors.max() <= 8 * eps
+
+
+@pytest.mark.slow
+def test_a_long_step_in_short_pieces():
+    """Steps of SHORT_STEP ≤ |λh| < SHORT_STEP·SHORT_PIECES (2 to 8) go in k equal pieces of the short branch
+    (_short_pieces); against mpmath at 30 digits on 240 random (n, m, u0, λh) drawn as in the short step's
+    test: the increment of Π − F within 16 eps relative, sn, cn, dn at u0 + λh and θ's increment (with
+    S = C = 1 it is that of am u) within 96 eps absolute, and the increments of sn, cn, dn their
+    differences to 32 eps.  Measured: increment median 0.9 eps, max 5.7 eps; sn, cn, dn max 1.1e-14
+    (50 eps; each piece adds its rounding, and the pieces' sum λh its own); Δam max 1.2e-14; increments
+    3e-15 from the differences.  The long branch it replaces there (the same draws with other seeds, /tmp
+    scripts): the increment lost up to 1.1e4-2.5e4 eps (the difference of two R_J at the endpoints cancels),
+    sn, cn, dn 3.4e-14-7.6e-14; its Δam, one atan2 of the endpoints, 6e-15."""
+    mp = pytest.importorskip("mpmath", reason="mpmath is in the test extra: pip install '.[test]'")
+    from gyrolab.kernels.euler_poinsot import SHORT_PIECES, SHORT_STEP, _elliptic_case
+
+    mp.mp.dps = 30
+    rng = np.random.default_rng(29)
+    eps = np.finfo(float).eps
+    errors, state_errors, theta_errors, step_errors = [], [], [], []
+    for _ in range(240):
+        n = -(10.0 ** rng.uniform(-3, 3))
+        mc = 10.0 ** rng.uniform(-15, 0)
+        u0 = rng.uniform(-6, 6)
+        m = 1 - mp.mpf(mc)
+        v = rng.choice([-1.0, 1.0]) * rng.uniform(SHORT_STEP, SHORT_STEP * SHORT_PIECES)
+        s0, c0, d0 = (float(mp.ellipfun(f, u0, m=m)) for f in ("sn", "cn", "dn"))
+        s1, c1, d1, increment, d_theta, ds, dc, dd = _elliptic_case(s0, c0, d0, v, 1.0, mc, n, 1.0, 1.0, 1.0)
+        truth = _third_kind_increment_30_digits(mp, u0, v, n, mc)
+        errors.append(float(abs(increment - truth) / abs(truth)))
+        u1 = mp.mpf(u0) + mp.mpf(v)
+        exact = tuple(mp.ellipfun(f, u1, m=m) for f in ("sn", "cn", "dn"))
+        state_errors.append(max(float(abs(x - y)) for x, y in zip((s1, c1, d1), exact)))
+        K = mp.ellipk(m)
+
+        def am(u):
+            j = mp.floor(u / (2 * K) + mp.mpf(1) / 2)  # u = 2jK + r with |r| ≤ K
+            return j * mp.pi + mp.asin(mp.ellipfun("sn", u - 2 * j * K, m=m))
+
+        theta_errors.append(float(abs(d_theta - (am(u1) - am(mp.mpf(u0))))))
+        step_errors.append(max(abs(a - (b - c)) for a, b, c in zip((ds, dc, dd), (s1, c1, d1), (s0, c0, d0))))
+    errors, state_errors, theta_errors = np.array(errors), np.array(state_errors), np.array(theta_errors)
+    print(
+        f"short pieces, |lambda h| in [{SHORT_STEP:g}, {SHORT_STEP * SHORT_PIECES:g}): increment of Pi - F median "
+        f"{np.median(errors) / eps:.2g} eps, max {errors.max() / eps:.2g} eps; sn, cn, dn max "
+        f"{state_errors.max():.2g}; d_theta max {theta_errors.max():.2g}; increments against the differences "
+        f"{max(step_errors):.2g}"
+    )
+    assert SHORT_PIECES >= 2
+    assert errors.max() <= 16 * eps
+    assert state_errors.max() <= 96 * eps
+    assert theta_errors.max() <= 96 * eps
+    assert max(step_errors) <= 32 * eps
 
 
 @pytest.mark.slow
