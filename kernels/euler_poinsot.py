@@ -281,9 +281,10 @@ SERIES_BASE = 0.03
 SHORT_STEP = 2.0
 
 # A step of SHORT_STEP ≤ |λh| < SHORT_STEP·SHORT_PIECES goes in k ≤ SHORT_PIECES equal pieces of the short
-# branch (one _short_step, then the addition theorems once per piece) instead of the long branch: 0.59-0.65x
-# its cost for 2 ≤ |λh| < 6 and 0.73x at 7.5 (each piece ~75 ns on the AMD EPYC VM; the long branch ~920 ns
-# there), and more accurate (tests/test_euler_poinsot.py::test_a_long_step_in_short_pieces).
+# branch (one _short_step, then the addition theorems once per piece) instead of the long branch: 0.57-0.67x
+# its cost for 2 ≤ |λh| < 6 and 0.66-0.78x at 7.5 (table 1c of benchmarks/bench_free_body.py; each piece past
+# the first ~60-75 ns on the AMD EPYC VM, the long branch ~900 ns there), and more accurate
+# (tests/test_euler_poinsot.py::test_a_long_step_in_short_pieces).
 SHORT_PIECES = 4
 
 
