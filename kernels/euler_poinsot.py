@@ -448,8 +448,9 @@ def _separatrix(t0, s0, v):
 
 
 @njit(cache=True, error_model="numpy")
-def _sorted_flow(x, y, z, J1, J2, J3, par, h):
-    """Flow of the body momentum in the sorted frame J1 < J2 < J3 (par = parity of the sort).
+def _sorted_flow(x, y, z, J1, J2, J3, par, h, D1, D3):
+    """Flow of the body momentum in the sorted frame J1 < J2 < J3 (par = parity of the sort); D1 = G² − 2T J1
+    and D3 = 2T J3 − G² (both > 0) as _flow formed them for its test of a steady rotation.
 
     Returns (x0, y0, z0, x1, y1, z1, psi, pole, pole_sign, sx, sy, sz, dx, dy, dz): the sign-adjusted
     momentum at 0 (rebuilt from the elliptic parametrisation) and at h, ψ(h) − ψ(0), the sorted pole index
@@ -461,8 +462,7 @@ def _sorted_flow(x, y, z, J1, J2, J3, par, h):
     J21 = J2 - J1
     G2 = x * x + y * y + z * z
     G = math.sqrt(G2)
-    D1 = y * y * J21 / J2 + z * z * J31 / J3  # G² − 2T J1 ≥ 0
-    D3 = -(x * x * J31 / J1 + y * y * J32 / J2)  # G² − 2T J3 ≤ 0
+    D3 = -D3  # G² − 2T J3 < 0
     D2 = z * z * J32 / J3 - x * x * J21 / J1  # G² − 2T J2
     B13 = math.sqrt(J1 * -D3 / J31)
     B31 = math.sqrt(J3 * D1 / J31)
@@ -609,7 +609,7 @@ def _flow(w, q, h, body):
     if D1 == 0.0 or D3 == 0.0:
         # steady rotation about the smallest or the largest axis: ω constant
         return (w[0], w[1], w[2]), quat_normalize(rotate_body_step(q, w[0] * h, w[1] * h, w[2] * h)), still
-    flow = _sorted_flow(x, y, z, J1, J2, J3, par, h * scale)
+    flow = _sorted_flow(x, y, z, J1, J2, J3, par, h * scale, D1, D3)
     xa, ya, za, xb, yb, zb, psi, pole, _, sx, sy, sz, dx, dy, dz = flow
     dm = _unsort(sx * dx, sy * dy, sz * dz, p0, p1, p2)
     if h != 0.0:
