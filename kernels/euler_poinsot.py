@@ -125,22 +125,17 @@ def _unsort(v0, v1, v2, p0, p1, p2):
 
 @njit(cache=True, error_model="numpy")
 def _arc(m0, m1, m2, axis, sign):
-    """Unit quaternion of the shortest-arc rotation taking m/|m| to sign·e_axis (m·e ≥ 0)."""
+    """The shortest-arc rotation taking m/|m| to sign·e_axis (m·e ≥ 0) as an unnormalised quaternion,
+    (G + sign m_axis, m × sign e_axis) with G = |m|: its norm √(2G(G + sign m_axis)) ≥ √2 G, and G + sign m_axis
+    ≥ G has no cancellation.  _flow's product of two of them is normalised once at the end (quat_normalize),
+    which leaves the rotation they describe; the unit form, (1 + u·e, u × e)/√(2(1 + u·e)) with u = m/G,
+    cost two square roots and four divisions more per arc."""
     G = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
-    u0 = m0 / G
-    u1 = m1 / G
-    u2 = m2 / G
     if axis == 0:
-        r = math.sqrt(0.5 * (1.0 + sign * u0))
-        k = sign / (2.0 * r)
-        return r, 0.0, k * u2, -k * u1
+        return G + sign * m0, 0.0, sign * m2, -sign * m1
     if axis == 1:
-        r = math.sqrt(0.5 * (1.0 + sign * u1))
-        k = sign / (2.0 * r)
-        return r, -k * u2, 0.0, k * u0
-    r = math.sqrt(0.5 * (1.0 + sign * u2))
-    k = sign / (2.0 * r)
-    return r, k * u1, -k * u0, 0.0
+        return G + sign * m1, -sign * m2, 0.0, sign * m0
+    return G + sign * m2, sign * m1, -sign * m0, 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -340,10 +335,16 @@ def _short_step(v, mc, n):
 @njit(cache=True, error_model="numpy")
 def _on_the_curve(s, c, mc):
     """(sn, cn, dn) from the addition theorems' sn, cn rescaled to sn² + cn² = 1 and dn from dn² + m sn² = 1,
-    to rounding (energy and |L| to a few ULP)."""
-    r = 1.0 / math.sqrt(s * s + c * c)
-    s *= r
-    c *= r
+    to rounding (energy and |L| to a few ULP).
+
+    The addition theorems leave s² + c² = 1 + δ with |δ| a few eps (their denominator is formed without
+    cancellation), so 1/√(1 + δ) = 1 − δ/2 + O(δ²) to rounding: one Newton step of the inverse square root
+    from 1, instead of a square root and a division on the chain of dependent operations that carries ω from
+    one step to the next, whose latency sets the step's cost (docs/benchmarks.md, "2026-12-06: the exact
+    flow's chain")."""
+    e = 0.5 * (1.0 - (s * s + c * c))  # −δ/2; 1 − (s² + c²) is exact (Sterbenz)
+    s += s * e  # s (1 − δ/2) as s + s·e, not as a factor 1 − δ/2 rounded to the uneven grid around 1
+    c += c * e
     return s, c, math.sqrt(c * c + mc * s * s)
 
 
@@ -532,8 +533,8 @@ def _sorted_flow(x, y, z, J1, J2, J3, par, h, D1, D3):
 
 
 @njit(cache=True, error_model="numpy")
-def _project(x, y, z, x0, y0, z0):
-    """m = (x, y, z) scaled to |m| = |m0|.
+def _project(x, y, z, x0, y0, z0, inv_G2):
+    """m = (x, y, z) scaled to |m| = |m0|; inv_G2 = 1/|m0|².
 
     The B's of the elliptic parametrisation are recomputed from the state at every step with the same
     few-ULP rounding, which scales m(h) (|L| and E together) by nearly the same factor 1 + O(eps) at every
@@ -546,8 +547,9 @@ def _project(x, y, z, x0, y0, z0):
     # grid of doubles around 1 and bias the scaling (measured: no better than not scaling at all).
     # |m0|² − |m|² as Σ (m0 − m)(m0 + m): its rounding error is eps times the (small) difference, not
     # eps |m|², which would be nearly the same at every step and drift coherently.
-    G2 = x * x + y * y + z * z
-    d = 0.5 * ((x0 - x) * (x0 + x) + (y0 - y) * (y0 + y) + (z0 - z) * (z0 + z)) / G2
+    # |m0|² for |m|² in the divisor: they differ by O(eps) and d is O(eps), so d changes by O(eps²); 1/|m0|²
+    # is formed at the start of the step, off the chain from m(h) to the next step.
+    d = 0.5 * ((x0 - x) * (x0 + x) + (y0 - y) * (y0 + y) + (z0 - z) * (z0 + z)) * inv_G2
     return x + d * x, y + d * y, z + d * z
 
 
@@ -598,8 +600,10 @@ def _flow(w, q, h, body):
     if big == 0.0:
         return (w[0], w[1], w[2]), q, still
     scale = 1.0
-    if big < 1e-100 or big > 1e100:
-        # the flow of m/s over s h is the flow of m over h, scaled by 1/s; s a power of 2 (exact)
+    if big < 1e-60 or big > 1e60:
+        # the flow of m/s over s h is the flow of m over h, scaled by 1/s; s a power of 2 (exact).  The bound
+        # keeps the product of the two unnormalised arcs (_arc, norm ~ G² each) and its squared norm ~ G⁴ in
+        # quat_normalize far from overflow and underflow.
         scale = math.ldexp(1.0, math.frexp(big)[1])
         x /= scale
         y /= scale
@@ -613,7 +617,7 @@ def _flow(w, q, h, body):
     xa, ya, za, xb, yb, zb, psi, pole, _, sx, sy, sz, dx, dy, dz = flow
     dm = _unsort(sx * dx, sy * dy, sz * dz, p0, p1, p2)
     if h != 0.0:
-        xb, yb, zb = _project(xb, yb, zb, x, y, z)
+        xb, yb, zb = _project(xb, yb, zb, x, y, z, 1.0 / (x * x + y * y + z * z))
     # back to the original axes: m[p_k] = σ_k m'_k (still divided by scale)
     ma = _unsort(sx * xa, sy * ya, sz * za, p0, p1, p2)
     mb = _unsort(sx * xb, sy * yb, sz * zb, p0, p1, p2)
@@ -635,6 +639,8 @@ def _flow(w, q, h, body):
         y_rot = (cy, 0.0, 0.0, sy_)
     pa_conj = (pa[0], -pa[1], -pa[2], -pa[3])
     q1 = quat_mul(quat_mul(q, pa_conj), quat_mul(y_rot, pb))
+    # ω = m/I by division, not by a reciprocal 1/I: its rounding would scale ω by the same factor at every
+    # step, a coherent drift of |L| and E (measured: 1.5e-11 in 2e5 steps, test_splitting_invariants_do_not_drift)
     w1 = (scale * mb[0] / I1, scale * mb[1] / I2, scale * mb[2] / I3)
     return w1, quat_normalize(q1), (scale * dm[0] / I1, scale * dm[1] / I2, scale * dm[2] / I3)
 

@@ -575,8 +575,11 @@ def test_splitting_invariants_do_not_drift(name):
     within 3e-13 × (exact flows per step) relative.  Measured (2e5 steps, E / |L|): strang_exact 1.1e-13 /
     3.3e-14, strang_exact4 6.9e-13 / 3.2e-13, split6_exact 1.2e-12 / 4e-13; over 1e6 steps strang_exact
     |L| 6e-14 .. 2e-13, E 3e-13 .. 6e-13, split6_exact 1.8e-12 / 6e-12, against lie_poisson's |L| 1.7e-13
-    (and E 5.5e-7, its truncation error).  Without the rescaling of m(h) to |m(0)| in free_flow_exact,
-    |L| and E drift by 6e-11 over 1e6 steps."""
+    (and E 5.5e-7, its truncation error); since 2026-12-06 (the on-the-curve rescaling additive, see
+    euler_poinsot._on_the_curve), over 1e6 steps on the box / on (1, 2, 3), E / |L|: strang_exact 1.4e-13 /
+    3.4e-14, 2.7e-13 / 6.7e-14; split6_exact 1.3e-12 / 7.9e-14, 1.8e-12 / 6e-13.  Without the rescaling of
+    m(h) to |m(0)| in free_flow_exact, |L| and E drift by 6e-11 over 1e6 steps; with a reciprocal 1/I for
+    ω = m/I (a rounding of the same sign at every step), by 1.5e-11 in 2e5 steps."""
     step = SPLITTINGS[name].step
 
     @njit
