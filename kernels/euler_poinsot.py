@@ -276,10 +276,12 @@ SERIES_BASE = 0.03
 SHORT_STEP = 2.0
 
 # A step of SHORT_STEP ≤ |λh| < SHORT_STEP·SHORT_PIECES goes in k ≤ SHORT_PIECES equal pieces of the short
-# branch (one _short_step, then the addition theorems once per piece) instead of the long branch: 0.57-0.67x
-# its cost for 2 ≤ |λh| < 6 and 0.66-0.78x at 7.5 (table 1c of benchmarks/bench_free_body.py; each piece past
-# the first ~60-75 ns on the AMD EPYC VM, the long branch ~900 ns there), and more accurate
-# (tests/test_euler_poinsot.py::test_a_long_step_in_short_pieces).
+# branch (one _short_step, then the addition theorems once per piece) instead of the long branch: 0.45-0.49x
+# its cost for 2 ≤ |λh| < 6 and 0.55-0.58x at 7.5 (table 1c of benchmarks/bench_free_body.py, 2026-12-06 after
+# the on-the-curve rescaling went additive; each piece past the first ~30-50 ns on the AMD EPYC VM, the long
+# branch ~830-910 ns there), and more accurate (tests/test_euler_poinsot.py::test_a_long_step_in_short_pieces).
+# Eight pieces (|λh| < 16) were tried and not kept: sn, cn, dn lost up to 6.2e-14 and θ's increment 8.3e-14
+# against mpmath (the long branch: 3.4e-14-7.6e-14 and 6e-15).
 SHORT_PIECES = 4
 
 

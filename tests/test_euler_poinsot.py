@@ -126,8 +126,9 @@ def test_t0_reproduces_initial_state_near_separatrix():
 def test_forward_then_back():
     """Forward by t then back by −t (two calls of free_flow_exact) on 1e5 random states, t uniform in
     [0, one flip period]: within 1e3 ULP for states at relative distance ≥ 1e-3 from the separatrix.
-    Measured: ω 522 ULP, q 492 ULP (99.9 %: 46 / 58; 613 and 508 ULP, 45 / 113, when every
-    step past |λt| = 2 took the long branch, before 2026-12-06).
+    Measured: ω 400 ULP, q 492 ULP (99.9 %: 48 / 56; 522 and 492 ULP, 46 / 58, before the additive
+    on-the-curve rescaling of 2026-12-06, and 613 and 508 ULP, 45 / 113, when every step past |λt| = 2
+    took the long branch, before that).
 
     Closer to the separatrix the problem itself is ill-conditioned: the state at t is rounded, its energy
     level moves by ~ eps G², i.e. its distance δ to the separatrix by eps/δ relative, and the period
