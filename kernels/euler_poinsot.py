@@ -129,7 +129,7 @@ def _arc(m0, m1, m2, axis, sign):
     (G + sign m_axis, m × sign e_axis) with G = |m|: its norm √(2G(G + sign m_axis)) ≥ √2 G, and G + sign m_axis
     ≥ G has no cancellation.  _flow's product of two of them is normalised once at the end (quat_normalize),
     which leaves the rotation they describe; the unit form, (1 + u·e, u × e)/√(2(1 + u·e)) with u = m/G,
-    cost two square roots and four divisions more per arc."""
+    cost one square root and four divisions more per arc."""
     G = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
     if axis == 0:
         return G + sign * m0, 0.0, sign * m2, -sign * m1
