@@ -27,11 +27,11 @@ Times are medians of --repeat repeats after a warm-up call.  On the 2-core Xeon 
 euler_poinsot.py's line numbers alone (one comment line) moved every row of the exact flow by 5-8 %, the
 same in every run of a build: compare a change with a control build of the old code so shifted, not only
 with the old build (docs/benchmarks.md, "the short branch up to |λh| = 2").  Found on 2026-12-06 (AMD EPYC
-VM): the exact flow's rows depend by ~20 % on how its code was compiled: with a fresh cache this script
-compiles the flow together with its harness (the slower case); if a method that uses the flow (strang_exact)
-ran first in another process with the same NUMBA_CACHE_DIR, the harness links the cached flow (the faster
-case).  Compare builds in the same case: a fresh cache for each, or each warmed by the same method first
-(docs/benchmarks.md, "2026-12-06: the exact flow's chain").
+VM): the exact flow's rows depended by ~20 % on how its code was compiled: with a fresh cache this script
+compiled the flow together with its harness (the slower case); if a method that uses the flow (strang_exact,
+whose step_driven is forceinline) ran first with the same NUMBA_CACHE_DIR, the faster.  Since
+free_flow_exact is forceinline too, every caller gets the faster case; for a build before that, compare in
+the same case (docs/benchmarks.md, "2026-12-06: the exact flow's chain").
 """
 
 import argparse

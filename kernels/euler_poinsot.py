@@ -555,14 +555,18 @@ def _project(x, y, z, x0, y0, z0, inv_G2):
     return x + d * x, y + d * y, z + d * z
 
 
-@njit(cache=True, error_model="numpy")
+# forceinline (free_flow_exact, free_flow_increment): a caller compiled with these thin wrappers inlined gets
+# _flow's faster code, ~20 % a step, as the methods' forceinline step_driven always did; a plain njit caller
+# compiled in the same process as _flow got the slower (docs/benchmarks.md, "2026-12-06: the exact flow's
+# chain").  Same bits.
+@njit(cache=True, error_model="numpy", forceinline=True)
 def free_flow_exact(w, q, h, body):
     """(ω, q) after the torque-free motion for h seconds (any h, any sign); only I1, I2, I3 of the body are read."""
     w1, q1, _ = _flow(w, q, h, body)
     return w1, q1
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)
 def free_flow_increment(w, q, h, body):
     """(ω(h) − ω, q(h)): free_flow_exact's flow with ω's change as an increment (rad/s, body frame) for a
     compensated sum (kernels/compensated.py).  For three distinct moments the increment comes from those
