@@ -17,7 +17,8 @@ Prints, from one process (ratios are taken under the same machine load):
    other revision and run this script with ``PYTHONPATH=DIR``;
 1c. the exact flow at a fixed |λh| (each body's ω scaled so that its elliptic argument advances by λh per
    step: the cost of the short branch's doublings, of its pieces from SHORT_STEP to SHORT_STEP·SHORT_PIECES,
-   and of a step past them, K, R_F and two or three R_J);
+   and of a step past them: since 2026-12-06 (later) its whole half periods 2K dropped (K and one R_J) and the
+   rest by the short branch or its pieces, before that K, R_F and two or three R_J);
 2. the exact Strang splitting (strang_exact) against lie_poisson (axis sub-splitting) on the asymmetric
    box of the free_asymmetric scene, I = (1e-4, 3e-4, 2e-4), ω = (1e-3 ω3, 0, ω3), f = 10 Hz ± 5 %,
    dt = 1e-4, in the same harness;
@@ -261,12 +262,14 @@ def main():
     rates = np.array([elliptic_rate(B[i, :3], W[i]) for i in range(args.runs)])
     harness = harnesses["exact"]
     rk4_ns = ns_per_step(harnesses["rk4"], inputs, 0.005 / 10.0, args.steps, 1, args.repeat)
-    for lam_h in (0.02, 0.1, 0.5, 0.9, 1.1, 1.5, 1.9, 2.1, 3.0, 3.9, 5.0, 7.5, 8.5):
+    for lam_h in (0.02, 0.1, 0.5, 0.9, 1.1, 1.5, 1.9, 2.1, 3.0, 3.9, 5.0, 7.5, 8.5, 12.0, 30.0, 100.0):
         scaled = (W * (lam_h / (rates * 1e-2))[:, None], Q, B)
         ns = ns_per_step(harness, scaled, 1e-2, args.steps, 1, args.repeat)
         pieces = 1 if lam_h < SHORT_STEP else int(lam_h / SHORT_STEP) + 1
         doublings = max(math.ceil(math.log2(lam_h / pieces / SERIES_BASE)), 0)
-        doublings = f"{pieces} × {doublings}" if lam_h < SHORT_STEP * SHORT_PIECES else "long"
+        # past the pieces: whole half periods 2K dropped and the rest, |r| ≤ K (K differs from body to body), by the
+        # short branch or its pieces (K ≥ HALF_PERIODS_BELOW, or a build before 2026-12-06: the long branch)
+        doublings = f"{pieces} × {doublings}" if lam_h < SHORT_STEP * SHORT_PIECES else "2K·N + r"
         print(f"| {lam_h} | {doublings} | {ns:.1f} | {ns / rk4_ns:.1f}x |", flush=True)
 
     print("\n## 2. asymmetric box, f = 10 Hz, dt = 1e-4\n")

@@ -12,7 +12,8 @@ in mc, which the caller computes without cancellation.  For 0 ≤ m ≤ 1:
   without storing it: a_{n-1} = a_n + c_n, b_{n-1} = b_n² / a_{n-1}, both
   relatively accurate (c_n is carried by c_{n+1} = c_n² / (4 a_{n+1})), so no
   array is needed.  mc = 0 gives (tanh, sech, sech).
-- ``ellipk(mc)``: K(m) = π / (2 AGM(1, √mc)).
+- ``ellipk(mc)``: K(m) = π / (2 AGM(1, √mc)); ``ellipk_and_pi_minus_k(mc, n)``: K and the complete
+  Π(n|m) − K from the same AGM (DLMF 19.8.6).
 - ``rf(x, y, z)``, ``rj(x, y, z, p)`` (p > 0), ``rd(x, y, z)``,
   ``rc1(e)`` = R_C(1, 1 + e): Carlson's duplication algorithms (Carlson,
   Numer. Algorithms 10, 1995; DLMF §19.36), relative error ≤ 8 eps measured
@@ -146,6 +147,36 @@ def ellipk(mc):
             break
         a, b = 0.5 * (a + b), math.sqrt(a * b)
     return _PI / (a + b)
+
+
+@njit(cache=True, error_model="numpy")
+def ellipk_and_pi_minus_k(mc, n):
+    """(K(m), Π(n|m) − K(m)), m = 1 − mc, 0 < mc ≤ 1, n < 1, from one AGM (DLMF 19.8.6-7; the form of
+    Π − K there, π n ΣQ / (4 M (1 − n)), has no difference of K and Π, so it keeps its relative accuracy as
+    n → 0).  Each level: a_{j+1} = (a + g)/2, g_{j+1} = √(a g), p_{j+1} = (p² + a g)/(2p) (p₀² = 1 − n),
+    Q_{j+1} = Q ε/2 with ε = (p² − a g)/(p² + a g): one square root and two divisions, against R_J(0, mc, 1,
+    1 − n)'s four square roots, a division and an R_C per duplication.  The AGM converges quadratically, p
+    to it by halving while p ≫ M, so 3-13 levels for −1e3 ≤ n ≤ −1e-3 and mc ≥ 1e-15.  Π − K within 2.7 eps
+    of mpmath for mc ≥ 1e-300, −1e6 ≤ n ≤ 0.99, K within 3 eps (tests/test_elliptic.py
+    ::test_ellipk_and_pi_minus_k)."""
+    a = 1.0
+    g = math.sqrt(mc)
+    p2 = 1.0 - n
+    p = math.sqrt(p2)
+    q = 1.0
+    total = 1.0
+    for _ in range(_MAX_AGM + 60):  # Q at least halves per level: ≤ 60 levels after the AGM's own
+        ag = a * g
+        den = p2 + ag
+        q *= 0.5 * (p2 - ag) / den
+        p = 0.5 * den / p
+        p2 = p * p
+        a, g = 0.5 * (a + g), math.sqrt(ag)
+        total += q
+        if abs(q) <= 1.0e-17 * total and abs(a - g) <= 1.0e-8 * a:
+            break
+    mean = 0.5 * (a + g)
+    return _PI / (2.0 * mean), _PI * n * total / (4.0 * mean * (1.0 - n))
 
 
 @njit(cache=True, error_model="numpy")

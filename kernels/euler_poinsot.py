@@ -56,8 +56,10 @@ corrections.  Our own choices on top of it:
   of Π − F from am u0 to am(u0 + λh) is (Π − F)(am λh) minus an R_C of sn
   at u0, λh and u0 + λh, and (Π − F)(am λh) comes with sn, cn, dn(λh) from
   halving λh to ≤ 0.03 (Maclaurin series there) and doubling back, one R_C
-  per doubling: no R_J of the endpoints, whose difference cancels; a step
-  of up to SHORT_PIECES times SHORT_STEP goes in equal pieces of it;
+  per doubling: no R_J of the endpoints, whose difference cancels; a longer
+  step that spans more than K drops its whole half periods 2K (each adds the
+  complete Π − F and π to θ) and takes the rest, at most K, the same way, and
+  one of at most K (up to SHORT_PIECES times SHORT_STEP) goes in equal pieces;
   Against mpmath at 30 digits (tests/test_euler_poinsot.py
   ::test_short_step_third_kind_increment) it is within 4 eps of the
   increment; the two R_J and the 5-point Gauss–Legendre rule it replaced
@@ -79,6 +81,7 @@ from numba import njit, prange
 
 from .elliptic import (
     ellipk,
+    ellipk_and_pi_minus_k,
     one_minus_cndn_series,
     rc1,
     rf,
@@ -275,7 +278,8 @@ SERIES_BASE = 0.03
 # ~2.1x a short one of 1 ≤ |λh| < 2 (benchmarks/bench_free_body.py, table 1c).
 SHORT_STEP = 2.0
 
-# A step of SHORT_STEP ≤ |λh| < SHORT_STEP·SHORT_PIECES goes in k ≤ SHORT_PIECES equal pieces of the short
+# A step of SHORT_STEP ≤ |λh| < SHORT_STEP·SHORT_PIECES that spans at most K (else whole half periods go first:
+# _elliptic_case) goes in k ≤ SHORT_PIECES equal pieces of the short
 # branch (one _short_step, then the addition theorems once per piece) instead of the long branch: 0.45-0.49x
 # its cost for 2 ≤ |λh| < 6 and 0.55-0.58x at 7.5 (table 1c of benchmarks/bench_free_body.py, 2026-12-06 after
 # the on-the-curve rescaling went additive; each piece past the first ~30-50 ns on the AMD EPYC VM, the long
@@ -368,8 +372,8 @@ def _short_pieces(s0, c0, d0, v, m, mc, n, S, C, cpi):
     """_elliptic_case's results for SHORT_STEP ≤ |v| < SHORT_STEP·SHORT_PIECES: k = ⌊|v|/SHORT_STEP⌋ + 1 equal
     pieces v/k of the short branch, sn, cn, dn and G = Π − F of v/k once (_short_step), then k times the
     addition theorems from the state reached, G's increment and θ's atan2 each time (G decreases
-    monotonically for n < 0, so the pieces' increments of G add without cancellation).  ~0.6-0.8x the long
-    branch's cost up to |v| = 8 (benchmarks/bench_free_body.py, table 1c)."""
+    monotonically for n < 0, so the pieces' increments of G add without cancellation).  0.45-0.58x the cost
+    of _long_step up to |v| = 8 (benchmarks/bench_free_body.py, table 1c)."""
     k = int(abs(v) / SHORT_STEP) + 1
     s2, c2, d2, g_v, e2, f2 = _short_step(v / k, mc, n)
     s1, c1, d1, g, d_theta, ds, dc, dd = _short_piece(s0, c0, d0, s2, c2, d2, g_v, e2, f2, m, mc, n, S, C)
@@ -384,26 +388,15 @@ def _short_pieces(s0, c0, d0, v, m, mc, n, S, C, cpi):
 
 
 @njit(cache=True, error_model="numpy")
-def _elliptic_case(s0, c0, d0, lam, h, mc, n, S, C, cpi):
-    """(sn, cn, dn) at u1 = u0 + λh, the non-linear part of ψ,
-    cpi·[(Π − F)(am u1) − (Π − F)(am u0)] + (θ(am u1) − θ(am u0)) (θ continuous), and the increments
-    (sn, cn, dn)(u1) − (s0, c0, d0) without cancellation (_add_sncndn_increment; on the long branch
-    1 − cn λh and 1 − dn λh are formed from cn and dn, which |λh| ≥ SHORT_STEP·SHORT_PIECES keeps away from
-    1 except near a whole period 4K).
-
-    Three branches by |λh|: the short one below SHORT_STEP; the short one in equal pieces below
-    SHORT_STEP·SHORT_PIECES (_short_pieces); above, the long one (K, R_F, two or three R_J of the endpoints,
-    whose difference cancels: measured against mpmath for 2 ≤ |λh| < 8, its increment of Π − F lost up to
-    2.5e4 eps where the pieces lost 9 eps)."""
+def _long_step(s0, c0, d0, lam, h, mc, n, S, C, cpi, K, pi_minus_k):
+    """_elliptic_case's results for |λh| ≥ SHORT_STEP·SHORT_PIECES when a half period 2K is longer than the pieces
+    reach (K ≥ HALF_PERIODS_BELOW, m within ~2e-6 of the separatrix), given K and the complete Π − K: sn, cn,
+    dn of λh (Bulirsch), the addition theorems, and Π − F and θ at both endpoints (R_F, two R_J, four atan2)
+    continued over the half periods counted from the endpoints' arguments.  The difference of the endpoints'
+    R_J cancels: measured against mpmath for 2 ≤ |λh| < 8, its increment of Π − F lost up to 2.5e4 eps where
+    the pieces lost 9 eps."""
     m = 1.0 - mc
     v = lam * h
-    if abs(v) < SHORT_STEP:
-        # Short step (|v| < 2 < 2K: no half-period count, no K, no F): G(u1) − G(u0) = G(v) − defect(u0, v).
-        s2, c2, d2, g_v, e2, f2 = _short_step(v, mc, n)
-        s1, c1, d1, g, d_theta, ds, dc, dd = _short_piece(s0, c0, d0, s2, c2, d2, g_v, e2, f2, m, mc, n, S, C)
-        return s1, c1, d1, cpi * g, d_theta, ds, dc, dd
-    if abs(v) < SHORT_STEP * SHORT_PIECES:
-        return _short_pieces(s0, c0, d0, v, m, mc, n, S, C, cpi)
     s2, c2, d2 = sncndn(v, mc)
     s1, c1, d1 = _add_sncndn(s0, c0, d0, s2, c2, d2, m)
     ds, dc, dd = _add_sncndn_increment(s0, c0, d0, s2, c2, d2, 1.0 - c2, 1.0 - d2, mc)
@@ -412,7 +405,6 @@ def _elliptic_case(s0, c0, d0, lam, h, mc, n, S, C, cpi):
     sr0, cc0, phr0, thr0 = _reduced(s0, c0, S, C)
     sr1, cc1, phr1, thr1 = _reduced(s1, c1, S, C)
     # half periods: J0 from the quadrant, J1 from u1 = u0 + λh (|am u − πu/2K| < π/2)
-    K = ellipk(mc)
     j0 = 0.0
     if c0 < 0.0:
         j0 = 1.0 if s0 >= 0.0 else -1.0
@@ -422,13 +414,68 @@ def _elliptic_case(s0, c0, d0, lam, h, mc, n, S, C, cpi):
     dj = j1 - j0
     pf1 = sr1 * sr1 * sr1 * rj(cc1, cc1 + mc * sr1 * sr1, 1.0, 1.0 - n * sr1 * sr1)
     pf0 = sr0 * sr0 * sr0 * rj(cc0, cc0 + mc * sr0 * sr0, 1.0, 1.0 - n * sr0 * sr0)
-    d_pf = pf1 - pf0
-    if dj != 0.0:
-        d_pf += 2.0 * dj * rj(0.0, mc, 1.0, 1.0 - n)
+    d_pf = (n / 3.0) * (pf1 - pf0)
     d_theta = thr1 - thr0
     if dj != 0.0:
+        d_pf += 2.0 * dj * pi_minus_k
         d_theta += dj * _PI
-    return s1, c1, d1, cpi * (n / 3.0) * d_pf, d_theta, ds, dc, dd
+    return s1, c1, d1, cpi * d_pf, d_theta, ds, dc, dd
+
+
+# A step of |λh| ≥ SHORT_STEP that spans more than K drops its whole half periods 2K when K is below this: what
+# remains, |r| ≤ K, goes by the short branch or its pieces, and the half periods add their complete Π − F and π
+# each.  Above it (mc ≲ 2e-6, the separatrix's neighbourhood, where K = ln(4/√mc) + ... grows without bound)
+# the remainder could exceed the pieces' reach: the step goes in pieces below SHORT_STEP·SHORT_PIECES and by
+# _long_step above.
+HALF_PERIODS_BELOW = SHORT_STEP * SHORT_PIECES
+
+
+@njit(cache=True, error_model="numpy")
+def _elliptic_case(s0, c0, d0, lam, h, mc, n, S, C, cpi):
+    """(sn, cn, dn) at u1 = u0 + λh, the non-linear part of ψ,
+    cpi·[(Π − F)(am u1) − (Π − F)(am u0)] + (θ(am u1) − θ(am u0)) (θ continuous), and the increments
+    (sn, cn, dn)(u1) − (s0, c0, d0) without cancellation (_add_sncndn_increment; past a whole number of
+    half periods the plain differences, see below).
+
+    Branches by |λh|: the short one below SHORT_STEP.  Past it, a step longer than K (and K <
+    HALF_PERIODS_BELOW) is λh = 2K·N + r with |r| ≤ K, N ≠ 0: sn and cn change sign over each half period 2K
+    and dn does not, Π − F grows by its complete value 2(Π − K)(n|m) and θ by π, so the step is r by the
+    short branch or its pieces, then N half periods added (K and Π − K from one AGM,
+    elliptic.ellipk_and_pi_minus_k).  Any other step goes in equal pieces of the short branch below
+    SHORT_STEP·SHORT_PIECES (_short_pieces) and by _long_step above (only where K ≥ HALF_PERIODS_BELOW).
+    Against mpmath for 8 ≤ |λh| ≤ 500 (tests/test_euler_poinsot.py::test_a_long_step_in_whole_half_periods)
+    the increment of Π − F is within 2.4 eps (_long_step's 4.1 eps on the same draws); sn, cn and dn at u1
+    carry the rounding of r = λh − 2K·N, ~eps·|λh|, as Bulirsch's sncndn of λh in _long_step does."""
+    m = 1.0 - mc
+    v = lam * h
+    if abs(v) < SHORT_STEP:
+        # Short step (|v| < 2 < 2K: no half-period count, no K, no F): G(u1) − G(u0) = G(v) − defect(u0, v).
+        s2, c2, d2, g_v, e2, f2 = _short_step(v, mc, n)
+        s1, c1, d1, g, d_theta, ds, dc, dd = _short_piece(s0, c0, d0, s2, c2, d2, g_v, e2, f2, m, mc, n, S, C)
+        return s1, c1, d1, cpi * g, d_theta, ds, dc, dd
+    K, pi_minus_k = ellipk_and_pi_minus_k(mc, n)
+    if abs(v) <= K or K >= HALF_PERIODS_BELOW:
+        if abs(v) < SHORT_STEP * SHORT_PIECES:
+            return _short_pieces(s0, c0, d0, v, m, mc, n, S, C, cpi)
+        return _long_step(s0, c0, d0, lam, h, mc, n, S, C, cpi, K, pi_minus_k)
+    half_periods = math.floor(v / (2.0 * K) + 0.5)
+    r = v - 2.0 * K * half_periods  # |r| ≤ K (to rounding) < HALF_PERIODS_BELOW = SHORT_STEP·SHORT_PIECES
+    if abs(r) < SHORT_STEP:
+        s2, c2, d2, g_v, e2, f2 = _short_step(r, mc, n)
+        s1, c1, d1, g, d_theta, ds, dc, dd = _short_piece(s0, c0, d0, s2, c2, d2, g_v, e2, f2, m, mc, n, S, C)
+        g *= cpi
+    else:
+        s1, c1, d1, g, d_theta, ds, dc, dd = _short_pieces(s0, c0, d0, r, m, mc, n, S, C, cpi)
+    g += cpi * (2.0 * half_periods) * pi_minus_k
+    d_theta += half_periods * _PI
+    if half_periods % 2.0 != 0.0:
+        # an odd count turns sn and cn over: the increments from u0 are then the plain differences (the state
+        # has come half a period or more away, so there is no small difference to keep)
+        s1 = -s1
+        c1 = -c1
+        ds = s1 - s0
+        dc = c1 - c0
+    return s1, c1, d1, g, d_theta, ds, dc, dd
 
 
 @njit(cache=True, error_model="numpy")

@@ -498,27 +498,30 @@ def test_short_step_third_kind_increment():
 @pytest.mark.slow
 def test_a_long_step_in_short_pieces():
     """Steps of SHORT_STEP ≤ |λh| < SHORT_STEP·SHORT_PIECES (2 to 8) go in k equal pieces of the short branch
-    (_short_pieces); against mpmath at 30 digits on 240 random (n, m, u0, λh) drawn as in the short step's
-    test: the increment of Π − F within 16 eps relative, sn, cn, dn at u0 + λh and θ's increment (with
+    (_short_pieces) where they span at most K, and by whole half periods and the rest where they span more
+    (both kinds among the draws: 201 and 39); against mpmath at 30 digits on 240 random (n, m, u0, λh) drawn
+    as in the short step's test: the increment of Π − F within 16 eps relative, sn, cn, dn at u0 + λh and θ's increment (with
     S = C = 1 it is that of am u) within 96 eps absolute, and the increments of sn, cn, dn their
-    differences to 32 eps.  Measured: increment median 0.9 eps, max 5.7 eps; sn, cn, dn max 1.1e-14
+    differences to 32 eps.  Measured: increment median 0.87 eps, max 5.8 eps; sn, cn, dn max 1.1e-14
     (50 eps; each piece adds its rounding, and the pieces' sum λh its own); Δam max 1.2e-14; increments
     3e-15 from the differences.  The long branch it replaces there (the same draws with other seeds, /tmp
     scripts): the increment lost up to 1.1e4-2.5e4 eps (the difference of two R_J at the endpoints cancels),
     sn, cn, dn 3.4e-14-7.6e-14; its Δam, one atan2 of the endpoints, 6e-15."""
     mp = pytest.importorskip("mpmath", reason="mpmath is in the test extra: pip install '.[test]'")
+    from gyrolab.kernels.elliptic import ellipk
     from gyrolab.kernels.euler_poinsot import SHORT_PIECES, SHORT_STEP, _elliptic_case
 
     mp.mp.dps = 30
     rng = np.random.default_rng(29)
     eps = np.finfo(float).eps
-    errors, state_errors, theta_errors, step_errors = [], [], [], []
+    errors, state_errors, theta_errors, step_errors, in_pieces = [], [], [], [], 0
     for _ in range(240):
         n = -(10.0 ** rng.uniform(-3, 3))
         mc = 10.0 ** rng.uniform(-15, 0)
         u0 = rng.uniform(-6, 6)
         m = 1 - mp.mpf(mc)
         v = rng.choice([-1.0, 1.0]) * rng.uniform(SHORT_STEP, SHORT_STEP * SHORT_PIECES)
+        in_pieces += abs(v) <= ellipk(mc)
         s0, c0, d0 = (float(mp.ellipfun(f, u0, m=m)) for f in ("sn", "cn", "dn"))
         s1, c1, d1, increment, d_theta, ds, dc, dd = _elliptic_case(s0, c0, d0, v, 1.0, mc, n, 1.0, 1.0, 1.0)
         truth = _third_kind_increment_30_digits(mp, u0, v, n, mc)
@@ -539,13 +542,81 @@ def test_a_long_step_in_short_pieces():
         f"short pieces, |lambda h| in [{SHORT_STEP:g}, {SHORT_STEP * SHORT_PIECES:g}): increment of Pi - F median "
         f"{np.median(errors) / eps:.2g} eps, max {errors.max() / eps:.2g} eps; sn, cn, dn max "
         f"{state_errors.max():.2g}; d_theta max {theta_errors.max():.2g}; increments against the differences "
-        f"{max(step_errors):.2g}"
+        f"{max(step_errors):.2g}; {in_pieces} of 240 in pieces"
     )
-    assert SHORT_PIECES >= 2
+    assert SHORT_PIECES >= 2 and 20 <= in_pieces <= 220
     assert errors.max() <= 16 * eps
     assert state_errors.max() <= 96 * eps
     assert theta_errors.max() <= 96 * eps
     assert max(step_errors) <= 32 * eps
+
+
+def test_a_long_step_in_whole_half_periods():
+    """Steps of |λh| ≥ SHORT_STEP·SHORT_PIECES drop their whole half periods 2K (when K < HALF_PERIODS_BELOW) and
+    take the rest, |r| ≤ K, by the short branch or its pieces; against mpmath at 30 digits on 160 random (n, m,
+    u0, λh), |λh| from 8 to 500 (each sign), mc from 1e-5 to 1 (K < 6.4) and, for _long_step's fallback, 40
+    draws with mc from 1e-15 to 1e-7 (K from 9.6 to 19).  The increment of Π − F within 16 eps relative,
+    sn, cn, dn at u0 + λh and θ's increment within (64 + |λh|) eps absolute (r = λh − 2K·N carries the
+    rounding of λh and of 2K·N, ~eps·|λh|, as Bulirsch's sncndn of λh does), the increments of sn, cn, dn
+    their differences to 32 eps.  Measured: increment median 0.58 eps, max 2.4 eps; sn, cn, dn max 6.9e-14 and
+    Δam max 7.4e-14 (at |λh| up to 500: 310 eps there); increments 1.9e-15 from the differences.  _long_step
+    forced on the same 160 draws (a /tmp script): increment median 0.52 eps, max 4.1 eps, sn, cn, dn 4.7e-14
+    (at these lengths the increment spans half periods, so the endpoints' R_J do not cancel as they do below 8).
+    On the fallback's 40 draws: increment max 310 eps (the endpoints' cancellation where N = 0: hence its own,
+    looser bound), sn, cn, dn 5.7e-14."""
+    mp = pytest.importorskip("mpmath", reason="mpmath is in the test extra: pip install '.[test]'")
+    from gyrolab.kernels.elliptic import ellipk
+    from gyrolab.kernels.euler_poinsot import HALF_PERIODS_BELOW, SHORT_PIECES, SHORT_STEP, _elliptic_case
+
+    mp.mp.dps = 30
+    rng = np.random.default_rng(31)
+    eps = np.finfo(float).eps
+    rows = []
+    for i in range(200):
+        near_separatrix = i >= 160
+        n = -(10.0 ** rng.uniform(-3, 3))
+        mc = 10.0 ** (rng.uniform(-15, -7) if near_separatrix else rng.uniform(-5, 0))
+        assert (ellipk(mc) >= HALF_PERIODS_BELOW) == near_separatrix
+        u0 = rng.uniform(-6, 6)
+        m = 1 - mp.mpf(mc)
+        v = rng.choice([-1.0, 1.0]) * 10.0 ** rng.uniform(np.log10(SHORT_STEP * SHORT_PIECES), np.log10(500.0))
+        s0, c0, d0 = (float(mp.ellipfun(f, u0, m=m)) for f in ("sn", "cn", "dn"))
+        s1, c1, d1, increment, d_theta, ds, dc, dd = _elliptic_case(s0, c0, d0, v, 1.0, mc, n, 1.0, 1.0, 1.0)
+        truth = _third_kind_increment_30_digits(mp, u0, v, n, mc)
+        u1 = mp.mpf(u0) + mp.mpf(v)
+        exact = tuple(mp.ellipfun(f, u1, m=m) for f in ("sn", "cn", "dn"))
+        K = mp.ellipk(m)
+
+        def am(u):
+            j = mp.floor(u / (2 * K) + mp.mpf(1) / 2)  # u = 2jK + r with |r| ≤ K
+            return j * mp.pi + mp.asin(mp.ellipfun("sn", u - 2 * j * K, m=m))
+
+        rows.append(
+            (
+                near_separatrix,
+                abs(v),
+                float(abs(increment - truth) / abs(truth)),
+                max(float(abs(x - y)) for x, y in zip((s1, c1, d1), exact)),
+                float(abs(d_theta - (am(u1) - am(mp.mpf(u0))))),
+                max(abs(a - (b - c)) for a, b, c in zip((ds, dc, dd), (s1, c1, d1), (s0, c0, d0))),
+            )
+        )
+    rows = np.array(rows)
+    halves, fallback = rows[rows[:, 0] == 0], rows[rows[:, 0] == 1]
+    for name, part in (("whole half periods", halves), ("long step (K >= HALF_PERIODS_BELOW)", fallback)):
+        print(
+            f"{name}: increment of Pi - F median {np.median(part[:, 2]) / eps:.2g} eps, max "
+            f"{part[:, 2].max() / eps:.2g} eps; sn, cn, dn max {part[:, 3].max():.2g}; d_theta max "
+            f"{part[:, 4].max():.2g}; increments against the differences {part[:, 5].max():.2g}"
+        )
+    assert len(halves) == 160 and len(fallback) == 40
+    assert halves[:, 2].max() <= 16 * eps
+    assert np.all(halves[:, 3] <= (64 + halves[:, 1]) * eps)
+    assert np.all(halves[:, 4] <= (64 + halves[:, 1]) * eps)
+    assert halves[:, 5].max() <= 32 * eps
+    # the fallback keeps its old accuracy: its increment loses to the endpoints' cancellation, its states do not
+    assert fallback[:, 2].max() <= 1e5 * eps
+    assert np.all(fallback[:, 3] <= (64 + fallback[:, 1]) * eps)
 
 
 @pytest.mark.slow
