@@ -111,6 +111,7 @@ def test_ellipk():
     assert abs(E.ellipk(1.0) - math.pi / 2) <= EPS
 
 
+@pytest.mark.slow
 def test_ellipk_and_pi_minus_k():
     """K(m) and the complete Π(n|m) − K(m) = (n/3) R_J(0, mc, 1, 1 − n) from one AGM (DLMF 19.8.6): K against
     scipy.special.ellipkm1 over 20,000 mc from 1e-300 to 1 (≤ 4 eps, measured 3.0), Π − K against mpmath's

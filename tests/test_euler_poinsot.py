@@ -500,10 +500,10 @@ def test_a_long_step_in_short_pieces():
     """Steps of SHORT_STEP ≤ |λh| < SHORT_STEP·SHORT_PIECES (2 to 8) go in k equal pieces of the short branch
     (_short_pieces) where they span at most K, and by whole half periods and the rest where they span more
     (both kinds among the draws: 201 and 39); against mpmath at 30 digits on 240 random (n, m, u0, λh) drawn
-    as in the short step's test: the increment of Π − F within 16 eps relative, sn, cn, dn at u0 + λh and θ's increment (with
-    S = C = 1 it is that of am u) within 96 eps absolute, and the increments of sn, cn, dn their
+    as in the short step's test: the increment of Π − F within 16 eps relative, sn, cn, dn at u0 + λh and
+    θ's increment (with S = C = 1 it is that of am u) within 96 eps absolute, and the increments of sn, cn, dn their
     differences to 32 eps.  Measured: increment median 0.87 eps, max 5.8 eps; sn, cn, dn max 1.1e-14
-    (50 eps; each piece adds its rounding, and the pieces' sum λh its own); Δam max 1.2e-14; increments
+    (50 eps; each piece adds its rounding, and the pieces' sum λh its own); Δam max 1.1e-14; increments
     3e-15 from the differences.  The long branch it replaces there (the same draws with other seeds, /tmp
     scripts): the increment lost up to 1.1e4-2.5e4 eps (the difference of two R_J at the endpoints cancels),
     sn, cn, dn 3.4e-14-7.6e-14; its Δam, one atan2 of the endpoints, 6e-15."""
@@ -551,6 +551,7 @@ def test_a_long_step_in_short_pieces():
     assert max(step_errors) <= 32 * eps
 
 
+@pytest.mark.slow
 def test_a_long_step_in_whole_half_periods():
     """Steps of |λh| ≥ SHORT_STEP·SHORT_PIECES drop their whole half periods 2K (when K < HALF_PERIODS_BELOW) and
     take the rest, |r| ≤ K, by the short branch or its pieces; against mpmath at 30 digits on 160 random (n, m,
