@@ -298,8 +298,9 @@ def ellippi_red(s, c2, d2, n):
 
 @njit(cache=True, error_model="numpy")
 def ellippi_complete(n, mc):
-    """Π(n|m) = Π(π/2, n|m), m = 1 − mc, n < 1, mc > 0."""
-    return rf(0.0, mc, 1.0) + n / 3.0 * rj(0.0, mc, 1.0, 1.0 - n)
+    """Π(n|m) = Π(π/2, n|m), m = 1 − mc, n < 1, mc > 0: K + (Π − K) from one AGM (ellipk_and_pi_minus_k)."""
+    k, pi_minus_k = ellipk_and_pi_minus_k(mc, n)
+    return k + pi_minus_k
 
 
 @njit(cache=True, error_model="numpy")
