@@ -17,8 +17,8 @@ Prints, from one process (ratios are taken under the same machine load):
    other revision and run this script with ``PYTHONPATH=DIR``;
 1c. the exact flow at a fixed |λh| (each body's ω scaled so that its elliptic argument advances by λh per
    step: the cost of the short branch's doublings, of its pieces from SHORT_STEP to SHORT_STEP·SHORT_PIECES,
-   and of a step past them: since 2026-12-06 (later) its whole half periods 2K dropped (K and one R_J) and the
-   rest by the short branch or its pieces, before that K, R_F and two or three R_J);
+   and of a step past them: since 2026-12-06 (later) its whole half periods 2K dropped (K and Π − K from one
+   AGM) and the rest by the short branch or its pieces, before that K, R_F and two or three R_J);
 2. the exact Strang splitting (strang_exact) against lie_poisson (axis sub-splitting) on the asymmetric
    box of the free_asymmetric scene, I = (1e-4, 3e-4, 2e-4), ω = (1e-3 ω3, 0, ω3), f = 10 Hz ± 5 %,
    dt = 1e-4, in the same harness;

@@ -560,7 +560,7 @@ def test_a_long_step_in_whole_half_periods():
     sn, cn, dn at u0 + λh and θ's increment within (64 + |λh|) eps absolute (r = λh − 2K·N carries the
     rounding of λh and of 2K·N, ~eps·|λh|, as Bulirsch's sncndn of λh does), the increments of sn, cn, dn
     their differences to 32 eps.  Measured: increment median 0.58 eps, max 2.4 eps; sn, cn, dn max 6.9e-14 and
-    Δam max 7.4e-14 (at |λh| up to 500: 310 eps there); increments 1.9e-15 from the differences.  _long_step
+    Δam max 7.4e-14 (310 and 330 eps, at |λh| up to 500); increments 1.9e-15 from the differences.  _long_step
     forced on the same 160 draws (a /tmp script): increment median 0.52 eps, max 4.1 eps, sn, cn, dn 4.7e-14
     (at these lengths the increment spans half periods, so the endpoints' R_J do not cancel as they do below 8).
     On the fallback's 40 draws: increment max 310 eps (the endpoints' cancellation where N = 0: hence its own,
