@@ -33,7 +33,16 @@ Variants (name: what is amplified):
 - ``shear_pair``: the shears' s = sin φ (with its low part, which closes (s + sl)(1 + t²) = 2t) given a
   relative error A = ±1e-10, the same on every step: the map is then no rotation of L by that much;
 - ``shear_unclosed``: that low part times 1 − A: A = 1 is the rounded pair alone (the kernel before
-  _sin_low), A = 10 ten times its miss.
+  _sin_low), A = 10 ten times its miss;
+- ``kick_rounding``: the kick's increment h τ/I (a product and a division, rounded twice) plus A times
+  its rounding error (Dekker's exact product of h τ and the division's exact remainder): A = 1 is the
+  increment exact for the torque as computed, A = ±1000 that rounding amplified;
+- ``torque_rounding``: the same for the whole chain from q to the increment, the torque's own rounding
+  included (γ1, γ2 from q's products and sums, m3 γ: each rounding's error from exact products and
+  two-sums): A = 1 is the increment exact for the q given;
+- ``turn_product``: the symmetric flow's increment of q, the Hamilton product q ⊗ (α, u), plus A times its
+  rounding error (sixteen exact products and twelve two-sums): A = 1 is that product exact for the (α, u)
+  computed.
 
 ``--variant NAME --amplitude A`` runs that one variant (e.g. ``turn_low_parts`` at A = 1, over 1e8 steps,
 to see whether the bias is left when that rounding is corrected rather than amplified).
@@ -50,8 +59,20 @@ from numba import njit, prange
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from brouwer import energy_extended, ensemble, run_compensated  # noqa: E402
 
-from gyrolab.kernels.compensated import _add3, _add4, _minus_one, _normalize, _shear_turn, _sin_low, kick  # noqa: E402
+from gyrolab.kernels.compensated import (  # noqa: E402
+    _add,
+    _add3,
+    _add4,
+    _fma,
+    _minus_one,
+    _normalize,
+    _shear_turn,
+    _sin_low,
+    _two_prod,
+    kick,
+)
 from gyrolab.kernels.methods.lie_poisson4 import WEIGHTS  # noqa: E402
+from gyrolab.kernels.rigid_body import gravity_torque  # noqa: E402
 from gyrolab.kernels.rotation import half_angle, quat_from_rotvec, quat_mul  # noqa: E402
 
 # name: (code, amplitudes): each amplitude is one run of the ensemble
@@ -64,6 +85,9 @@ VARIANTS = {
     "turn_low_parts": (5, (1000.0, -1000.0)),
     "shear_pair": (6, (1e-10, -1e-10)),
     "shear_unclosed": (7, (1.0, 10.0)),
+    "kick_rounding": (8, (1000.0, -1000.0)),
+    "torque_rounding": (9, (1000.0, -1000.0)),
+    "turn_product": (10, (1000.0, -1000.0)),
 }
 W1, W0 = WEIGHTS[0], WEIGHTS[1]
 
@@ -72,6 +96,10 @@ W1, W0 = WEIGHTS[0], WEIGHTS[1]
 def _kick(w, wl, q, ql, h, body, code, amp):
     """kernels/compensated.kick; with code 3 the torque from q + amp ql (first order in ql; the top's
     torque m3 (γ2, −γ1, 0) with γ = Rᵀ ẑ, kernels/rotation.lab_up_in_body)."""
+    if code == 8:
+        return _kick_rounding(w, wl, q, h, body, amp)
+    if code == 9:
+        return _torque_rounding(w, wl, q, h, body, amp)
     if code != 3:
         return kick(w, wl, q, h, body)
     a, b, c, d = q
@@ -80,6 +108,83 @@ def _kick(w, wl, q, ql, h, body, code, amp):
     g2 = 2.0 * (c * d + a * b) + 2.0 * ((cl * d + c * dl) + (al * b + a * bl))
     m3 = body[3]
     return _add3(w, wl, h * (m3 * g2) / body[0], h * (-m3 * g1) / body[1], 0.0)
+
+
+@njit(error_model="numpy")
+def _increment_and_error(h, t, inertia):
+    """(d, e): d = h t / I rounded as kernels/compensated.kick rounds it ((h t) rounded, then divided), and
+    e = h t / I − d to ~eps² (the product's error exact by fma, the quotient's from its exact remainder)."""
+    p, pe = _two_prod(h, t)
+    d = p / inertia
+    remainder = _fma(-d, inertia, p)  # p − d I, exact
+    return d, (remainder + pe) / inertia
+
+
+@njit(error_model="numpy")
+def _kick_rounding(w, wl, q, h, body, amp):
+    """kernels/compensated.kick with amp times its increment's rounding error added to the low parts (amp = 0:
+    the same bits)."""
+    t0, t1, t2 = gravity_torque(q, body)
+    d0, e0 = _increment_and_error(h, t0, body[0])
+    d1, e1 = _increment_and_error(h, t1, body[1])
+    d2, e2 = _increment_and_error(h, t2, body[2])
+    a0, l0 = _add(w[0], wl[0] + amp * e0, d0)
+    a1, l1 = _add(w[1], wl[1] + amp * e1, d1)
+    a2, l2 = _add(w[2], wl[2] + amp * e2, d2)
+    return (a0, a1, a2), (l0, l1, l2)
+
+
+@njit(error_model="numpy")
+def _torque_rounding(w, wl, q, h, body, amp):
+    """kernels/compensated.kick on the top (centre of mass on e3) with amp times the rounding error of its whole
+    increment, from q to h τ/I: γ1 = 2(b d − a c) and γ2 = 2(c d + a b) (kernels/rotation.lab_up_in_body), the
+    torque (m3 γ2, −m3 γ1, 0), then the increment (amp = 0: the same bits)."""
+    a, b, c, d = q
+    p, pe = _two_prod(b, d)
+    r, re = _two_prod(a, c)
+    s1, se1 = _add(p, 0.0, -r)
+    g1, g1e = 2.0 * s1, 2.0 * (se1 + pe - re)
+    p, pe = _two_prod(c, d)
+    r, re = _two_prod(a, b)
+    s2, se2 = _add(p, 0.0, r)
+    g2, g2e = 2.0 * s2, 2.0 * (se2 + pe + re)
+    m3 = body[3]
+    t0, t0e = _two_prod(m3, g2)
+    t1, t1e = _two_prod(-m3, g1)
+    d0, e0 = _increment_and_error(h, t0, body[0])
+    d1, e1 = _increment_and_error(h, t1, body[1])
+    e0 += h * (t0e + m3 * g2e) / body[0]
+    e1 += h * (t1e - m3 * g1e) / body[1]
+    a0, l0 = _add(w[0], wl[0] + amp * e0, d0)
+    a1, l1 = _add(w[1], wl[1] + amp * e1, d1)
+    return (a0, a1, w[2]), (l0, l1, wl[2])
+
+
+@njit(error_model="numpy")
+def _signed_sum_error(a1, b1, a2, b2, g2, a3, b3, g3, a4, b4, g4):
+    """The rounding error of a1 b1 + g2 a2 b2 + g3 a3 b3 + g4 a4 b4 (g = ±1) evaluated left to right as
+    kernels/rotation.quat_mul does: the four products' errors (exact, fma) and the three sums' (two-sum)."""
+    p1, e1 = _two_prod(a1, b1)
+    p2, e2 = _two_prod(a2, b2)
+    p3, e3 = _two_prod(a3, b3)
+    p4, e4 = _two_prod(a4, b4)
+    s, f2 = _add(p1, 0.0, g2 * p2)
+    s, f3 = _add(s, 0.0, g3 * p3)
+    s, f4 = _add(s, 0.0, g4 * p4)
+    return e1 + g2 * e2 + g3 * e3 + g4 * e4 + f2 + f3 + f4
+
+
+@njit(error_model="numpy")
+def _quat_mul_error(p, q):
+    """The exact p ⊗ q minus kernels/rotation.quat_mul(p, q), to ~eps²."""
+    pa, pb, pc, pd = p
+    qa, qb, qc, qd = q
+    return (
+        _signed_sum_error(pa, qa, pb, qb, -1.0, pc, qc, -1.0, pd, qd, -1.0),
+        _signed_sum_error(pa, qb, pb, qa, 1.0, pc, qd, 1.0, pd, qc, -1.0),
+        _signed_sum_error(pa, qc, pb, qd, -1.0, pc, qa, 1.0, pd, qb, 1.0),
+        _signed_sum_error(pa, qd, pb, qc, 1.0, pc, qb, -1.0, pd, qa, 1.0),
+    )
 
 
 @njit(error_model="numpy")
@@ -107,6 +212,9 @@ def _flow(w, wl, q, ql, h, body, code, amp):
     v1 = u1 + (al2 * u1 - u0 * sh)
     v2 = sh + u2 + (al1 * sh + al2 * u2)
     dq = quat_mul(q, (alpha, v0, v1, v2))
+    if code == 10:
+        e = _quat_mul_error(q, (alpha, v0, v1, v2))
+        dq = (dq[0] + amp * e[0], dq[1] + amp * e[1], dq[2] + amp * e[2], dq[3] + amp * e[3])
     if code == 5:
         e = quat_mul(ql, (alpha, v0, v1, v2))
         dq = (dq[0] + amp * e[0], dq[1] + amp * e[1], dq[2] + amp * e[2], dq[3] + amp * e[3])
