@@ -35,14 +35,17 @@ Variants (name: what is amplified):
 - ``shear_unclosed``: that low part times 1 − A: A = 1 is the rounded pair alone (the kernel before
   _sin_low), A = 10 ten times its miss;
 - ``kick_rounding``: the kick's increment h τ/I (a product and a division, rounded twice) plus A times
-  its rounding error (Dekker's exact product of h τ and the division's exact remainder): A = 1 is the
-  increment exact for the torque as computed, A = ±1000 that rounding amplified;
+  its rounding error e (the fma's exact product of h τ and the division's exact remainder), so that the
+  increment's error is (1 − A) e: A = ±1000 amplifies that rounding;
 - ``torque_rounding``: the same for the whole chain from q to the increment, the torque's own rounding
   included (γ1, γ2 from q's products and sums, m3 γ: each rounding's error from exact products and
-  two-sums): A = 1 is the increment exact for the q given;
+  two-sums);
 - ``turn_product``: the symmetric flow's increment of q, the Hamilton product q ⊗ (α, u), plus A times its
-  rounding error (sixteen exact products and twelve two-sums): A = 1 is that product exact for the (α, u)
-  computed.
+  rounding error (sixteen exact products and twelve two-sums).
+
+For these three, A = 1 is not the exact increment: the increment plus its error is rounded again where it
+is added to the state (~eps of the increment, the size of the error removed), so A = 1 is another rounding
+of the same size; only the amplified runs tell, a bias b per step moving the mean by (1 − A) b per step.
 
 ``--variant NAME --amplitude A`` runs that one variant (e.g. ``turn_low_parts`` at A = 1, over 1e8 steps,
 to see whether the bias is left when that rounding is corrected rather than amplified).
