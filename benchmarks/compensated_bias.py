@@ -15,7 +15,8 @@ through the mean: a bias grows as a t, a walk keeps the mean within its error.
 Yoshida's triple jump of kick(h/2), the symmetric body's exact free flow, kick(h/2)), checked bit for
 bit against the registered variant, with one suspected rounding amplified at a time.  A rounding that
 makes a bias b per step, amplified A times, moves the mean by about A b per step: at 1e6 steps the bias
-itself (~6e-19) is below the walk's spread (~3e-18), amplified 1e3 or more it would stand out.
+itself (~6e-19) is below the walk's spread (~3e-18), amplified 1e3 or more it would stand out.  Every
+variant but norm_coarse is checked to be the copy bit for bit at amplitude 0 (1000 steps) before it runs.
 Variants (name: what is amplified):
 
 - ``copy``: nothing (the registered variant's map, bit for bit);
@@ -41,11 +42,32 @@ Variants (name: what is amplified):
   included (γ1, γ2 from q's products and sums, m3 γ: each rounding's error from exact products and
   two-sums);
 - ``turn_product``: the symmetric flow's increment of q, the Hamilton product q ⊗ (α, u), plus A times its
-  rounding error (sixteen exact products and twelve two-sums).
+  rounding error (sixteen exact products and twelve two-sums);
+- ``rate_low_parts``: the body's turn and the rate c take ω's high part only; here ω + A ωl (A = 1: the
+  rates of the whole ω, up to the rounding of the sum);
+- ``rotvec_rounding``: the turn's rotation vector and its quaternion's vector part, u = s (ω1 h, ω2 h,
+  (I3/I1) ω3 h) with s = sin(φ/2)/φ: the rounding of each product (fma), so of u's direction and length
+  for a given s, plus A times that error (s's own rounding, common to the three components, is a turn by
+  a slightly wrong angle about the same axis);
+- ``shear_rounding``: the increments of the three shears that turn ω⊥ (t y, −(s x) − sl x: products and a
+  sum, each error exact) plus A times their rounding error: the roundings that change |ω⊥|, so T, directly;
+- ``norm_rounding``: the projection's increment k q (k = −(|q|² − 1)/2) plus A times its products' error;
+- ``turn_sums``: the turn's quaternion (α, v), composed from the two turns' (α1, u) and (α2, sh e3) by four
+  products' and sums' formulas, plus A times their rounding error;
+- ``all_roundings``: torque_rounding, rotvec_rounding, turn_sums, turn_product, norm_rounding and
+  shear_rounding at once: if the bias is the sum of those roundings' it moves the mean (1 − A) times;
+- ``sinc_rounding``: the turn's s = sin(φ/2)/φ (kernels/rotation._cos_sinc_half's series, the top's turns
+  being far below SMALL_ANGLE) plus A times its rounding error, against the series to h^10 whose last
+  sum 0.5 + y is kept exact: a turn by a slightly wrong angle about the turn's own axis;
+- ``shear_low_parts``: the shears' increments t y and −(s + sl) x are formed from the high parts of ω⊥
+  only, so its low parts are not turned; here plus A times the low parts' own increments (A = 1: the
+  whole ω⊥ turned, to the rounding of those small increments).
 
-For these three, A = 1 is not the exact increment: the increment plus its error is rounded again where it
-is added to the state (~eps of the increment, the size of the error removed), so A = 1 is another rounding
-of the same size; only the amplified runs tell, a bias b per step moving the mean by (1 − A) b per step.
+For the rounding errors (kick_rounding to sinc_rounding, rate_low_parts excepted), A = 1 is not the exact
+increment: the increment plus its error is rounded again where it is added to the state (~eps of the
+increment, the size of the error removed), so A = 1 is another rounding of the same size; only the
+amplified runs tell, a bias b per step moving the mean by (1 − A) b per step.  (rate_low_parts at A = 1 is
+the registered map itself: ω + ωl rounds back to ω.)
 
 ``--variant NAME --amplitude A`` runs that one variant (e.g. ``turn_low_parts`` at A = 1, over 1e8 steps,
 to see whether the bias is left when that rounding is corrected rather than amplified).
@@ -76,7 +98,15 @@ from gyrolab.kernels.compensated import (  # noqa: E402
 )
 from gyrolab.kernels.methods.lie_poisson4 import WEIGHTS  # noqa: E402
 from gyrolab.kernels.rigid_body import gravity_torque  # noqa: E402
-from gyrolab.kernels.rotation import half_angle, quat_from_rotvec, quat_mul  # noqa: E402
+from gyrolab.kernels.rotation import (  # noqa: E402
+    SMALL_ANGLE,
+    WIDE_ANGLE,
+    _cos_sinc_half,
+    _cos_sinc_half_wide,
+    half_angle,
+    quat_from_rotvec,
+    quat_mul,
+)
 
 # name: (code, amplitudes): each amplitude is one run of the ensemble
 VARIANTS = {
@@ -91,6 +121,14 @@ VARIANTS = {
     "kick_rounding": (8, (1000.0, -1000.0)),
     "torque_rounding": (9, (1000.0, -1000.0)),
     "turn_product": (10, (1000.0, -1000.0)),
+    "rate_low_parts": (11, (1000.0, -1000.0)),
+    "rotvec_rounding": (12, (1000.0, -1000.0)),
+    "shear_rounding": (13, (1000.0, -1000.0)),
+    "norm_rounding": (14, (1000.0, -1000.0)),
+    "turn_sums": (15, (1000.0, -1000.0)),
+    "all_roundings": (16, (1000.0, -1000.0)),
+    "sinc_rounding": (17, (1000.0, -1000.0)),
+    "shear_low_parts": (18, (1000.0, -1000.0)),
 }
 W1, W0 = WEIGHTS[0], WEIGHTS[1]
 
@@ -101,7 +139,7 @@ def _kick(w, wl, q, ql, h, body, code, amp):
     torque m3 (γ2, −γ1, 0) with γ = Rᵀ ẑ, kernels/rotation.lab_up_in_body)."""
     if code == 8:
         return _kick_rounding(w, wl, q, h, body, amp)
-    if code == 9:
+    if code == 9 or code == 16:
         return _torque_rounding(w, wl, q, h, body, amp)
     if code != 3:
         return kick(w, wl, q, h, body)
@@ -191,6 +229,90 @@ def _quat_mul_error(p, q):
 
 
 @njit(error_model="numpy")
+def _rotvec_amplified(w0, w1, w2, k, h, amp):
+    """kernels/rotation.quat_from_rotvec(w0 h, w1 h, k w2 h) with amp times the rounding error of its vector
+    part for the computed s = sin(φ/2)/φ: the products w h (and k w2, then h) and s v, each error exact (fma).
+    amp = 0: the same bits."""
+    v0, v1 = w0 * h, w1 * h
+    p = k * w2
+    v2 = p * h
+    e0, e1 = _fma(w0, h, -v0), _fma(w1, h, -v1)
+    e2 = _fma(p, h, -v2) + _fma(k, w2, -p) * h
+    angle2 = v0 * v0 + v1 * v1 + v2 * v2
+    if angle2 < SMALL_ANGLE * SMALL_ANGLE:
+        a, s = _cos_sinc_half(angle2)
+    elif angle2 < WIDE_ANGLE * WIDE_ANGLE:
+        a, s = _cos_sinc_half_wide(angle2)
+    else:
+        angle = np.sqrt(angle2)
+        a, s = np.cos(0.5 * angle), np.sin(0.5 * angle) / angle
+    u0, u1, u2 = s * v0, s * v1, s * v2
+    u0 += amp * (s * e0 + _fma(s, v0, -u0))
+    u1 += amp * (s * e1 + _fma(s, v1, -u1))
+    u2 += amp * (s * e2 + _fma(s, v2, -u2))
+    return a, u0, u1, u2
+
+
+@njit(error_model="numpy")
+def _shear_turn_amplified(x, xl, y, yl, t, s, c2, amp):
+    """kernels/compensated._shear_turn of a symmetric body (kx = ky = 1, kyl = 0) with amp times each
+    increment's rounding error added to the low parts (amp = 0: the same bits)."""
+    sl = _sin_low(t, s, c2)
+    d = t * y
+    x, xl = _add(x, xl + amp * _fma(t, y, -d), d)
+    p1, p2 = s * x, sl * x
+    d = -p1 - p2
+    _, f = _add(-p1, 0.0, -p2)
+    y, yl = _add(y, yl + amp * (f - _fma(s, x, -p1) - _fma(sl, x, -p2)), d)
+    d = t * y
+    x, xl = _add(x, xl + amp * _fma(t, y, -d), d)
+    return x, xl, y, yl
+
+
+@njit(error_model="numpy")
+def _shear_turn_low_parts(x, xl, y, yl, t, s, c2, amp):
+    """kernels/compensated._shear_turn of a symmetric body with amp times the low parts' own increments
+    added to the low parts (amp = 0: the same bits; amp = 1: the low parts turned too)."""
+    sl = _sin_low(t, s, c2)
+    x, xl = _add(x, xl + amp * (t * yl), t * y)
+    y, yl = _add(y, yl - amp * ((s + sl) * xl), -(s * x) - sl * x)
+    x, xl = _add(x, xl + amp * (t * yl), t * y)
+    return x, xl, y, yl
+
+
+@njit(error_model="numpy")
+def _normalize_amplified(q, ql, amp):
+    """kernels/compensated._normalize with amp times its increment's product errors (amp = 0: the same bits)."""
+    n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3] - 1.0
+    n2 += 2.0 * (q[0] * ql[0] + q[1] * ql[1] + q[2] * ql[2] + q[3] * ql[3])
+    k = -0.5 * n2
+    d = (k * q[0], k * q[1], k * q[2], k * q[3])
+    e = (_fma(k, q[0], -d[0]), _fma(k, q[1], -d[1]), _fma(k, q[2], -d[2]), _fma(k, q[3], -d[3]))
+    return _add4(q, (ql[0] + amp * e[0], ql[1] + amp * e[1], ql[2] + amp * e[2], ql[3] + amp * e[3]), d)
+
+
+@njit(error_model="numpy")
+def _sum_error(a, b, c, d, g, e, f):
+    """(a + b) + (c d + g e f) as the turn's formulas round it (g = ±1), and its rounding error: the two
+    products' (fma) and the three sums' (two-sum)."""
+    p1, p2 = c * d, e * f
+    s1, f1 = _add(p1, 0.0, g * p2)
+    s0, f0 = _add(a, 0.0, b)
+    r, f2 = _add(s0, 0.0, s1)
+    return r, _fma(c, d, -p1) + g * _fma(e, f, -p2) + f1 + f0 + f2
+
+
+@njit(error_model="numpy")
+def _sinc_error(angle2, s):
+    """sin(h)/(2h) − s, h = √angle2/2 < SMALL_ANGLE/2, with s kernels/rotation._cos_sinc_half's value: 0.5 + y,
+    y the series' other terms to h^10 (its rounding ~eps |y|, |y| < h²/12), summed with 0.5 exactly."""
+    h2 = 0.25 * angle2
+    y = h2 * (-1.0 / 12 + h2 * (1.0 / 240 + h2 * (-1.0 / 10080 + h2 * (1.0 / 725760 + h2 * (-1.0 / 79833600)))))
+    hi, lo = _add(0.5, 0.0, y)
+    return (hi - s) + lo
+
+
+@njit(error_model="numpy")
 def _normalize_coarse(q, ql, scale):
     """kernels/compensated._normalize with |q|² − 1 from q rounded to multiples of 1/scale."""
     r0, r1 = round(q[0] * scale) / scale, round(q[1] * scale) / scale
@@ -206,7 +328,22 @@ def _flow(w, wl, q, ql, h, body, code, amp):
     ratio = I3 / I1
     k = ratio * (1.0 + amp) if code == 1 else ratio
     c = (1.0 - ratio) * (1.0 + amp) * w[2] if code == 2 else (1.0 - ratio) * w[2]
-    a1, u0, u1, u2 = quat_from_rotvec(w[0] * h, w[1] * h, k * w[2] * h)
+    r = w  # the rates of the turns; code 11: of ω + amp ωl (amp = 1: of the whole ω)
+    if code == 11:
+        r = (w[0] + amp * wl[0], w[1] + amp * wl[1], w[2] + amp * wl[2])
+        c = (1.0 - ratio) * r[2]
+    if code == 12 or code == 16:
+        a1, u0, u1, u2 = _rotvec_amplified(w[0], w[1], w[2], k, h, amp)
+    elif code == 17:
+        v0, v1, v2 = w[0] * h, w[1] * h, k * w[2] * h
+        angle2 = v0 * v0 + v1 * v1 + v2 * v2
+        if angle2 >= SMALL_ANGLE * SMALL_ANGLE:
+            raise ValueError("sinc_rounding: a turn beyond SMALL_ANGLE")
+        a1, sinc = _cos_sinc_half(angle2)
+        sinc += amp * _sinc_error(angle2, sinc)
+        u0, u1, u2 = sinc * v0, sinc * v1, sinc * v2
+    else:
+        a1, u0, u1, u2 = quat_from_rotvec(r[0] * h, r[1] * h, k * r[2] * h)
     al1 = _minus_one(a1, u0, u1, u2)
     ch, sh = half_angle(c * h)
     al2 = _minus_one(ch, 0.0, 0.0, sh)
@@ -214,20 +351,37 @@ def _flow(w, wl, q, ql, h, body, code, amp):
     v0 = u0 + (al2 * u0 + u1 * sh)
     v1 = u1 + (al2 * u1 - u0 * sh)
     v2 = sh + u2 + (al1 * sh + al2 * u2)
+    if code == 15 or code == 16:
+        # each formula as (a + b) + (c d ± e f); a one-term first sum (v0, v1) adds 0.0, the same bits
+        alpha, ea = _sum_error(al1, al2, al1, al2, -1.0, u2, sh)
+        v0, e0 = _sum_error(u0, 0.0, al2, u0, 1.0, u1, sh)
+        v1, e1 = _sum_error(u1, 0.0, al2, u1, -1.0, u0, sh)
+        v2, e2 = _sum_error(sh, u2, al1, sh, 1.0, al2, u2)
+        alpha, v0, v1, v2 = alpha + amp * ea, v0 + amp * e0, v1 + amp * e1, v2 + amp * e2
     dq = quat_mul(q, (alpha, v0, v1, v2))
-    if code == 10:
+    if code == 10 or code == 16:
         e = _quat_mul_error(q, (alpha, v0, v1, v2))
         dq = (dq[0] + amp * e[0], dq[1] + amp * e[1], dq[2] + amp * e[2], dq[3] + amp * e[3])
     if code == 5:
         e = quat_mul(ql, (alpha, v0, v1, v2))
         dq = (dq[0] + amp * e[0], dq[1] + amp * e[1], dq[2] + amp * e[2], dq[3] + amp * e[3])
     q, ql = _add4(q, ql, dq)
-    q, ql = _normalize_coarse(q, ql, amp) if code == 4 else _normalize(q, ql)
+    if code == 4:
+        q, ql = _normalize_coarse(q, ql, amp)
+    elif code == 14 or code == 16:
+        q, ql = _normalize_amplified(q, ql, amp)
+    else:
+        q, ql = _normalize(q, ql)
     t, sp = sh / ch, 2.0 * sh * ch
     # _shear_turn's s is s + s kyl + sl (ky = 1); kyl carries the variant: a relative error amp of s, or
     # −amp sl/s, which takes amp times _sin_low's low part off again (0 for the other variants)
     kyl = amp if code == 6 else (-amp * _sin_low(t, sp, ch * ch) / sp if code == 7 else 0.0)
-    x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], t, sp, ch * ch, 1.0, 1.0, kyl)
+    if code == 13 or code == 16:
+        x, xl, y, yl = _shear_turn_amplified(w[0], wl[0], w[1], wl[1], t, sp, ch * ch, amp)
+    elif code == 18:
+        x, xl, y, yl = _shear_turn_low_parts(w[0], wl[0], w[1], wl[1], t, sp, ch * ch, amp)
+    else:
+        x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], t, sp, ch * ch, 1.0, 1.0, kyl)
     return (x, y, w[2]), (xl, yl, wl[2]), q, ql
 
 
@@ -259,13 +413,48 @@ def relative_energy_error(states, body, w0, q0):
     return np.asarray(E / (E0 if E.ndim == 1 else E0[:, None]) - 1, dtype=np.float64)
 
 
-def probe(runs, steps, seed, variants=VARIANTS):
-    body, w0, q0, dt = ensemble("heavy_top", runs, seed)
+def energy_evaluation_error(states, body, w0, q0):
+    """max over the runs of |relative_energy_error − the same at 50 digits| (mpmath, from the exact hi + lo):
+    how far the long-double evaluation of E/E0 − 1 itself is off."""
+    import mpmath
+
+    mp = mpmath.mp.clone()
+    mp.dps = 50
+
+    def energy(w, q):
+        w = [mp.mpf(float(x)) for x in w]
+        q = [mp.mpf(float(x)) for x in q]
+        n = mp.sqrt(sum(x * x for x in q))
+        a, b, c, d = (x / n for x in q)
+        g1, g2, g3 = 2 * (b * d - a * c), 2 * (c * d + a * b), a * a + d * d - b * b - c * c
+        I = [mp.mpf(float(x)) for x in body]
+        return (I[0] * w[0] ** 2 + I[1] * w[1] ** 2 + I[2] * w[2] ** 2) / 2 + I[3] * g3 + I[4] * g1 + I[5] * g2
+
+    worst = 0.0
+    e = relative_energy_error(states, body, w0, q0)
+    for i, st in enumerate(states):
+        w = [mp.mpf(float(st[j])) + mp.mpf(float(st[3 + j])) for j in range(3)]
+        q = [mp.mpf(float(st[6 + j])) + mp.mpf(float(st[10 + j])) for j in range(4)]
+        exact = energy(w, q) / energy(w0[i], q0[i]) - 1
+        worst = max(worst, abs(float(exact - mp.mpf(float(e[i])))))
+    return worst
+
+
+def probe(runs, steps, seed, variants=VARIANTS, exact=False, dt=None):
+    body, w0, q0, dt0 = ensemble("heavy_top", runs, seed)
+    dt = dt or dt0
     check = np.empty((1, 14))
     _run(w0[:1], q0[:1], body, dt, 1000, 0, 0.0, check)
     registered = run_compensated("lie_poisson4", w0[:1], q0[:1], body, dt, 1000, 2)[0, 1]
     if not np.array_equal(check[0], registered):
         raise SystemExit(f"the copy and lie_poisson4(accumulate=compensated) differ: {check[0]} {registered}")
+    for name, (code, _) in variants.items():
+        if code in (0, 4):  # norm_coarse at amplitude 0 would divide by zero: it has no identity
+            continue
+        zero = np.empty((1, 14))
+        _run(w0[:1], q0[:1], body, dt, 1000, code, 0.0, zero)
+        if not np.array_equal(zero[0], check[0]):
+            raise SystemExit(f"{name} at amplitude 0 differs from the registered variant")
     print(f"{runs} runs x {steps:.3g} steps, heavy top 50 Hz, dt = {dt:g} s; the copy equals the registered variant")
     print(f"{'variant':<16} {'amplitude':>10} {'mean of E/E0 - 1 ± s.e.':>24} {'per step':>10} {'s':>5}")
     for name, (code, amps) in variants.items():
@@ -277,10 +466,13 @@ def probe(runs, steps, seed, variants=VARIANTS):
             e = relative_energy_error(out, body, w0, q0)
             mean, se = e.mean(), e.std(ddof=1) / np.sqrt(runs)
             print(f"{name:<16} {amp:10.3g} {mean:12.3e} ± {se:8.1e} {mean / steps:10.2e} {wall:5.1f}", flush=True)
+            if exact:
+                print(f"  long double against 50 digits: {energy_evaluation_error(out, body, w0, q0):.1e} at most")
 
 
-def curve(runs, steps, seed, samples=1000):
-    body, w0, q0, dt = ensemble("heavy_top", runs, seed)
+def curve(runs, steps, seed, samples=1000, dt=None):
+    body, w0, q0, dt0 = ensemble("heavy_top", runs, seed)
+    dt = dt or dt0
     stride = max(1, round(steps / samples))
     t0 = time.perf_counter()
     states = run_compensated("lie_poisson4", w0, q0, body, dt, stride, samples + 1)
@@ -305,21 +497,28 @@ def main(argv=None):
     ap.add_argument("--runs", type=int, default=None, help="runs (default: curve 32, probe 8)")
     ap.add_argument("--steps", type=float, default=None, help="steps a run (default: curve 1e8, probe 1e6)")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--dt", type=float, default=None, help="time step (s; default brouwer.py's, 2.5e-5)")
     ap.add_argument("--variant", choices=list(VARIANTS), help="probe: this variant only (with --amplitude)")
     ap.add_argument("--amplitude", type=float, default=None, help="probe: the variant's amplitude")
+    ap.add_argument(
+        "--exact-energy", action="store_true", help="probe: also check each run's E/E0 − 1 at 50 digits (mpmath)"
+    )
     args = ap.parse_args(argv)
     runs = args.runs or (32 if args.what == "curve" else 8)
     steps = args.steps or (1e8 if args.what == "curve" else 1e6)
     if runs < 2 or steps < 1000:
         ap.error("--runs: at least 2; --steps: at least 1000")
+    if args.dt is not None and not 0.0 < args.dt <= 1e-3:
+        ap.error("--dt: in (0, 1e-3] s")
     if (args.variant is None) != (args.amplitude is None) or (args.variant and args.what != "probe"):
         ap.error("--variant and --amplitude go together, with probe")
     if args.what == "curve":
-        curve(runs, steps, args.seed)
+        curve(runs, steps, args.seed, dt=args.dt)
     elif args.variant:
-        probe(runs, steps, args.seed, {args.variant: (VARIANTS[args.variant][0], (args.amplitude,))})
+        variant = {args.variant: (VARIANTS[args.variant][0], (args.amplitude,))}
+        probe(runs, steps, args.seed, variant, args.exact_energy, args.dt)
     else:
-        probe(runs, steps, args.seed)
+        probe(runs, steps, args.seed, exact=args.exact_energy, dt=args.dt)
 
 
 if __name__ == "__main__":
