@@ -61,12 +61,15 @@ Variants (name: what is amplified):
   sum 0.5 + y is kept exact: a turn by a slightly wrong angle about the turn's own axis;
 - ``shear_low_parts``: the shears' increments t y and −(s + sl) x are formed from the high parts of ω⊥
   only, so its low parts are not turned; here plus A times the low parts' own increments (A = 1: the
-  whole ω⊥ turned, to the rounding of those small increments).
+  whole ω⊥ turned, to the rounding of those small increments);
+- ``add_rounding``: the compensated sum itself (kernels/compensated._add: s = hi + y, y = d + lo, and the
+  error of s as the new low part) is exact but for y's rounding, ~eps of the increment d; here plus A
+  times that error in each of the step's seventeen sums a substep (kicks, turn, projection, shears).
 
-For the rounding errors (kick_rounding to sinc_rounding, rate_low_parts excepted), A = 1 is not the exact
-increment: the increment plus its error is rounded again where it is added to the state (~eps of the
-increment, the size of the error removed), so A = 1 is another rounding of the same size; only the
-amplified runs tell, a bias b per step moving the mean by (1 − A) b per step.  (rate_low_parts at A = 1 is
+For the rounding errors (kick_rounding to add_rounding, rate_low_parts and shear_low_parts excepted), A = 1
+is not the exact increment: the increment plus its error is rounded again where it is added to the state
+(~eps of the increment, the size of the error removed), so A = 1 is another rounding of the same size; only
+the amplified runs tell, a bias b per step moving the mean by (1 − A) b per step.  (rate_low_parts at A = 1 is
 the registered map itself: ω + ωl rounds back to ω.)
 
 ``--variant NAME --amplitude A`` runs that one variant (e.g. ``turn_low_parts`` at A = 1, over 1e8 steps,
@@ -129,6 +132,7 @@ VARIANTS = {
     "all_roundings": (16, (1000.0, -1000.0)),
     "sinc_rounding": (17, (1000.0, -1000.0)),
     "shear_low_parts": (18, (1000.0, -1000.0)),
+    "add_rounding": (19, (1000.0, -1000.0)),
 }
 W1, W0 = WEIGHTS[0], WEIGHTS[1]
 
@@ -313,6 +317,64 @@ def _sinc_error(angle2, s):
 
 
 @njit(error_model="numpy")
+def _add_amp(hi, lo, d, amp):
+    """kernels/compensated._add with amp times the rounding error of its y = d + lo added to the low part
+    (amp = 0: the same bits)."""
+    y = d + lo
+    b = y - d
+    ey = (d - (y - b)) + (lo - b)  # d + lo − y, exact (two-sum)
+    s = hi + y
+    b = s - hi
+    return s, (hi - (s - b)) + (y - b) + amp * ey
+
+
+@njit(error_model="numpy")
+def _add4_amp(q, ql, d, amp):
+    a0, l0 = _add_amp(q[0], ql[0], d[0], amp)
+    a1, l1 = _add_amp(q[1], ql[1], d[1], amp)
+    a2, l2 = _add_amp(q[2], ql[2], d[2], amp)
+    a3, l3 = _add_amp(q[3], ql[3], d[3], amp)
+    return (a0, a1, a2, a3), (l0, l1, l2, l3)
+
+
+@njit(error_model="numpy")
+def _kick_add_rounding(w, wl, q, h, body, amp):
+    """kernels/compensated.kick with _add_amp for its sums."""
+    t0, t1, t2 = gravity_torque(q, body)
+    a0, l0 = _add_amp(w[0], wl[0], h * t0 / body[0], amp)
+    a1, l1 = _add_amp(w[1], wl[1], h * t1 / body[1], amp)
+    a2, l2 = _add_amp(w[2], wl[2], h * t2 / body[2], amp)
+    return (a0, a1, a2), (l0, l1, l2)
+
+
+@njit(error_model="numpy")
+def _flow_add_rounding(w, wl, q, ql, h, body, amp):
+    """kernels/compensated._symmetric_flow with _add_amp for its sums (the turn, the projection, the shears)."""
+    I1, I3 = body[0], body[2]
+    c = (1.0 - I3 / I1) * w[2]
+    a1, u0, u1, u2 = quat_from_rotvec(w[0] * h, w[1] * h, I3 / I1 * w[2] * h)
+    al1 = _minus_one(a1, u0, u1, u2)
+    ch, sh = half_angle(c * h)
+    al2 = _minus_one(ch, 0.0, 0.0, sh)
+    alpha = al1 + al2 + (al1 * al2 - u2 * sh)
+    v0 = u0 + (al2 * u0 + u1 * sh)
+    v1 = u1 + (al2 * u1 - u0 * sh)
+    v2 = sh + u2 + (al1 * sh + al2 * u2)
+    q, ql = _add4_amp(q, ql, quat_mul(q, (alpha, v0, v1, v2)), amp)
+    n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3] - 1.0
+    n2 += 2.0 * (q[0] * ql[0] + q[1] * ql[1] + q[2] * ql[2] + q[3] * ql[3])
+    k = -0.5 * n2
+    q, ql = _add4_amp(q, ql, (k * q[0], k * q[1], k * q[2], k * q[3]), amp)
+    t, sp = sh / ch, 2.0 * sh * ch
+    sl = _sin_low(t, sp, ch * ch)
+    x, xl, y, yl = w[0], wl[0], w[1], wl[1]
+    x, xl = _add_amp(x, xl, t * y, amp)
+    y, yl = _add_amp(y, yl, -(sp * x) - sl * x, amp)
+    x, xl = _add_amp(x, xl, t * y, amp)
+    return (x, y, w[2]), (xl, yl, wl[2]), q, ql
+
+
+@njit(error_model="numpy")
 def _normalize_coarse(q, ql, scale):
     """kernels/compensated._normalize with |q|² − 1 from q rounded to multiples of 1/scale."""
     r0, r1 = round(q[0] * scale) / scale, round(q[1] * scale) / scale
@@ -395,6 +457,11 @@ def _run(w0, q0, body, dt, n, code, amp, out):
         ql = (0.0, 0.0, 0.0, 0.0)
         for _ in range(n):
             for h in (W1 * dt, W0 * dt, W1 * dt):
+                if code == 19:
+                    w, wl = _kick_add_rounding(w, wl, q, 0.5 * h, body, amp)
+                    w, wl, q, ql = _flow_add_rounding(w, wl, q, ql, h, body, amp)
+                    w, wl = _kick_add_rounding(w, wl, q, 0.5 * h, body, amp)
+                    continue
                 w, wl = _kick(w, wl, q, ql, 0.5 * h, body, code, amp)
                 w, wl, q, ql = _flow(w, wl, q, ql, h, body, code, amp)
                 w, wl = _kick(w, wl, q, ql, 0.5 * h, body, code, amp)
