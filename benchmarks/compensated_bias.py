@@ -145,6 +145,8 @@ def _kick(w, wl, q, ql, h, body, code, amp):
         return _kick_rounding(w, wl, q, h, body, amp)
     if code == 9 or code == 16:
         return _torque_rounding(w, wl, q, h, body, amp)
+    if code == 19:
+        return _kick_add_rounding(w, wl, q, h, body, amp)
     if code != 3:
         return kick(w, wl, q, h, body)
     a, b, c, d = q
@@ -348,33 +350,6 @@ def _kick_add_rounding(w, wl, q, h, body, amp):
 
 
 @njit(error_model="numpy")
-def _flow_add_rounding(w, wl, q, ql, h, body, amp):
-    """kernels/compensated._symmetric_flow with _add_amp for its sums (the turn, the projection, the shears)."""
-    I1, I3 = body[0], body[2]
-    c = (1.0 - I3 / I1) * w[2]
-    a1, u0, u1, u2 = quat_from_rotvec(w[0] * h, w[1] * h, I3 / I1 * w[2] * h)
-    al1 = _minus_one(a1, u0, u1, u2)
-    ch, sh = half_angle(c * h)
-    al2 = _minus_one(ch, 0.0, 0.0, sh)
-    alpha = al1 + al2 + (al1 * al2 - u2 * sh)
-    v0 = u0 + (al2 * u0 + u1 * sh)
-    v1 = u1 + (al2 * u1 - u0 * sh)
-    v2 = sh + u2 + (al1 * sh + al2 * u2)
-    q, ql = _add4_amp(q, ql, quat_mul(q, (alpha, v0, v1, v2)), amp)
-    n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3] - 1.0
-    n2 += 2.0 * (q[0] * ql[0] + q[1] * ql[1] + q[2] * ql[2] + q[3] * ql[3])
-    k = -0.5 * n2
-    q, ql = _add4_amp(q, ql, (k * q[0], k * q[1], k * q[2], k * q[3]), amp)
-    t, sp = sh / ch, 2.0 * sh * ch
-    sl = _sin_low(t, sp, ch * ch)
-    x, xl, y, yl = w[0], wl[0], w[1], wl[1]
-    x, xl = _add_amp(x, xl, t * y, amp)
-    y, yl = _add_amp(y, yl, -(sp * x) - sl * x, amp)
-    x, xl = _add_amp(x, xl, t * y, amp)
-    return (x, y, w[2]), (xl, yl, wl[2]), q, ql
-
-
-@njit(error_model="numpy")
 def _normalize_coarse(q, ql, scale):
     """kernels/compensated._normalize with |q|² − 1 from q rounded to multiples of 1/scale."""
     r0, r1 = round(q[0] * scale) / scale, round(q[1] * scale) / scale
@@ -427,11 +402,19 @@ def _flow(w, wl, q, ql, h, body, code, amp):
     if code == 5:
         e = quat_mul(ql, (alpha, v0, v1, v2))
         dq = (dq[0] + amp * e[0], dq[1] + amp * e[1], dq[2] + amp * e[2], dq[3] + amp * e[3])
-    q, ql = _add4(q, ql, dq)
+    if code == 19:
+        q, ql = _add4_amp(q, ql, dq, amp)
+    else:
+        q, ql = _add4(q, ql, dq)
     if code == 4:
         q, ql = _normalize_coarse(q, ql, amp)
     elif code == 14 or code == 16:
         q, ql = _normalize_amplified(q, ql, amp)
+    elif code == 19:
+        n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3] - 1.0  # kernels/compensated._normalize's
+        n2 += 2.0 * (q[0] * ql[0] + q[1] * ql[1] + q[2] * ql[2] + q[3] * ql[3])
+        k = -0.5 * n2
+        q, ql = _add4_amp(q, ql, (k * q[0], k * q[1], k * q[2], k * q[3]), amp)
     else:
         q, ql = _normalize(q, ql)
     t, sp = sh / ch, 2.0 * sh * ch
@@ -442,6 +425,11 @@ def _flow(w, wl, q, ql, h, body, code, amp):
         x, xl, y, yl = _shear_turn_amplified(w[0], wl[0], w[1], wl[1], t, sp, ch * ch, amp)
     elif code == 18:
         x, xl, y, yl = _shear_turn_low_parts(w[0], wl[0], w[1], wl[1], t, sp, ch * ch, amp)
+    elif code == 19:
+        sl = _sin_low(t, sp, ch * ch)
+        x, xl = _add_amp(w[0], wl[0], t * w[1], amp)
+        y, yl = _add_amp(w[1], wl[1], -(sp * x) - sl * x, amp)
+        x, xl = _add_amp(x, xl, t * y, amp)
     else:
         x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], t, sp, ch * ch, 1.0, 1.0, kyl)
     return (x, y, w[2]), (xl, yl, wl[2]), q, ql
@@ -457,11 +445,6 @@ def _run(w0, q0, body, dt, n, code, amp, out):
         ql = (0.0, 0.0, 0.0, 0.0)
         for _ in range(n):
             for h in (W1 * dt, W0 * dt, W1 * dt):
-                if code == 19:
-                    w, wl = _kick_add_rounding(w, wl, q, 0.5 * h, body, amp)
-                    w, wl, q, ql = _flow_add_rounding(w, wl, q, ql, h, body, amp)
-                    w, wl = _kick_add_rounding(w, wl, q, 0.5 * h, body, amp)
-                    continue
                 w, wl = _kick(w, wl, q, ql, 0.5 * h, body, code, amp)
                 w, wl, q, ql = _flow(w, wl, q, ql, h, body, code, amp)
                 w, wl = _kick(w, wl, q, ql, 0.5 * h, body, code, amp)
