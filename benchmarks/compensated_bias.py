@@ -774,9 +774,14 @@ def main(argv=None):
         ap.error("--runs: at least 2; --steps: at least 1000")
     if args.dt is not None and not 0.0 < args.dt <= 1e-3:
         ap.error("--dt: in (0, 1e-3] s")
+    trend_only = args.t_end != 2500.0 or args.method != "lie_poisson4" or args.gravity != 1.0 or args.long_double
+    if args.what != "trend" and trend_only:
+        ap.error("--t-end, --method, --gravity, --long-double: trend only")
     if (args.variant is None) != (args.amplitude is None) or (args.variant and args.what == "curve"):
         ap.error("--variant and --amplitude go together, with probe or trend")
     if args.what == "trend":
+        if args.steps is not None or args.exact_energy:
+            ap.error("--steps, --exact-energy: curve and probe (trend's length is --t-end)")
         if (args.variant or args.long_double) and args.method != "lie_poisson4":
             ap.error("--variant, --long-double: lie_poisson4's step only")
         if args.variant and args.long_double:
