@@ -701,18 +701,23 @@ def run_long_double(w0, q0, body, dt, stride, samples):
     return np.asarray(e / e[0] - 1, float).T, np.asarray(lz / lz[0] - 1, float).T
 
 
+def trend_sampling(dt, t_end):
+    """(steps, steps between samples, samples) of a trend run."""
+    n = int(round(t_end / dt))
+    stride = max(1, round(TREND_SPACING / dt))
+    return n, stride, n // stride + 1
+
+
 def trend(runs, seed, dt, t_end, method="lie_poisson4", gravity=1.0, variant=None, amplitude=None, long_double=False):
     """The top's drift where it is cheap to see: at dt = 5e-4 s its truncation oscillation (~3e-13, common to
     the runs) averages out over 2500 s, and the drift, ~20x faster per second than at 2.5e-5 s, stands out
-    in a minute of CPU.  Prints each run's fitted slope of E/E0 − 1 and of Lz/Lz0 − 1 (their mean ± s.e. and
+    in a minute or two.  Prints each run's fitted slope of E/E0 − 1 and of Lz/Lz0 − 1 (their mean ± s.e. and
     spread), the ensemble mean of E/E0 − 1 over ten blocks of time, and how far the runs depart from the
     ensemble mean at t/4, t/2 and t (∝ t: a drift of each run's own; ∝ √t: a walk)."""
     body, w0, q0, _ = ensemble("heavy_top", runs, seed)
     body = body.copy()
     body[3] *= gravity  # m g l
-    n = int(round(t_end / dt))
-    stride = max(1, round(TREND_SPACING / dt))
-    samples = n // stride + 1
+    n, stride, samples = trend_sampling(dt, t_end)
     t0 = time.perf_counter()
     states = None
     if long_double:
@@ -789,6 +794,8 @@ def main(argv=None):
         dt = args.dt or 5e-4
         if not 100 * dt <= args.t_end <= 1e8 * dt or not 0.0 < args.gravity <= 100.0:
             ap.error("--t-end: 100 to 1e8 steps; --gravity: in (0, 100]")
+        if runs * trend_sampling(dt, args.t_end)[2] * 14 * 8 > 8e9:  # the states held for the fits
+            ap.error("--runs x --t-end: over 8 GB of samples (32 runs of 2500 s take 1.4 GB); fewer or shorter")
         variant = (args.variant, args.amplitude)
         trend(runs, args.seed, dt, args.t_end, args.method, args.gravity, *variant, long_double=args.long_double)
     elif args.what == "curve":
