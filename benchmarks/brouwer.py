@@ -111,14 +111,20 @@ def _warm_up(method, form, body, w0, q0, dt):
         run_compensated(method, w0[:1], q0[:1], body, dt, 1, 2)
 
 
+def up_in_body_extended(q):
+    """γ = Rᵀ ẑ, the lab vertical in body coordinates, as (γ1, γ2, γ3) of quaternions q (..., 4) in numpy's
+    long double, q normalised first."""
+    q = q.astype(np.longdouble)
+    q = q / np.sqrt(np.sum(q * q, axis=-1))[..., None]
+    a, b, c, d = np.moveaxis(q, -1, 0)
+    return 2 * (b * d - a * c), 2 * (c * d + a * b), a * a + d * d - b * b - c * c
+
+
 def energy_extended(w, q, body):
     """E (J) of states ω (..., 3) and q (..., 4) in numpy's long double (64-bit significand here), q
     normalised first: the energy of the state itself, below the double rounding of evaluating it."""
     w = w.astype(np.longdouble)
-    q = q.astype(np.longdouble)
-    q = q / np.sqrt(np.sum(q * q, axis=-1))[..., None]
-    a, b, c, d = np.moveaxis(q, -1, 0)
-    g1, g2, g3 = 2 * (b * d - a * c), 2 * (c * d + a * b), a * a + d * d - b * b - c * c  # γ = Rᵀ ẑ
+    g1, g2, g3 = up_in_body_extended(q)
     I = body.astype(np.longdouble)
     kinetic = (I[0] * w[..., 0] ** 2 + I[1] * w[..., 1] ** 2 + I[2] * w[..., 2] ** 2) / 2
     return kinetic + I[3] * g3 + I[4] * g1 + I[5] * g2
