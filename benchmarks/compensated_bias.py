@@ -4,6 +4,8 @@
     python benchmarks/compensated_bias.py probe [--runs 8] [--steps 1e6] [--seed 1] [--variant NAME --amplitude A]
     python benchmarks/compensated_bias.py trend [--runs 32] [--dt 5e-4] [--t-end 2500] [--method lie_poisson4]
         [--gravity 1] [--variant NAME --amplitude A | --long-double]
+    python benchmarks/compensated_bias.py response [--runs 2] [--dts 2.5e-4,5e-4,1e-3,2e-3] [--t-end 20]
+        [--variant turn_mismatch --amplitude 1e-13]
 
 ``lie_poisson4(accumulate=compensated)`` on benchmarks/brouwer.py's heavy-top ensemble (50 Hz, 45°,
 released, dt = 2.5e-5 s, ω0 perturbed by 1e-9 relative) walks as Brouwer's √t, but the mean over the
@@ -20,6 +22,14 @@ of E/E0 − 1 and of Lz/Lz0 − 1 (the vertical angular momentum, which every su
 and prints the ensemble mean over ten blocks of time and how the runs spread about it; ``--gravity``
 scales m g l, ``--method split6_exact`` runs that method's variant, ``--variant`` runs the copy with one
 variant (lie_poisson4 only).
+
+``response`` asks how the drift a fixed error makes depends on the step: at each step of ``--dts`` it runs the
+copy (below) and one variant at one amplitude on the same runs for ``--t-end`` seconds, and prints the slope of
+the difference of their E/E0 − 1 and Lz/Lz0 − 1 (the runs' mean), per second and per substep.  A turn of ω⊥
+about e3 that misses the body's by A rad in every substep (``turn_mismatch``, the default) changes neither T
+nor V where it is made, yet the energy drifts, by the same amount per second at every step: an error of the
+turns that grows as the substep's angle, ~eps φ ∝ dt, drifts the energy per second as dt, as the top's bias
+does.
 
 ``probe`` finds which rounding it is not.  It runs a copy of the variant's step (kernels/compensated.py:
 Yoshida's triple jump of kick(h/2), the symmetric body's exact free flow, kick(h/2)), checked bit for
@@ -756,14 +766,49 @@ def trend(runs, seed, dt, t_end, method="lie_poisson4", gravity=1.0, variant=Non
     print("RMS departure from the ensemble mean at t/4, t/2, t:", " ".join(f"{d:.2e}" for d in quarters))
 
 
+def response(runs, seed, dts, t_end, variant, amplitude, samples=41):
+    """The drift a variant makes against the copy, at each step of ``dts``: the slope over ``t_end`` seconds
+    (``samples`` samples) of each run's difference of E/E0 − 1 and of Lz/Lz0 − 1, variant less copy; their mean
+    ± standard error over the runs, per second, and the energy's per substep."""
+    body, w0, q0, _ = ensemble("heavy_top", runs, seed)
+    code = VARIANTS[variant][0]
+    print(f"{variant} at {amplitude:g} against the copy, heavy top 50 Hz 45°; {runs} runs (seed {seed}) x {t_end:g} s")
+    print(f"{'dt (s)':>8} {'E slope ± s.e. (/s)':>22} {'per substep':>12} {'Lz slope ± s.e. (/s)':>22} {'s':>5}")
+    for dt in dts:
+        check_copy(body, w0, q0, dt, {variant: VARIANTS[variant]})
+        stride = max(1, round(t_end / dt / (samples - 1)))
+        t = np.arange(samples) * stride * dt
+        t0 = time.perf_counter()
+        series = []
+        for amp in (0.0, amplitude):
+            states = np.empty((runs, samples, 14))
+            _run_series(w0, q0, body, dt, stride, code if amp else 0, amp, states)
+            e = np.array([relative_energy_error(st, body, w0[i], q0[i]) for i, st in enumerate(states)])
+            lz = np.array([relative_vertical_momentum(st, body) for st in states])
+            series.append((e, lz))
+        wall = time.perf_counter() - t0
+        (e0, lz0), (e1, lz1) = series
+        cells = []
+        for d in (e1 - e0, lz1 - lz0):
+            slopes = np.polyfit(t, d.T, 1)[0]
+            cells.append((slopes.mean(), slopes.std(ddof=1) / np.sqrt(runs)))
+        (e_slope, e_se), (lz_slope, lz_se) = cells
+        substep = e_slope * dt / len(WEIGHTS)  # three substeps a step
+        line = f"{dt:8.3g} {e_slope:11.4e} ± {e_se:8.1e} {substep:12.3e} {lz_slope:11.4e} ± {lz_se:8.1e}"
+        print(f"{line} {wall:5.1f}", flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("what", choices=("curve", "probe", "trend"))
-    ap.add_argument("--runs", type=int, default=None, help="runs (default: curve 32, probe 8)")
+    ap.add_argument("what", choices=("curve", "probe", "trend", "response"))
+    ap.add_argument("--runs", type=int, default=None, help="runs (default: curve 32, probe 8, trend 32, response 2)")
     ap.add_argument("--steps", type=float, default=None, help="steps a run (default: curve 1e8, probe 1e6)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--dt", type=float, default=None, help="time step (s; default brouwer.py's 2.5e-5, trend 5e-4)")
-    ap.add_argument("--t-end", type=float, default=2500.0, help="trend: seconds a run (default 2500)")
+    ap.add_argument("--t-end", type=float, default=None, help="trend, response: seconds a run (default 2500, 20)")
+    ap.add_argument(
+        "--dts", default="2.5e-4,5e-4,1e-3,2e-3", help="response: steps (s), comma-separated (default 2.5e-4 … 2e-3)"
+    )
     ap.add_argument("--method", choices=("lie_poisson4", "split6_exact"), default="lie_poisson4", help="trend")
     ap.add_argument("--gravity", type=float, default=1.0, help="trend: m g l times this (default 1)")
     ap.add_argument(
@@ -775,18 +820,36 @@ def main(argv=None):
         "--exact-energy", action="store_true", help="probe: also check each run's E/E0 − 1 at 50 digits (mpmath)"
     )
     args = ap.parse_args(argv)
-    runs = args.runs or {"curve": 32, "probe": 8, "trend": 32}[args.what]
+    runs = args.runs or {"curve": 32, "probe": 8, "trend": 32, "response": 2}[args.what]
     steps = args.steps or (1e8 if args.what == "curve" else 1e6)
     if runs < 2 or steps < 1000:
         ap.error("--runs: at least 2; --steps: at least 1000")
     if args.dt is not None and not 0.0 < args.dt <= 1e-3:
         ap.error("--dt: in (0, 1e-3] s")
-    trend_only = args.t_end != 2500.0 or args.method != "lie_poisson4" or args.gravity != 1.0 or args.long_double
+    trend_only = args.method != "lie_poisson4" or args.gravity != 1.0 or args.long_double
     if args.what != "trend" and trend_only:
-        ap.error("--t-end, --method, --gravity, --long-double: trend only")
+        ap.error("--method, --gravity, --long-double: trend only")
+    if args.what not in ("trend", "response") and args.t_end is not None:
+        ap.error("--t-end: trend and response only")
+    if args.what != "response" and args.dts != ap.get_default("dts"):
+        ap.error("--dts: response only (the others take --dt)")
     if (args.variant is None) != (args.amplitude is None) or (args.variant and args.what == "curve"):
-        ap.error("--variant and --amplitude go together, with probe or trend")
-    if args.what == "trend":
+        ap.error("--variant and --amplitude go together, with probe, trend or response")
+    if args.what == "response":
+        if args.steps is not None or args.exact_energy or args.dt is not None:
+            ap.error("response: --runs, --dts, --t-end, --variant and --amplitude (and --seed) only")
+        try:
+            dts = [float(x) for x in args.dts.split(",")]
+        except ValueError:
+            ap.error(f"--dts {args.dts!r}: steps in seconds, comma-separated")
+        t_end = args.t_end or 20.0
+        if not all(0.0 < dt <= 1e-2 and 40 * dt <= t_end <= 1e6 * dt for dt in dts):
+            ap.error("--dts: each in (0, 1e-2] s, with 40 to 1e6 steps in --t-end")
+        variant, amplitude = args.variant or "turn_mismatch", args.amplitude or 1e-13
+        if variant == "copy" or amplitude == 0.0:
+            ap.error("--variant copy or --amplitude 0: no difference to measure")
+        response(runs, args.seed, dts, t_end, variant, amplitude)
+    elif args.what == "trend":
         if args.steps is not None or args.exact_energy:
             ap.error("--steps, --exact-energy: curve and probe (trend's length is --t-end)")
         if (args.variant or args.long_double) and args.method != "lie_poisson4":
@@ -794,12 +857,13 @@ def main(argv=None):
         if args.variant and args.long_double:
             ap.error("--variant and --long-double: one or the other")
         dt = args.dt or 5e-4
-        if not 100 * dt <= args.t_end <= 1e8 * dt or not 0.0 < args.gravity <= 100.0:
+        t_end = args.t_end or 2500.0
+        if not 100 * dt <= t_end <= 1e8 * dt or not 0.0 < args.gravity <= 100.0:
             ap.error("--t-end: 100 to 1e8 steps; --gravity: in (0, 100]")
-        if runs * trend_sampling(dt, args.t_end)[2] * 14 * 8 > 8e9:  # the states held for the fits
+        if runs * trend_sampling(dt, t_end)[2] * 14 * 8 > 8e9:  # the states held for the fits
             ap.error("--runs x --t-end: over 8 GB of samples (32 runs of 2500 s take 1.4 GB); fewer or shorter")
         variant = (args.variant, args.amplitude)
-        trend(runs, args.seed, dt, args.t_end, args.method, args.gravity, *variant, long_double=args.long_double)
+        trend(runs, args.seed, dt, t_end, args.method, args.gravity, *variant, long_double=args.long_double)
     elif args.what == "curve":
         curve(runs, steps, args.seed, dt=args.dt)
     elif args.variant:
