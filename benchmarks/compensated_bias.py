@@ -101,7 +101,15 @@ Variants that change the map rather than amplify a rounding:
   e3, with s closed to it and ω⊥'s low parts sheared too (no amplitude gives the registered bits: A is
   ignored); the registered t = sh/ch turns ω⊥ by ~1e-17 rad more or less than the body;
 - ``norm_exact``: the projection from |q + ql|² − 1 to ~eps² (A ignored), where the registered one leaves
-  |q + ql|² − 1 ≈ +1.4e-17.
+  |q + ql|² − 1 ≈ +1.4e-17;
+- ``dither_rate``: the rate c of the turns about e3 times 1 + A d, d in [−0.5, 0.5) taken from ω1's low bits,
+  so new on every substep: both turns keep using one c (the map stays a Poisson map up to rounding), but the
+  turn constants (ch, sh, t, s) and their roundings, the same on every substep of a run otherwise, change from
+  substep to substep.  A drift that is the fixed roundings' goes; one that a biased rounding of the constants
+  at every argument makes stays;
+- ``dither_spin``: ω3 as the two turns take it (the first turn's axis (ω1 h, ω2 h, (I3/I1) ω3 h) and the rate c)
+  moved the same way, the state's ω3 kept: nothing computed from ω3, the one rate the top's steps never change,
+  is then the same from one substep to the next.
 
 ``--variant NAME --amplitude A`` runs that one variant (e.g. ``turn_low_parts`` at A = 1, over 1e8 steps,
 to see whether the bias is left when that rounding is corrected rather than amplified); a negative amplitude
@@ -111,6 +119,7 @@ the default 5e6 steps take ~25 min of one core): the same map rounded 2048 times
 """
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -170,6 +179,8 @@ VARIANTS = {
     "turn_mismatch": (20, (1e-13, -1e-13)),
     "turn_matched": (21, (1.0,)),
     "norm_exact": (22, (1.0,)),
+    "dither_rate": (23, (1e-15, 4e-15)),
+    "dither_spin": (24, (1e-15, 4e-15)),
 }
 NO_IDENTITY = (0, 4, 21, 22)  # the copy itself, and the variants that have no amplitude giving its bits
 W1, W0 = WEIGHTS[0], WEIGHTS[1]
@@ -435,9 +446,16 @@ def _flow(w, wl, q, ql, h, body, code, amp):
     ratio = I3 / I1
     k = ratio * (1.0 + amp) if code == 1 else ratio
     c = (1.0 - ratio) * (1.0 + amp) * w[2] if code == 2 else (1.0 - ratio) * w[2]
+    if code == 23:  # the rate moved by amp x (a number in [−0.5, 0.5) from ω1's low bits): new on every substep
+        bits = w[0] * 1048576.0
+        c *= 1.0 + amp * (bits - math.floor(bits) - 0.5)
     r = w  # the rates of the turns; code 11: of ω + amp ωl (amp = 1: of the whole ω)
     if code == 11:
         r = (w[0] + amp * wl[0], w[1] + amp * wl[1], w[2] + amp * wl[2])
+        c = (1.0 - ratio) * r[2]
+    if code == 24:  # ω3 as both turns take it (not the state's) moved the same way as dither_rate's rate
+        bits = w[0] * 1048576.0
+        r = (w[0], w[1], w[2] * (1.0 + amp * (bits - math.floor(bits) - 0.5)))
         c = (1.0 - ratio) * r[2]
     if code == 12 or code == 16:
         a1, u0, u1, u2 = _rotvec_amplified(w[0], w[1], w[2], k, h, amp)
