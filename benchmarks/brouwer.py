@@ -130,12 +130,13 @@ def energy_extended(w, q, body):
     return kinetic + I[3] * g3 + I[4] * g1 + I[5] * g2
 
 
-def ensemble(scene, runs, seed):
-    """(body, ω0 (runs, 3), q0 (runs, 4), dt): the scene's initial state, ω perturbed by 1e-9 relative."""
+def ensemble(scene, runs, seed, perturbation=1e-9):
+    """(body, ω0 (runs, 3), q0 (runs, 4), dt): the scene's initial state, ω perturbed by ``perturbation`` relative
+    (normal, per component)."""
     f, theta0, dt = SCENES[scene]
     sc = build_scene(scene, f, theta0)
     rng = np.random.default_rng(seed)
-    w0 = np.array(sc.omega0) * (1.0 + 1e-9 * rng.standard_normal((runs, 3)))
+    w0 = np.array(sc.omega0) * (1.0 + perturbation * rng.standard_normal((runs, 3)))
     q0 = np.tile(np.array(sc.q0), (runs, 1))
     return np.array(sc.body, dtype=np.float64), w0, q0, dt
 

@@ -3,7 +3,7 @@
     python benchmarks/compensated_bias.py curve [--runs 32] [--steps 1e8] [--seed 1]
     python benchmarks/compensated_bias.py probe [--runs 8] [--steps 1e6] [--seed 1] [--variant NAME --amplitude A]
     python benchmarks/compensated_bias.py trend [--runs 32] [--dt 5e-4] [--t-end 2500] [--method lie_poisson4]
-        [--gravity 1] [--variant NAME --amplitude A | --long-double]
+        [--gravity 1] [--perturbation 1e-9] [--variant NAME --amplitude A | --long-double]
     python benchmarks/compensated_bias.py response [--runs 2] [--dts 2.5e-4,5e-4,1e-3,2e-3] [--t-end 20]
         [--variant turn_mismatch --amplitude 1e-13]
 
@@ -20,8 +20,10 @@ drift per step goes as dt²) and the truncation's oscillation, common to the run
 fitted over 2500 s, so an ensemble takes a minute or two instead of half an hour.  It fits each run's slope
 of E/E0 − 1 and of Lz/Lz0 − 1 (the vertical angular momentum, which every substep conserves exactly),
 and prints the ensemble mean over ten blocks of time and how the runs spread about it; ``--gravity``
-scales m g l, ``--method split6_exact`` runs that method's variant, ``--variant`` runs the copy with one
-variant (lie_poisson4 only).
+scales m g l, ``--perturbation`` the runs' initial difference, ``--method split6_exact`` runs that method's
+variant, ``--variant`` runs the copy with one variant (lie_poisson4 only).  Each run's own drift (its slope less
+the ensemble's) is fitted in each quarter of the run too: a rate the run keeps correlates from quarter to
+quarter, a walk's does not.
 
 ``response`` asks how the drift a fixed error makes depends on the step: at each step of ``--dts`` it runs the
 copy (below) and one variant at one amplitude on the same runs for ``--t-end`` seconds, and prints the slope of
@@ -738,13 +740,24 @@ def trend_sampling(dt, t_end):
     return n, stride, n // stride + 1
 
 
-def trend(runs, seed, dt, t_end, method="lie_poisson4", gravity=1.0, variant=None, amplitude=None, long_double=False):
+def trend(
+    runs,
+    seed,
+    dt,
+    t_end,
+    method="lie_poisson4",
+    gravity=1.0,
+    variant=None,
+    amplitude=None,
+    long_double=False,
+    perturbation=1e-9,
+):
     """The top's drift where it is cheap to see: at dt = 5e-4 s its truncation oscillation (~3e-13, common to
     the runs) averages out over 2500 s, and the drift, ~20x faster per second than at 2.5e-5 s, stands out
     in a minute or two.  Prints each run's fitted slope of E/E0 − 1 and of Lz/Lz0 − 1 (their mean ± s.e. and
     spread), the ensemble mean of E/E0 − 1 over ten blocks of time, and how far the runs depart from the
     ensemble mean at t/4, t/2 and t (∝ t: a drift of each run's own; ∝ √t: a walk)."""
-    body, w0, q0, _ = ensemble("heavy_top", runs, seed)
+    body, w0, q0, _ = ensemble("heavy_top", runs, seed, perturbation)
     body = body.copy()
     body[3] *= gravity  # m g l
     n, stride, samples = trend_sampling(dt, t_end)
@@ -768,7 +781,8 @@ def trend(runs, seed, dt, t_end, method="lie_poisson4", gravity=1.0, variant=Non
         lz = np.array([relative_vertical_momentum(st, body) for st in states])  # run by run: ~40 MB at a time
     t = np.arange(samples) * stride * dt
     keep = t >= 0.02 * t_end
-    print(f"{what}, heavy top 50 Hz 45°, m g l x {gravity:g}; {runs} runs (seed {seed}) x {n:.3g} steps of {dt:g} s")
+    head = f"{what}, heavy top 50 Hz 45°, m g l x {gravity:g}; {runs} runs (seed {seed}, ω0 perturbed {perturbation:g})"
+    print(f"{head} x {n:.3g} steps of {dt:g} s")
     print(f"({wall:.0f} s to integrate)")
     r = np.sqrt(runs)
     for name, x in (("E/E0 - 1", e), ("Lz/Lz0 - 1", lz)):
@@ -782,6 +796,17 @@ def trend(runs, seed, dt, t_end, method="lie_poisson4", gravity=1.0, variant=Non
     departure = np.sqrt(((e - mean) ** 2).mean(0))
     quarters = [departure[(samples - 1) // 4], departure[(samples - 1) // 2], departure[-1]]
     print("RMS departure from the ensemble mean at t/4, t/2, t:", " ".join(f"{d:.2e}" for d in quarters))
+    # each run's own drift, fitted in each quarter of the run (the first from 2 % of t_end): a rate the run keeps
+    # correlates from quarter to quarter; a walk's slopes do not
+    own = []
+    for lo, hi in ((0.02, 0.25), (0.25, 0.5), (0.5, 0.75), (0.75, 1.0)):
+        part = (t >= lo * t_end) & (t <= hi * t_end)
+        own.append(np.polyfit(t[part], (e - mean)[:, part].T, 1)[0])
+    corr = np.corrcoef(own)
+    pairs = corr[np.triu_indices(4, 1)]
+    spreads = " ".join(f"{s.std(ddof=1):.2e}" for s in own)
+    print(f"each run's own slope by quarter: spread {spreads} /s;", end=" ")
+    print(f"correlation between quarters {pairs.min():.2f} to {pairs.max():.2f}")
 
 
 def response(runs, seed, dts, t_end, variant, amplitude, samples=41):
@@ -830,6 +855,9 @@ def main(argv=None):
     ap.add_argument("--method", choices=("lie_poisson4", "split6_exact"), default="lie_poisson4", help="trend")
     ap.add_argument("--gravity", type=float, default=1.0, help="trend: m g l times this (default 1)")
     ap.add_argument(
+        "--perturbation", type=float, default=1e-9, help="trend: relative perturbation of the runs' ω0 (default 1e-9)"
+    )
+    ap.add_argument(
         "--long-double", action="store_true", help="trend: lie_poisson4's step plainly in long double (numpy; slow)"
     )
     ap.add_argument("--variant", choices=list(VARIANTS), help="probe, trend: this variant only (with --amplitude)")
@@ -844,9 +872,9 @@ def main(argv=None):
         ap.error("--runs: at least 2; --steps: at least 1000")
     if args.dt is not None and not 0.0 < args.dt <= 1e-3:
         ap.error("--dt: in (0, 1e-3] s")
-    trend_only = args.method != "lie_poisson4" or args.gravity != 1.0 or args.long_double
+    trend_only = args.method != "lie_poisson4" or args.gravity != 1.0 or args.long_double or args.perturbation != 1e-9
     if args.what != "trend" and trend_only:
-        ap.error("--method, --gravity, --long-double: trend only")
+        ap.error("--method, --gravity, --perturbation, --long-double: trend only")
     if args.what not in ("trend", "response") and args.t_end is not None:
         ap.error("--t-end: trend and response only")
     if args.what != "response" and args.dts != ap.get_default("dts"):
@@ -878,10 +906,13 @@ def main(argv=None):
         t_end = args.t_end or 2500.0
         if not 100 * dt <= t_end <= 1e8 * dt or not 0.0 < args.gravity <= 100.0:
             ap.error("--t-end: 100 to 1e8 steps; --gravity: in (0, 100]")
+        if not 0.0 < args.perturbation <= 1e-3:
+            ap.error("--perturbation: in (0, 1e-3]")
         if runs * trend_sampling(dt, t_end)[2] * 14 * 8 > 8e9:  # the states held for the fits
             ap.error("--runs x --t-end: over 8 GB of samples (32 runs of 2500 s take 1.4 GB); fewer or shorter")
         variant = (args.variant, args.amplitude)
-        trend(runs, args.seed, dt, t_end, args.method, args.gravity, *variant, long_double=args.long_double)
+        more = {"long_double": args.long_double, "perturbation": args.perturbation}
+        trend(runs, args.seed, dt, t_end, args.method, args.gravity, *variant, **more)
     elif args.what == "curve":
         curve(runs, steps, args.seed, dt=args.dt)
     elif args.variant:
