@@ -3,7 +3,7 @@
     python benchmarks/compensated_bias.py curve [--runs 32] [--steps 1e8] [--seed 1]
     python benchmarks/compensated_bias.py probe [--runs 8] [--steps 1e6] [--seed 1] [--variant NAME --amplitude A]
     python benchmarks/compensated_bias.py trend [--runs 32] [--dt 5e-4] [--t-end 2500] [--method lie_poisson4]
-        [--gravity 1] [--perturbation 1e-9] [--variant NAME --amplitude A | --long-double]
+        [--gravity 1] [--perturbation 1e-9] [--dither A] [--variant NAME --amplitude A | --long-double]
     python benchmarks/compensated_bias.py response [--runs 2] [--dts 2.5e-4,5e-4,1e-3,2e-3] [--t-end 20]
         [--variant turn_mismatch --amplitude 1e-13]
 
@@ -108,7 +108,9 @@ Variants that change the map rather than amplify a rounding:
   so new on every substep: both turns keep using one c (the map stays a Poisson map up to rounding), but the
   turn constants (ch, sh, t, s) and their roundings, the same on every substep of a run otherwise, change from
   substep to substep.  A drift that is the fixed roundings' goes; one that a biased rounding of the constants
-  at every argument makes stays;
+  at every argument makes stays.  A ≥ 1e-12: ch = cos(c h/2), near 1, changes by one ulp only every ~80 ulps
+  of its argument, so a dither of a few ulps (4e-15) leaves its rounding as it was (``trend --dither A`` is
+  the same dither on the copy or on any variant);
 - ``dither_spin``: ω3 as the two turns take it (the first turn's axis (ω1 h, ω2 h, (I3/I1) ω3 h) and the rate c)
   moved the same way, the state's ω3 kept: nothing computed from ω3, the one rate the top's steps never change,
   is then the same from one substep to the next.
@@ -181,8 +183,8 @@ VARIANTS = {
     "turn_mismatch": (20, (1e-13, -1e-13)),
     "turn_matched": (21, (1.0,)),
     "norm_exact": (22, (1.0,)),
-    "dither_rate": (23, (1e-15, 4e-15)),
-    "dither_spin": (24, (1e-15, 4e-15)),
+    "dither_rate": (23, (1e-12,)),
+    "dither_spin": (24, (1e-12,)),
 }
 NO_IDENTITY = (0, 4, 21, 22)  # the copy itself, and the variants that have no amplitude giving its bits
 W1, W0 = WEIGHTS[0], WEIGHTS[1]
@@ -442,15 +444,18 @@ def _normalize_coarse(q, ql, scale):
 
 
 @njit(error_model="numpy")
-def _flow(w, wl, q, ql, h, body, code, amp):
-    """kernels/compensated._symmetric_flow, with the variant ``code``'s rounding amplified by ``amp``."""
+def _flow(w, wl, q, ql, h, body, code, amp, dither=0.0):
+    """kernels/compensated._symmetric_flow, with the variant ``code``'s rounding amplified by ``amp``, and the rate
+    c of the turns about e3 times 1 + dither d, d in [−0.5, 0.5) from ω1's low bits (new on every substep)."""
     I1, I3 = body[0], body[2]
     ratio = I3 / I1
     k = ratio * (1.0 + amp) if code == 1 else ratio
     c = (1.0 - ratio) * (1.0 + amp) * w[2] if code == 2 else (1.0 - ratio) * w[2]
-    if code == 23:  # the rate moved by amp x (a number in [−0.5, 0.5) from ω1's low bits): new on every substep
+    if code == 23:  # dither_rate: the dither's amplitude is the variant's
+        dither = amp
+    if dither != 0.0:
         bits = w[0] * 1048576.0
-        c *= 1.0 + amp * (bits - math.floor(bits) - 0.5)
+        c *= 1.0 + dither * (bits - math.floor(bits) - 0.5)
     r = w  # the rates of the turns; code 11: of ω + amp ωl (amp = 1: of the whole ω)
     if code == 11:
         r = (w[0] + amp * wl[0], w[1] + amp * wl[1], w[2] + amp * wl[2])
@@ -534,7 +539,7 @@ def _flow(w, wl, q, ql, h, body, code, amp):
 
 
 @njit(parallel=True, error_model="numpy")
-def _run_series(w0, q0, body, dt, stride, code, amp, out):
+def _run_series(w0, q0, body, dt, stride, code, amp, out, dither=0.0):
     """out[i, k] = (ω, ωl, q, ql) of run i after k·stride steps, k = 0 … out.shape[1] − 1."""
     for i in prange(w0.shape[0]):
         w = (w0[i, 0], w0[i, 1], w0[i, 2])
@@ -546,7 +551,7 @@ def _run_series(w0, q0, body, dt, stride, code, amp, out):
                 for _ in range(stride):
                     for h in (W1 * dt, W0 * dt, W1 * dt):
                         w, wl = _kick(w, wl, q, ql, 0.5 * h, body, code, amp)
-                        w, wl, q, ql = _flow(w, wl, q, ql, h, body, code, amp)
+                        w, wl, q, ql = _flow(w, wl, q, ql, h, body, code, amp, dither)
                         w, wl = _kick(w, wl, q, ql, 0.5 * h, body, code, amp)
             for j in range(3):
                 out[i, k, j], out[i, k, 3 + j] = w[j], wl[j]
@@ -751,12 +756,14 @@ def trend(
     amplitude=None,
     long_double=False,
     perturbation=1e-9,
+    dither=0.0,
 ):
     """The top's drift where it is cheap to see: at dt = 5e-4 s its truncation oscillation (~3e-13, common to
     the runs) averages out over 2500 s, and the drift, ~20x faster per second than at 2.5e-5 s, stands out
     in a minute or two.  Prints each run's fitted slope of E/E0 − 1 and of Lz/Lz0 − 1 (their mean ± s.e. and
     spread), the ensemble mean of E/E0 − 1 over ten blocks of time, and how far the runs depart from the
-    ensemble mean at t/4, t/2 and t (∝ t: a drift of each run's own; ∝ √t: a walk)."""
+    ensemble mean at t/4, t/2 and t (∝ t: a drift of each run's own; ∝ √t: a walk).  ``dither`` runs the copy (or
+    the variant) with the turns' rate c dithered by that relative amount on every substep."""
     body, w0, q0, _ = ensemble("heavy_top", runs, seed, perturbation)
     body = body.copy()
     body[3] *= gravity  # m g l
@@ -766,15 +773,18 @@ def trend(
     if long_double:
         e, lz = run_long_double(w0, q0, body, dt, stride, samples)
         what = f"{method}'s step in long double, plain"
-    elif variant is None:
+    elif variant is None and dither == 0.0:
         states = run_compensated(method, w0, q0, body, dt, stride, samples)
         what = f"{method}(accumulate=compensated)"
     else:
-        code, amp = VARIANTS[variant][0], amplitude
+        variant, amp = (variant, amplitude) if variant else ("copy", 0.0)
+        code = VARIANTS[variant][0]
         check_copy(body, w0, q0, dt, {variant: VARIANTS[variant]})
         states = np.empty((runs, samples, 14))
-        _run_series(w0, q0, body, dt, stride, code, amp, states)
+        _run_series(w0, q0, body, dt, stride, code, amp, states, dither)
         what = f"the copy of lie_poisson4(accumulate=compensated), {variant} at {amp:g}"
+        if dither:
+            what += f", the turns' rate dithered by {dither:g}"
     wall = time.perf_counter() - t0
     if states is not None:
         e = np.array([relative_energy_error(st, body, w0[i], q0[i]) for i, st in enumerate(states)])
@@ -858,6 +868,9 @@ def main(argv=None):
         "--perturbation", type=float, default=1e-9, help="trend: relative perturbation of the runs' ω0 (default 1e-9)"
     )
     ap.add_argument(
+        "--dither", type=float, default=0.0, help="trend: the turns' rate times 1 + A d on every substep (|d| < 0.5)"
+    )
+    ap.add_argument(
         "--long-double", action="store_true", help="trend: lie_poisson4's step plainly in long double (numpy; slow)"
     )
     ap.add_argument("--variant", choices=list(VARIANTS), help="probe, trend: this variant only (with --amplitude)")
@@ -873,8 +886,8 @@ def main(argv=None):
     if args.dt is not None and not 0.0 < args.dt <= 1e-3:
         ap.error("--dt: in (0, 1e-3] s")
     trend_only = args.method != "lie_poisson4" or args.gravity != 1.0 or args.long_double or args.perturbation != 1e-9
-    if args.what != "trend" and trend_only:
-        ap.error("--method, --gravity, --perturbation, --long-double: trend only")
+    if args.what != "trend" and (trend_only or args.dither):
+        ap.error("--method, --gravity, --perturbation, --dither, --long-double: trend only")
     if args.what not in ("trend", "response") and args.t_end is not None:
         ap.error("--t-end: trend and response only")
     if args.what != "response" and args.dts != ap.get_default("dts"):
@@ -898,8 +911,10 @@ def main(argv=None):
     elif args.what == "trend":
         if args.steps is not None or args.exact_energy:
             ap.error("--steps, --exact-energy: curve and probe (trend's length is --t-end)")
-        if (args.variant or args.long_double) and args.method != "lie_poisson4":
-            ap.error("--variant, --long-double: lie_poisson4's step only")
+        if (args.variant or args.long_double or args.dither) and args.method != "lie_poisson4":
+            ap.error("--variant, --dither, --long-double: lie_poisson4's step only")
+        if args.dither and (args.long_double or not 0.0 < args.dither <= 1e-6):
+            ap.error("--dither: in (0, 1e-6], not with --long-double")
         if args.variant and args.long_double:
             ap.error("--variant and --long-double: one or the other")
         dt = args.dt or 5e-4
@@ -911,7 +926,7 @@ def main(argv=None):
         if runs * trend_sampling(dt, t_end)[2] * 14 * 8 > 8e9:  # the states held for the fits
             ap.error("--runs x --t-end: over 8 GB of samples (32 runs of 2500 s take 1.4 GB); fewer or shorter")
         variant = (args.variant, args.amplitude)
-        more = {"long_double": args.long_double, "perturbation": args.perturbation}
+        more = {"long_double": args.long_double, "perturbation": args.perturbation, "dither": args.dither}
         trend(runs, args.seed, dt, t_end, args.method, args.gravity, *variant, **more)
     elif args.what == "curve":
         curve(runs, steps, args.seed, dt=args.dt)
