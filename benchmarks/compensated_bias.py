@@ -444,6 +444,14 @@ def _normalize_coarse(q, ql, scale):
 
 
 @njit(error_model="numpy")
+def _dither_number(x):
+    """A number in [−0.5, 0.5) from x's bits below 2^-20 (x = ω1, which every kick changes by far more): new on
+    every substep, the same for the same state."""
+    bits = x * 1048576.0
+    return bits - math.floor(bits) - 0.5
+
+
+@njit(error_model="numpy")
 def _flow(w, wl, q, ql, h, body, code, amp, dither=0.0):
     """kernels/compensated._symmetric_flow, with the variant ``code``'s rounding amplified by ``amp``, and the rate
     c of the turns about e3 times 1 + dither d, d in [−0.5, 0.5) from ω1's low bits (new on every substep)."""
@@ -454,15 +462,13 @@ def _flow(w, wl, q, ql, h, body, code, amp, dither=0.0):
     if code == 23:  # dither_rate: the dither's amplitude is the variant's
         dither = amp
     if dither != 0.0:
-        bits = w[0] * 1048576.0
-        c *= 1.0 + dither * (bits - math.floor(bits) - 0.5)
+        c *= 1.0 + dither * _dither_number(w[0])
     r = w  # the rates of the turns; code 11: of ω + amp ωl (amp = 1: of the whole ω)
     if code == 11:
         r = (w[0] + amp * wl[0], w[1] + amp * wl[1], w[2] + amp * wl[2])
         c = (1.0 - ratio) * r[2]
     if code == 24:  # ω3 as both turns take it (not the state's) moved the same way as dither_rate's rate
-        bits = w[0] * 1048576.0
-        r = (w[0], w[1], w[2] * (1.0 + amp * (bits - math.floor(bits) - 0.5)))
+        r = (w[0], w[1], w[2] * (1.0 + amp * _dither_number(w[0])))
         c = (1.0 - ratio) * r[2]
     if code == 12 or code == 16:
         a1, u0, u1, u2 = _rotvec_amplified(w[0], w[1], w[2], k, h, amp)
