@@ -33,16 +33,18 @@ nor V where it is made, yet the energy drifts, by the same amount per second at 
 turns that grows as the substep's angle, ~eps φ ∝ dt, drifts the energy per second as dt, as the top's bias
 does.
 
-``probe`` finds which rounding it is not.  It runs a copy of the variant's step (kernels/compensated.py:
-Yoshida's triple jump of kick(h/2), the symmetric body's exact free flow, kick(h/2)), checked bit for
-bit against the registered variant, with one suspected rounding amplified at a time.  A rounding that
+``probe`` finds which rounding it is not.  It runs a copy of the variant's step as it was registered until
+2026-12-07 (kernels/compensated.py: Yoshida's triple jump of kick(h/2), the symmetric body's exact free flow,
+kick(h/2); the body's turn added as q ⊗ (α, u) from q's high part, rounded, and ω⊥ turned by t = sh/ch), with
+one suspected rounding amplified at a time; the variant ``turn_exact_matched`` is the registered step since,
+checked bit for bit against it.  A rounding that
 makes a bias b per step, amplified A times, moves the mean by about A b per step: at 1e6 steps the bias
 itself (~6e-19) is below the walk's spread (~3e-18), amplified 1e3 or more it would stand out.  Every
 variant but norm_coarse, turn_matched and norm_exact is checked to be the copy bit for bit at amplitude 0
 (1000 steps) before it runs.
 Variants (name: what is amplified):
 
-- ``copy``: nothing (the registered variant's map, bit for bit);
+- ``copy``: nothing (the registered variant's map before 2026-12-07, bit for bit);
 - ``axis_ratio``: the rounding of I3/I1 in the first turn's axis (ω1 h, ω2 h, (I3/I1) ω3 h), which is
   the same on every step since ω3 is conserved: the ratio scaled by 1 + 1e-8 (~1e8 times its rounding);
 - ``turn_rate``: likewise the rate c = (1 − I3/I1) ω3 of the turn of L about e3 (and the body's second
@@ -115,6 +117,13 @@ Variants that change the map rather than amplify a rounding:
   moved the same way, the state's ω3 kept: nothing computed from ω3, the one rate the top's steps never change,
   is then the same from one substep to the next.
 
+Variants that are the fix (A ignored):
+
+- ``turn_exact``: the body's turn adds the increment of the whole q, (q + ql) ⊗ (α, u), to ~eps²
+  (kernels/compensated._turn_whole: the product's rounding error and ql's own turn to the low part);
+- ``turn_exact_matched``: that and ``turn_matched``'s shears (kernels/compensated._shear_turn_matched): the
+  registered step since 2026-12-07.
+
 ``--variant NAME --amplitude A`` runs that one variant (e.g. ``turn_low_parts`` at A = 1, over 1e8 steps,
 to see whether the bias is left when that rounding is corrected rather than amplified); a negative amplitude
 in exponent form goes as ``--amplitude=-1e-13``.  ``trend --long-double`` runs lie_poisson4's step written
@@ -123,7 +132,6 @@ the default 5e6 steps take ~25 min of one core): the same map rounded 2048 times
 """
 
 import argparse
-import math
 import sys
 import time
 from pathlib import Path
@@ -133,6 +141,7 @@ from numba import njit, prange
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from brouwer import energy_extended, ensemble, run_compensated, up_in_body_extended  # noqa: E402
+from double_double_top import PIECES, dither_number, pieces_mask, run_series  # noqa: E402
 
 from gyrolab.kernels.compensated import (  # noqa: E402
     _add,
@@ -142,9 +151,12 @@ from gyrolab.kernels.compensated import (  # noqa: E402
     _minus_one,
     _normalize,
     _shear_turn,
+    _shear_turn_matched,
     _sin_low,
+    _turn_whole,
     _two_prod,
     kick,
+    quat_mul_low,
 )
 from gyrolab.kernels.methods.lie_poisson4 import WEIGHTS  # noqa: E402
 from gyrolab.kernels.rigid_body import gravity_torque  # noqa: E402
@@ -185,8 +197,10 @@ VARIANTS = {
     "norm_exact": (22, (1.0,)),
     "dither_rate": (23, (1e-12,)),
     "dither_spin": (24, (1e-12,)),
+    "turn_exact": (25, (1.0,)),
+    "turn_exact_matched": (26, (1.0,)),
 }
-NO_IDENTITY = (0, 4, 21, 22)  # the copy itself, and the variants that have no amplitude giving its bits
+NO_IDENTITY = (0, 4, 21, 22, 25, 26)  # the copy itself, and the variants that have no amplitude giving its bits
 W1, W0 = WEIGHTS[0], WEIGHTS[1]
 
 
@@ -258,33 +272,6 @@ def _torque_rounding(w, wl, q, h, body, amp):
     a0, l0 = _add(w[0], wl[0] + amp * e0, d0)
     a1, l1 = _add(w[1], wl[1] + amp * e1, d1)
     return (a0, a1, w[2]), (l0, l1, wl[2])
-
-
-@njit(error_model="numpy")
-def _signed_sum_error(a1, b1, a2, b2, g2, a3, b3, g3, a4, b4, g4):
-    """The rounding error of a1 b1 + g2 a2 b2 + g3 a3 b3 + g4 a4 b4 (g = ±1) evaluated left to right as
-    kernels/rotation.quat_mul does: the four products' errors (exact, fma) and the three sums' (two-sum)."""
-    p1, e1 = _two_prod(a1, b1)
-    p2, e2 = _two_prod(a2, b2)
-    p3, e3 = _two_prod(a3, b3)
-    p4, e4 = _two_prod(a4, b4)
-    s, f2 = _add(p1, 0.0, g2 * p2)
-    s, f3 = _add(s, 0.0, g3 * p3)
-    s, f4 = _add(s, 0.0, g4 * p4)
-    return e1 + g2 * e2 + g3 * e3 + g4 * e4 + f2 + f3 + f4
-
-
-@njit(error_model="numpy")
-def _quat_mul_error(p, q):
-    """The exact p ⊗ q minus kernels/rotation.quat_mul(p, q), to ~eps²."""
-    pa, pb, pc, pd = p
-    qa, qb, qc, qd = q
-    return (
-        _signed_sum_error(pa, qa, pb, qb, -1.0, pc, qc, -1.0, pd, qd, -1.0),
-        _signed_sum_error(pa, qb, pb, qa, 1.0, pc, qd, 1.0, pd, qc, -1.0),
-        _signed_sum_error(pa, qc, pb, qd, -1.0, pc, qa, 1.0, pd, qb, 1.0),
-        _signed_sum_error(pa, qd, pb, qc, 1.0, pc, qb, -1.0, pd, qa, 1.0),
-    )
 
 
 @njit(error_model="numpy")
@@ -403,24 +390,6 @@ def _kick_add_rounding(w, wl, q, h, body, amp):
 
 
 @njit(error_model="numpy")
-def _shear_turn_matched(x, xl, y, yl, sh, al2, s, c2):
-    """The symmetric body's three shears with t + tl = sh/(1 + α2) to ~eps² (the tangent of half the body's
-    own e3 turn, the quaternion (1 + α2, sh e3) that _flow composes), s + sl closed to it, and the low parts
-    of ω⊥ sheared too (the part tl y of an increment lands in the low part, which the next shear must see):
-    the turn of ω⊥ and the body's turn about e3 are then the same angle to ~eps²; the registered kernel
-    takes t = sh/ch, whose angle differs from the quaternion's by ~1e-17 rad (t's rounding, and ch² + sh²
-    ≠ 1 in α2 = −sh²/(1 + ch))."""
-    dh, dl = _add(1.0, 0.0, al2)  # 1 + α2 = dh + dl exactly
-    t = sh / dh
-    tl = (_fma(-t, dh, sh) - t * dl) / dh
-    sl = _sin_low(t, s, c2) + tl * 2.0 * (1.0 - t * t) * c2 * c2  # d(2t/(1 + t²))/dt = 2(1 − t²)/(1 + t²)²
-    x, xl = _add(x, xl + (tl * y + t * yl), t * y)
-    y, yl = _add(y, yl - (s + sl) * xl, -(s * x) - sl * x)
-    x, xl = _add(x, xl + (tl * y + t * yl), t * y)
-    return x, xl, y, yl
-
-
-@njit(error_model="numpy")
 def _normalize_exact(q, ql):
     """kernels/compensated._normalize with |q + ql|² − 1 to ~eps² (exact squares, two-sums), where the
     registered projection leaves |q + ql|² − 1 ≈ +1.4e-17 on the top's runs."""
@@ -444,14 +413,6 @@ def _normalize_coarse(q, ql, scale):
 
 
 @njit(error_model="numpy")
-def _dither_number(x):
-    """A number in [−0.5, 0.5) from x's bits below 2^-20 (x = ω1, which every kick changes by far more): new on
-    every substep, the same for the same state."""
-    bits = x * 1048576.0
-    return bits - math.floor(bits) - 0.5
-
-
-@njit(error_model="numpy")
 def _flow(w, wl, q, ql, h, body, code, amp, dither=0.0):
     """kernels/compensated._symmetric_flow, with the variant ``code``'s rounding amplified by ``amp``, and the rate
     c of the turns about e3 times 1 + dither d, d in [−0.5, 0.5) from ω1's low bits (new on every substep)."""
@@ -462,13 +423,13 @@ def _flow(w, wl, q, ql, h, body, code, amp, dither=0.0):
     if code == 23:  # dither_rate: the dither's amplitude is the variant's
         dither = amp
     if dither != 0.0:
-        c *= 1.0 + dither * _dither_number(w[0])
+        c *= 1.0 + dither * dither_number(w[0])
     r = w  # the rates of the turns; code 11: of ω + amp ωl (amp = 1: of the whole ω)
     if code == 11:
         r = (w[0] + amp * wl[0], w[1] + amp * wl[1], w[2] + amp * wl[2])
         c = (1.0 - ratio) * r[2]
     if code == 24:  # ω3 as both turns take it (not the state's) moved the same way as dither_rate's rate
-        r = (w[0], w[1], w[2] * (1.0 + amp * _dither_number(w[0])))
+        r = (w[0], w[1], w[2] * (1.0 + amp * dither_number(w[0])))
         c = (1.0 - ratio) * r[2]
     if code == 12 or code == 16:
         a1, u0, u1, u2 = _rotvec_amplified(w[0], w[1], w[2], k, h, amp)
@@ -498,13 +459,15 @@ def _flow(w, wl, q, ql, h, body, code, amp, dither=0.0):
         alpha, v0, v1, v2 = alpha + amp * ea, v0 + amp * e0, v1 + amp * e1, v2 + amp * e2
     dq = quat_mul(q, (alpha, v0, v1, v2))
     if code == 10 or code == 16:
-        e = _quat_mul_error(q, (alpha, v0, v1, v2))
+        e = quat_mul_low(q, (alpha, v0, v1, v2))
         dq = (dq[0] + amp * e[0], dq[1] + amp * e[1], dq[2] + amp * e[2], dq[3] + amp * e[3])
     if code == 5:
         e = quat_mul(ql, (alpha, v0, v1, v2))
         dq = (dq[0] + amp * e[0], dq[1] + amp * e[1], dq[2] + amp * e[2], dq[3] + amp * e[3])
     if code == 19:
         q, ql = _add4_amp(q, ql, dq, amp)
+    elif code == 25 or code == 26:  # the increment of the whole q to ~eps² (the kernel since 2026-12-07)
+        q, ql = _turn_whole(q, ql, (alpha, v0, v1, v2))
     else:
         q, ql = _add4(q, ql, dq)
     if code == 4:
@@ -528,7 +491,7 @@ def _flow(w, wl, q, ql, h, body, code, amp, dither=0.0):
         t = t + amp * 0.5 * (1.0 + t * t)
         c2 = 1.0 / (1.0 + t * t)
         x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], t, 2.0 * t * c2, c2, 1.0, 1.0, 0.0)
-    elif code == 21:
+    elif code == 21 or code == 26:
         x, xl, y, yl = _shear_turn_matched(w[0], wl[0], w[1], wl[1], sh, al2, sp, ch * ch)
     elif code == 13 or code == 16:
         x, xl, y, yl = _shear_turn_amplified(w[0], wl[0], w[1], wl[1], t, sp, ch * ch, amp)
@@ -612,13 +575,16 @@ def energy_evaluation_error(states, body, w0, q0):
 
 
 def check_copy(body, w0, q0, dt, variants):
-    """Exit with one line unless the copy is the registered lie_poisson4(accumulate=compensated) bit for bit over
-    1000 steps of the first run, and so is each variant (but those in NO_IDENTITY) at amplitude 0."""
+    """Exit with one line unless ``turn_exact_matched`` is the registered lie_poisson4(accumulate=compensated) bit
+    for bit over 1000 steps of the first run, and each variant (but those in NO_IDENTITY) at amplitude 0 is the
+    copy (the registered map before 2026-12-07)."""
+    now = np.empty((1, 14))
+    _run(w0[:1], q0[:1], body, dt, 1000, VARIANTS["turn_exact_matched"][0], 1.0, now)
+    registered = run_compensated("lie_poisson4", w0[:1], q0[:1], body, dt, 1000, 2)[0, 1]
+    if not np.array_equal(now[0], registered):
+        raise SystemExit(f"turn_exact_matched and lie_poisson4(accumulate=compensated) differ: {now[0]} {registered}")
     check = np.empty((1, 14))
     _run(w0[:1], q0[:1], body, dt, 1000, 0, 0.0, check)
-    registered = run_compensated("lie_poisson4", w0[:1], q0[:1], body, dt, 1000, 2)[0, 1]
-    if not np.array_equal(check[0], registered):
-        raise SystemExit(f"the copy and lie_poisson4(accumulate=compensated) differ: {check[0]} {registered}")
     for name, (code, _) in variants.items():
         if code in NO_IDENTITY:
             continue
@@ -763,13 +729,16 @@ def trend(
     long_double=False,
     perturbation=1e-9,
     dither=0.0,
+    double_double=None,
 ):
     """The top's drift where it is cheap to see: at dt = 5e-4 s its truncation oscillation (~3e-13, common to
     the runs) averages out over 2500 s, and the drift, ~20x faster per second than at 2.5e-5 s, stands out
     in a minute or two.  Prints each run's fitted slope of E/E0 − 1 and of Lz/Lz0 − 1 (their mean ± s.e. and
     spread), the ensemble mean of E/E0 − 1 over ten blocks of time, and how far the runs depart from the
     ensemble mean at t/4, t/2 and t (∝ t: a drift of each run's own; ∝ √t: a walk).  ``dither`` runs the copy (or
-    the variant) with the turns' rate c dithered by that relative amount on every substep."""
+    the variant) with the turns' rate c dithered by that relative amount on every substep.  ``double_double``
+    (comma-separated PIECES, '' for none) runs the step in double-double with those pieces in double
+    (benchmarks/double_double_top.py)."""
     body, w0, q0, _ = ensemble("heavy_top", runs, seed, perturbation)
     body = body.copy()
     body[3] *= gravity  # m g l
@@ -779,6 +748,11 @@ def trend(
     if long_double:
         e, lz = run_long_double(w0, q0, body, dt, stride, samples)
         what = f"{method}'s step in long double, plain"
+    elif double_double is not None:
+        states = run_series(w0, q0, body, dt, stride, samples, pieces_mask(double_double), dither)
+        what = f"{method}'s step in double-double, in double: {double_double or 'nothing'}"
+        if dither:
+            what += f", the turns' rate dithered by {dither:g}"
     elif variant is None and dither == 0.0:
         states = run_compensated(method, w0, q0, body, dt, stride, samples)
         what = f"{method}(accumulate=compensated)"
@@ -879,6 +853,13 @@ def main(argv=None):
     ap.add_argument(
         "--long-double", action="store_true", help="trend: lie_poisson4's step plainly in long double (numpy; slow)"
     )
+    ap.add_argument(
+        "--double-double",
+        nargs="?",
+        const="",
+        metavar="PIECES",
+        help=f"trend: the step in double-double, PIECES of it in double (comma-separated: {', '.join(PIECES)})",
+    )
     ap.add_argument("--variant", choices=list(VARIANTS), help="probe, trend: this variant only (with --amplitude)")
     ap.add_argument("--amplitude", type=float, default=None, help="probe, trend: the variant's amplitude")
     ap.add_argument(
@@ -892,8 +873,8 @@ def main(argv=None):
     if args.dt is not None and not 0.0 < args.dt <= 1e-3:
         ap.error("--dt: in (0, 1e-3] s")
     trend_only = args.method != "lie_poisson4" or args.gravity != 1.0 or args.long_double or args.perturbation != 1e-9
-    if args.what != "trend" and (trend_only or args.dither):
-        ap.error("--method, --gravity, --perturbation, --dither, --long-double: trend only")
+    if args.what != "trend" and (trend_only or args.dither or args.double_double is not None):
+        ap.error("--method, --gravity, --perturbation, --dither, --long-double, --double-double: trend only")
     if args.what not in ("trend", "response") and args.t_end is not None:
         ap.error("--t-end: trend and response only")
     if args.what != "response" and args.dts != ap.get_default("dts"):
@@ -921,8 +902,12 @@ def main(argv=None):
             ap.error("--variant, --dither, --long-double: lie_poisson4's step only")
         if args.dither and (args.long_double or not 0.0 < args.dither <= 1e-6):
             ap.error("--dither: in (0, 1e-6], not with --long-double")
-        if args.variant and args.long_double:
-            ap.error("--variant and --long-double: one or the other")
+        if sum((bool(args.variant), args.long_double, args.double_double is not None)) > 1:
+            ap.error("--variant, --long-double and --double-double: one of them")
+        if args.double_double is not None:
+            pieces_mask(args.double_double)  # an unknown piece: one line, before any work
+            if args.method != "lie_poisson4":
+                ap.error("--double-double: lie_poisson4's step only")
         dt = args.dt or 5e-4
         t_end = args.t_end or 2500.0
         if not 100 * dt <= t_end <= 1e8 * dt or not 0.0 < args.gravity <= 100.0:
@@ -933,6 +918,7 @@ def main(argv=None):
             ap.error("--runs x --t-end: over 8 GB of samples (32 runs of 2500 s take 1.4 GB); fewer or shorter")
         variant = (args.variant, args.amplitude)
         more = {"long_double": args.long_double, "perturbation": args.perturbation, "dither": args.dither}
+        more["double_double"] = args.double_double
         trend(runs, args.seed, dt, t_end, args.method, args.gravity, *variant, **more)
     elif args.what == "curve":
         curve(runs, steps, args.seed, dt=args.dt)

@@ -10,7 +10,12 @@ IAS15, Rein & Spiegel, MNRAS 446 (2015) 1424, §2.3, and WHFast, Rein & Tamayo, 
 - a kick adds h τ/I to ω;
 - a turn of the body by a small rotation dq = 1 + (α, u) (α = cos(φ/2) − 1 = −sin²(φ/2)/(1 + cos(φ/2)),
   computed without cancellation; u = sin(φ/2) n̂) adds the Hamilton product q ⊗ (α, u) to q, so the
-  rounding is that of the increment, ~φ/2 times smaller than of q ⊗ dq;
+  rounding is that of the increment, ~φ/2 times smaller than of q ⊗ dq.  A symmetric body's flow adds
+  the increment of the whole q, (q + ql) ⊗ (α, u), the product's rounding error and ql's own turn passed
+  to the low part (``_turn_whole``), and turns ω⊥ by the angle of its turn about e3 to ~eps²
+  (``_shear_turn_matched``): on a top, whose turn constants are the same every step, the rounded product
+  of q's high part and the shears' t = sh/ch drifted the energy linearly, the same way on every run
+  (~5e-19 /s at dt = 5e-4 s on the 50 Hz top; benchmarks/double_double_top.py found which piece);
 - a turn of L_b in a plane by −φ is three shears (x += t y; y −= s x; x += t y with t = tan(φ/2),
   s = sin φ; Paeth 1986): each shear has determinant 1 whatever its rounded coefficient, where the
   matrix (cos, sin; −sin, cos) of rounded entries scales |L⊥| by a factor that rounds the same way
@@ -150,6 +155,65 @@ def _shear_turn(x, xl, y, yl, t, s, c2, kx, ky, kyl):
 
 
 @njit(cache=True, error_model="numpy")
+def _signed_sum_low(a1, b1, a2, b2, g2, a3, b3, g3, a4, b4, g4):
+    """The rounding error of a1 b1 + g2 a2 b2 + g3 a3 b3 + g4 a4 b4 (g = ±1) evaluated left to right as
+    rotation.quat_mul does: the four products' errors (exact, fma) and the three sums' (two-sum)."""
+    p1, e1 = _two_prod(a1, b1)
+    p2, e2 = _two_prod(a2, b2)
+    p3, e3 = _two_prod(a3, b3)
+    p4, e4 = _two_prod(a4, b4)
+    s, f2 = _add(p1, 0.0, g2 * p2)
+    s, f3 = _add(s, 0.0, g3 * p3)
+    s, f4 = _add(s, 0.0, g4 * p4)
+    return e1 + g2 * e2 + g3 * e3 + g4 * e4 + f2 + f3 + f4
+
+
+@njit(cache=True, error_model="numpy")
+def quat_mul_low(p, q):
+    """The exact p ⊗ q minus rotation.quat_mul(p, q), to ~eps² of the product."""
+    pa, pb, pc, pd = p
+    qa, qb, qc, qd = q
+    return (
+        _signed_sum_low(pa, qa, pb, qb, -1.0, pc, qc, -1.0, pd, qd, -1.0),
+        _signed_sum_low(pa, qb, pb, qa, 1.0, pc, qd, 1.0, pd, qc, -1.0),
+        _signed_sum_low(pa, qc, pb, qd, -1.0, pc, qa, 1.0, pd, qb, 1.0),
+        _signed_sum_low(pa, qd, pb, qc, 1.0, pc, qb, -1.0, pd, qa, 1.0),
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def _turn_whole(q, ql, p):
+    """(q, ql) + (q + ql) ⊗ p: q ⊗ p rounded is the increment, its rounding error and ql's own turn ql ⊗ p go
+    to the low part first, so what is left is the compensated sum's one rounding (~eps of the increment, of a
+    sum whose low part is new every step).  Turning q's high part alone and rounding the product drifted the
+    top's energy linearly, the same way on every run, though each error is ~eps of the increment and of
+    either sign (benchmarks/compensated_bias.py ``turn_exact``; the bisection in double-double,
+    benchmarks/double_double_top.py)."""
+    d = quat_mul(q, p)
+    e = quat_mul_low(q, p)
+    r = quat_mul(ql, p)
+    return _add4(q, (ql[0] + (e[0] + r[0]), ql[1] + (e[1] + r[1]), ql[2] + (e[2] + r[2]), ql[3] + (e[3] + r[3])), d)
+
+
+@njit(cache=True, error_model="numpy")
+def _shear_turn_matched(x, xl, y, yl, sh, al2, s, c2):
+    """A symmetric body's turn of ω⊥ by the body's own turn about e3, the unit quaternion (1 + α2, sh e3)
+    (α2 = −sh²/(1 + ch)), to ~eps²: the shears' t + tl = sh/(1 + α2) (the tangent of that turn's half angle),
+    s + sl closed to it, and the low parts of ω⊥ sheared too (tl's share of an increment lands in a low
+    part, which the next shear must see).  t = sh/ch alone turns ω⊥ by ~1e-17 rad more or less than the body
+    (t's rounding, and ch² + sh² ≠ 1 in α2), the same on every step of a top (ω3 is conserved): a mismatch
+    of the two turns drifts the energy (benchmarks/compensated_bias.py ``turn_mismatch``)."""
+    dh, dl = _add(1.0, 0.0, al2)  # 1 + α2 = dh + dl exactly
+    t = sh / dh
+    tl = (_fma(-t, dh, sh) - t * dl) / dh
+    sl = _sin_low(t, s, c2) + tl * 2.0 * (1.0 - t * t) * c2 * c2  # d(2t/(1 + t²))/dt = 2(1 − t²)/(1 + t²)²
+    x, xl = _add(x, xl + (tl * y + t * yl), t * y)
+    y, yl = _add(y, yl - (s + sl) * xl, -(s * x) - sl * x)
+    x, xl = _add(x, xl + (tl * y + t * yl), t * y)
+    return x, xl, y, yl
+
+
+@njit(cache=True, error_model="numpy")
 def shear_ratios(body):
     """Per axis k, (kx, ky, kyl): kx = I_j/I_i and ky + kyl = 1/kx to ~eps², i, j = k + 1, k + 2 (mod 3),
     the body constants of ``_axis_turn``'s shears; computed once per step, not on each of its turns."""
@@ -194,9 +258,9 @@ def _symmetric_flow(w, wl, q, ql, h, body):
     v0 = u0 + (al2 * u0 + u1 * sh)
     v1 = u1 + (al2 * u1 - u0 * sh)
     v2 = sh + u2 + (al1 * sh + al2 * u2)
-    q, ql = _add4(q, ql, quat_mul(q, (alpha, v0, v1, v2)))
+    q, ql = _turn_whole(q, ql, (alpha, v0, v1, v2))
     q, ql = _normalize(q, ql)
-    x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], sh / ch, 2.0 * sh * ch, ch * ch, 1.0, 1.0, 0.0)
+    x, xl, y, yl = _shear_turn_matched(w[0], wl[0], w[1], wl[1], sh, al2, 2.0 * sh * ch, ch * ch)
     return (x, y, w[2]), (xl, yl, wl[2]), q, ql
 
 

@@ -128,3 +128,72 @@ def test_the_shears_are_a_rotation_to_eps_squared():
         worst_k_closed = max(worst_k_closed, abs(float(Fraction(kx) * (Fraction(ky) + Fraction(kyl)) - 1)))
     assert 1e-17 < worst_pair < 1e-15 and 1e-17 < worst_k < 1e-15  # the misses the low parts close
     assert worst_closed < 1e-30 and worst_k_closed < 1e-30, (worst_closed, worst_k_closed)
+
+
+def test_the_symmetric_turn_adds_the_whole_increment_and_the_shears_match_it():
+    """A symmetric body's turn (kernels/compensated._turn_whole) adds (q + ql) ⊗ p with the product's rounding
+    error: hi + lo after it is the exact sum to the compensated sum's one rounding (~eps of the increment),
+    where q's high part times p, rounded, misses ql ⊗ p and the product's rounding; and the shears
+    (_shear_turn_matched) turn ω⊥ by the angle of the body's turn about e3, (1 + α2, sh e3) (their tangent
+    t + tl to ~eps², the result to the increments' own rounding), where t = sh/ch alone is another angle by
+    ~eps.  Checked in exact rationals on random turns."""
+    from fractions import Fraction
+
+    from gyrolab.kernels.compensated import (
+        _add4,
+        _minus_one,
+        _shear_turn_matched,
+        _turn_whole,
+        quat_mul_low,
+    )
+    from gyrolab.kernels.rotation import half_angle, quat_from_rotvec, quat_mul
+
+    def exact_mul(p, q):
+        pa, pb, pc, pd = (Fraction(x) for x in p)
+        qa, qb, qc, qd = (Fraction(x) for x in q)
+        return (
+            pa * qa - pb * qb - pc * qc - pd * qd,
+            pa * qb + pb * qa + pc * qd - pd * qc,
+            pa * qc - pb * qd + pc * qa + pd * qb,
+            pa * qd + pb * qc - pc * qb + pd * qa,
+        )
+
+    rng = np.random.default_rng(5)
+    worst_low = worst_whole = worst_old = 0.0
+    for _ in range(200):
+        q = rng.standard_normal(4)
+        q = tuple(q / np.linalg.norm(q))
+        ql = tuple(rng.uniform(-0.5, 0.5, 4) * np.spacing(np.abs(q)))
+        a, u0, u1, u2 = quat_from_rotvec(*rng.uniform(-0.3, 0.3, 3))
+        p = (_minus_one(a, u0, u1, u2), u0, u1, u2)
+        exact = exact_mul(q, p)
+        d, e = quat_mul(q, p), quat_mul_low(q, p)
+        worst_low = max(worst_low, max(abs(float(x - Fraction(y) - Fraction(z))) for x, y, z in zip(exact, d, e)))
+        whole = [Fraction(x) + Fraction(y) for x, y in zip(q, ql)]
+        target = [w + x for w, x in zip(whole, exact_mul(whole, p))]
+        new = _turn_whole(q, ql, p)
+        old = _add4(q, ql, d)
+        worst_whole = max(
+            worst_whole, max(abs(float(Fraction(h) + Fraction(lo) - t)) for h, lo, t in zip(*new, target))
+        )
+        worst_old = max(worst_old, max(abs(float(Fraction(h) + Fraction(lo) - t)) for h, lo, t in zip(*old, target)))
+    eps = np.finfo(float).eps
+    assert worst_low < 1e-31  # quat_mul + quat_mul_low is the product to ~eps² (|q ⊗ p| < 0.2)
+    assert worst_whole < eps * 0.2 and worst_old > 2 * worst_whole, (worst_whole, worst_old)
+
+    worst_matched = worst_ratio = 0.0
+    for phi in rng.uniform(-0.8, 0.8, 300):
+        ch, sh = half_angle(phi)
+        al2 = _minus_one(ch, 0.0, 0.0, sh)
+        tangent = Fraction(sh) / (1 + Fraction(al2))  # tan of half the body's turn about e3
+        x, y = rng.standard_normal(2)
+        xs, xl, ys, yl = _shear_turn_matched(x, 0.0, y, 0.0, sh, al2, 2.0 * sh * ch, ch * ch)
+        # the exact turn of (x, y) by −2 atan(tangent): cos and sin of it from the tangent, rationally
+        c2 = 1 / (1 + tangent**2)
+        co, si = (1 - tangent**2) * c2, 2 * tangent * c2
+        rx, ry = co * Fraction(x) + si * Fraction(y), co * Fraction(y) - si * Fraction(x)
+        miss = max(abs(float(Fraction(xs) + Fraction(xl) - rx)), abs(float(Fraction(ys) + Fraction(yl) - ry)))
+        worst_matched = max(worst_matched, miss / max(abs(x), abs(y)))
+        worst_ratio = max(worst_ratio, abs(float((Fraction(sh) / Fraction(ch)) / tangent - 1)))
+    assert worst_matched < 2 * eps * 0.5  # the increments' own rounding, ~eps of a turn up to 0.8 rad
+    assert 1e-17 < worst_ratio  # t = sh/ch turns by another angle, ~eps of it
