@@ -17,7 +17,10 @@ double kernel did before 2026-12-07 instead, on the double-double state's high a
 - ``turn_application``: the double-double turn quaternion rounded to double and added as the kernel did, q's
   high part times it, rounded (rotation.quat_mul), then compensated._add4;
 - ``projection``: compensated._normalize (|q|² − 1 from q's high part in double);
-- ``shears``: ω⊥ turned by compensated._shear_turn with t = sh/ch of the double half_angle(c h).
+- ``shears``: ω⊥ turned by compensated._shear_turn with t = sh/ch of the double half_angle(c h);
+- ``shears_matched``: ω⊥ turned by compensated._shear_turn_matched, the angle of the double constants' turn
+  (the kernel since 2026-12-07, which is ``kicks,projection,turn_quaternion,application_whole_exact,
+  shears_matched``).
 
 and ``application_high_exact``, ``application_whole_rounded``, ``application_whole_exact`` (with
 ``turn_quaternion``) apply the double quaternion as q's high part times it exactly (its rounding error to the
@@ -42,6 +45,7 @@ from gyrolab.kernels.compensated import (
     _minus_one,
     _normalize,
     _shear_turn,
+    _shear_turn_matched,
     _turn_whole,
     kick,
 )
@@ -59,6 +63,7 @@ PIECES = {
     "application_high_exact": 64,
     "application_whole_rounded": 128,
     "application_whole_exact": 256,
+    "shears_matched": 512,
 }
 
 
@@ -244,6 +249,10 @@ def _flow(w0, w1, w2, q, h, rate, k, inv, mask):
     if mask & 8:
         t, s2, c2 = sh_d / ch_d, 2.0 * sh_d * ch_d, ch_d * ch_d
         xh, xl, yh, yl = _shear_turn(w0[0], w0[1], w1[0], w1[1], t, s2, c2, 1.0, 1.0, 0.0)
+        w0, w1 = (xh, xl), (yh, yl)
+    elif mask & 512:
+        al2 = _minus_one(ch_d, 0.0, 0.0, sh_d)
+        xh, xl, yh, yl = _shear_turn_matched(w0[0], w0[1], w1[0], w1[1], sh_d, al2, 2.0 * sh_d * ch_d, ch_d * ch_d)
         w0, w1 = (xh, xl), (yh, yl)
     else:
         co, si = sub(mul(ch, ch), mul(sh, sh)), mul_double(mul(sh, ch), 2.0)
