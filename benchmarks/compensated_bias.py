@@ -119,8 +119,8 @@ Variants that change the map rather than amplify a rounding:
 
 Variants that are the fix (A ignored):
 
-- ``turn_exact``: the body's turn adds the increment of the whole q, (q + ql) ⊗ (α, u), to ~eps²
-  (kernels/compensated._turn_whole: the product's rounding error and ql's own turn to the low part);
+- ``turn_exact``: the body's turn adds the increment of the whole q, (q + ql) ⊗ (α, u), with the product's
+  rounding error and ql's own turn passed to the low part (kernels/compensated._turn_whole);
 - ``turn_exact_matched``: that and ``turn_matched``'s shears (kernels/compensated._shear_turn_matched): the
   registered step since 2026-12-07.
 
@@ -466,7 +466,7 @@ def _flow(w, wl, q, ql, h, body, code, amp, dither=0.0):
         dq = (dq[0] + amp * e[0], dq[1] + amp * e[1], dq[2] + amp * e[2], dq[3] + amp * e[3])
     if code == 19:
         q, ql = _add4_amp(q, ql, dq, amp)
-    elif code == 25 or code == 26:  # the increment of the whole q to ~eps² (the kernel since 2026-12-07)
+    elif code == 25 or code == 26:  # the increment of the whole q (the kernel since 2026-12-07)
         q, ql = _turn_whole(q, ql, (alpha, v0, v1, v2))
     else:
         q, ql = _add4(q, ql, dq)

@@ -25,7 +25,8 @@ double kernel did before 2026-12-07 instead, on the double-double state's high a
 and ``application_high_exact``, ``application_whole_rounded``, ``application_whole_exact`` (with
 ``turn_quaternion``) apply the double quaternion as q's high part times it exactly (its rounding error to the
 low part, ql not turned), as the whole q times it rounded (ql ⊗ (α, u) added to the rounded product) and as
-the whole q times it to ~eps² (kernels/compensated._turn_whole, the kernel since 2026-12-07).
+the whole q times it with the product's rounding error and ql's turn passed to the low part
+(kernels/compensated._turn_whole, the kernel since 2026-12-07; the compensated sum's one rounding is left).
 
 Every piece uses the same h = fl(w dt) and ratio fl(I3/I1), so the pieces are parts of one map (with the exact
 product w dt instead, a double piece's h would differ from the others' by the same rounding on every run, a
