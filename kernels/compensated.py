@@ -12,10 +12,11 @@ IAS15, Rein & Spiegel, MNRAS 446 (2015) 1424, §2.3, and WHFast, Rein & Tamayo, 
   computed without cancellation; u = sin(φ/2) n̂) adds the Hamilton product q ⊗ (α, u) to q, so the
   rounding is that of the increment, ~φ/2 times smaller than of q ⊗ dq.  A symmetric body's flow adds
   the increment of the whole q, (q + ql) ⊗ (α, u), the product's rounding error and ql's own turn passed
-  to the low part (``_turn_whole``), and turns ω⊥ by the angle of its turn about e3 to ~eps²
-  (``_shear_turn_matched``): on a top, whose turn constants are the same every step, the rounded product
-  of q's high part and the shears' t = sh/ch drifted the energy linearly, the same way on every run
-  (~5e-19 /s at dt = 5e-4 s on the 50 Hz top; benchmarks/double_double_top.py found which piece);
+  to the low part (``_turn_whole``), and turns ω⊥ by the angle of its turn about e3 as a rotation whose
+  constants and products are exact to ~eps² (``_turn_matched``): on a top, whose turn constants are the same
+  every step, the rounded product of q's high part drifted the energy the same way on every run (~5e-19 /s
+  at dt = 5e-4 s on the 50 Hz top), and the shears' rounded products each run its own way (as much);
+  benchmarks/double_double_top.py found which piece;
 - a turn of L_b in a plane by −φ is three shears (x += t y; y −= s x; x += t y with t = tan(φ/2),
   s = sin φ; Paeth 1986): each shear has determinant 1 whatever its rounded coefficient, where the
   matrix (cos, sin; −sin, cos) of rounded entries scales |L⊥| by a factor that rounds the same way
@@ -196,20 +197,45 @@ def _turn_whole(q, ql, p):
 
 
 @njit(cache=True, error_model="numpy")
-def _shear_turn_matched(x, xl, y, yl, sh, al2, s, c2):
-    """A symmetric body's turn of ω⊥ by the body's own turn about e3, the unit quaternion (1 + α2, sh e3)
-    (α2 = −sh²/(1 + ch)), to ~eps²: the shears' t + tl = sh/(1 + α2) (the tangent of that turn's half angle),
-    s + sl closed to it, and the low parts of ω⊥ sheared too (tl's share of an increment lands in a low
-    part, which the next shear must see).  t = sh/ch alone turns ω⊥ by ~1e-17 rad more or less than the body
-    (t's rounding, and ch² + sh² ≠ 1 in α2), the same on every step of a top (ω3 is conserved): a mismatch
-    of the two turns drifts the energy (benchmarks/compensated_bias.py ``turn_mismatch``)."""
+def _add_pair(hi, lo, d, dl):
+    """(hi, lo) + (d, dl) to ~eps² of the sum: the high parts' two-sum, its error and both low parts added to
+    it.  ``_add`` rounds d + lo first, which loses ~eps of d: an increment's own rounding."""
+    s, e = _add(hi, 0.0, d)
+    return _add(s, 0.0, e + (lo + dl))
+
+
+@njit(cache=True, error_model="numpy")
+def _turn_matched(x, xl, y, yl, sh, al2):
+    """A symmetric body's turn of ω⊥ = (x, y) by −B about e3, B the angle of the body's own turn about e3, the
+    quaternion (1 + α2, sh e3) (α2 = −sh²/(1 + ch)), to ~eps² of ω⊥: x += (co − 1) x + si y and
+    y += (co − 1) y − si x, with T = sh/(1 + α2) = tan(B/2), co − 1 = −2T²/(1 + T²) and si = 2T/(1 + T²) each
+    to ~eps², the products' rounding errors (fma) and the sums' passed to the low parts.  Paeth's three shears
+    with t + tl = T and s closed to it (the registered step earlier on 2026-12-07) were a rotation to ~eps²
+    too, but each shear's rounded product t y, s x lost ~eps of it, and on the top, whose T is the same every
+    step, those losses drifted each run's energy its own way (~5e-19 /s at dt = 5e-4 s, correlated from
+    quarter to quarter of a run; benchmarks/double_double_top.py ``shears_matched`` against
+    ``turn_matched``)."""
     dh, dl = _add(1.0, 0.0, al2)  # 1 + α2 = dh + dl exactly
     t = sh / dh
-    tl = (_fma(-t, dh, sh) - t * dl) / dh
-    sl = _sin_low(t, s, c2) + tl * 2.0 * (1.0 - t * t) * c2 * c2  # d(2t/(1 + t²))/dt = 2(1 − t²)/(1 + t²)²
-    x, xl = _add(x, xl + (tl * y + t * yl), t * y)
-    y, yl = _add(y, yl - (s + sl) * xl, -(s * x) - sl * x)
-    x, xl = _add(x, xl + (tl * y + t * yl), t * y)
+    tl = (_fma(-t, dh, sh) - t * dl) / dh  # T = t + tl
+    t2, t2e = _two_prod(t, t)
+    t2l = t2e + 2.0 * t * tl  # T² = t2 + t2l
+    nh, nl = _add(1.0, 0.0, t2)
+    nl += t2l  # 1 + T² = nh + nl
+    si = 2.0 * t / nh
+    sil = (_fma(-si, nh, 2.0 * t) + 2.0 * tl - si * nl) / nh  # 2T − si (1 + T²), over 1 + T²
+    ac = -2.0 * t2 / nh
+    acl = -(_fma(ac, nh, 2.0 * t2) + 2.0 * t2l + ac * nl) / nh  # −(2T² + ac (1 + T²)), over 1 + T²
+    p1, e1 = _two_prod(ac, x)
+    p2, e2 = _two_prod(si, y)
+    dx, f = _add(p1, 0.0, p2)
+    dxl = f + e1 + e2 + (acl * x + sil * y) + (ac * xl + si * yl)
+    p1, e1 = _two_prod(ac, y)
+    p2, e2 = _two_prod(si, x)
+    dy, f = _add(p1, 0.0, -p2)
+    dyl = f + e1 - e2 + (acl * y - sil * x) + (ac * yl - si * xl)
+    x, xl = _add_pair(x, xl, dx, dxl)
+    y, yl = _add_pair(y, yl, dy, dyl)
     return x, xl, y, yl
 
 
@@ -260,7 +286,7 @@ def _symmetric_flow(w, wl, q, ql, h, body):
     v2 = sh + u2 + (al1 * sh + al2 * u2)
     q, ql = _turn_whole(q, ql, (alpha, v0, v1, v2))
     q, ql = _normalize(q, ql)
-    x, xl, y, yl = _shear_turn_matched(w[0], wl[0], w[1], wl[1], sh, al2, 2.0 * sh * ch, ch * ch)
+    x, xl, y, yl = _turn_matched(w[0], wl[0], w[1], wl[1], sh, al2)
     return (x, y, w[2]), (xl, yl, wl[2]), q, ql
 
 

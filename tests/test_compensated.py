@@ -130,19 +130,18 @@ def test_the_shears_are_a_rotation_to_eps_squared():
     assert worst_closed < 1e-30 and worst_k_closed < 1e-30, (worst_closed, worst_k_closed)
 
 
-def test_the_symmetric_turn_adds_the_whole_increment_and_the_shears_match_it():
+def test_the_symmetric_turn_adds_the_whole_increment_and_turns_omega_by_the_same_angle():
     """A symmetric body's turn (kernels/compensated._turn_whole) adds (q + ql) ⊗ p with the product's rounding
     error: hi + lo after it is the exact sum to the compensated sum's one rounding (~eps of the increment),
-    where q's high part times p, rounded, misses ql ⊗ p and the product's rounding; and the shears
-    (_shear_turn_matched) turn ω⊥ by the angle of the body's turn about e3, (1 + α2, sh e3) (their tangent
-    t + tl to ~eps², the result to the increments' own rounding), where t = sh/ch alone is another angle by
-    ~eps.  Checked in exact rationals on random turns."""
+    where q's high part times p, rounded, misses ql ⊗ p and the product's rounding; and _turn_matched turns
+    ω⊥ + its low part by the angle of the body's turn about e3, (1 + α2, sh e3), to ~eps² of ω⊥, where
+    t = sh/ch alone is another angle by ~eps.  Checked in exact rationals on random turns."""
     from fractions import Fraction
 
     from gyrolab.kernels.compensated import (
         _add4,
         _minus_one,
-        _shear_turn_matched,
+        _turn_matched,
         _turn_whole,
         quat_mul_low,
     )
@@ -187,13 +186,16 @@ def test_the_symmetric_turn_adds_the_whole_increment_and_the_shears_match_it():
         al2 = _minus_one(ch, 0.0, 0.0, sh)
         tangent = Fraction(sh) / (1 + Fraction(al2))  # tan of half the body's turn about e3
         x, y = rng.standard_normal(2)
-        xs, xl, ys, yl = _shear_turn_matched(x, 0.0, y, 0.0, sh, al2, 2.0 * sh * ch, ch * ch)
-        # the exact turn of (x, y) by −2 atan(tangent): cos and sin of it from the tangent, rationally
+        xl, yl = rng.uniform(-0.5, 0.5, 2) * np.spacing(np.abs((x, y)))
+        xs, xsl, ys, ysl = _turn_matched(x, xl, y, yl, sh, al2)
+        assert abs(xsl) <= 0.5 * np.spacing(abs(xs)) and abs(ysl) <= 0.5 * np.spacing(abs(ys))
+        # the exact turn of (x + xl, y + yl) by −2 atan(tangent): cos and sin of it from the tangent, rationally
         c2 = 1 / (1 + tangent**2)
         co, si = (1 - tangent**2) * c2, 2 * tangent * c2
-        rx, ry = co * Fraction(x) + si * Fraction(y), co * Fraction(y) - si * Fraction(x)
-        miss = max(abs(float(Fraction(xs) + Fraction(xl) - rx)), abs(float(Fraction(ys) + Fraction(yl) - ry)))
-        worst_matched = max(worst_matched, miss / max(abs(x), abs(y)))
+        x, y = Fraction(x) + Fraction(xl), Fraction(y) + Fraction(yl)
+        rx, ry = co * x + si * y, co * y - si * x
+        miss = max(abs(float(Fraction(xs) + Fraction(xsl) - rx)), abs(float(Fraction(ys) + Fraction(ysl) - ry)))
+        worst_matched = max(worst_matched, miss / float(max(abs(x), abs(y))))
         worst_ratio = max(worst_ratio, abs(float((Fraction(sh) / Fraction(ch)) / tangent - 1)))
-    assert worst_matched < 2 * eps * 0.5  # the increments' own rounding, ~eps of a turn up to 0.8 rad
+    assert worst_matched < 4 * eps**2, worst_matched  # no rounding of eps left, of the constants or the products
     assert 1e-17 < worst_ratio  # t = sh/ch turns by another angle, ~eps of it
