@@ -36,7 +36,7 @@ does.
 ``probe`` finds which rounding it is not.  It runs a copy of the variant's step as it was registered until
 2026-12-07 (kernels/compensated.py: Yoshida's triple jump of kick(h/2), the symmetric body's exact free flow,
 kick(h/2); the body's turn added as q ⊗ (α, u) from q's high part, rounded, and ω⊥ turned by t = sh/ch), with
-one suspected rounding amplified at a time; the variant ``turn_exact_matched`` is the registered step since,
+one suspected rounding amplified at a time; the variant ``turn_exact_rotation`` is the registered step since,
 checked bit for bit against it.  A rounding that
 makes a bias b per step, amplified A times, moves the mean by about A b per step: at 1e6 steps the bias
 itself (~6e-19) is below the walk's spread (~3e-18), amplified 1e3 or more it would stand out.  Every
@@ -121,8 +121,10 @@ Variants that are the fix (A ignored):
 
 - ``turn_exact``: the body's turn adds the increment of the whole q, (q + ql) ⊗ (α, u), with the product's
   rounding error and ql's own turn passed to the low part (kernels/compensated._turn_whole);
-- ``turn_exact_matched``: that and ``turn_matched``'s shears (kernels/compensated._shear_turn_matched): the
-  registered step since 2026-12-07.
+- ``turn_exact_matched``: that and ``turn_matched``'s shears (benchmarks/double_double_top._shear_turn_matched):
+  the registered step earlier on 2026-12-07;
+- ``turn_exact_rotation``: ``turn_exact`` and ω⊥ turned by the same angle as a rotation whose constants and
+  products are exact to ~eps² (kernels/compensated._turn_matched): the registered step since.
 
 ``--variant NAME --amplitude A`` runs that one variant (e.g. ``turn_low_parts`` at A = 1, over 1e8 steps,
 to see whether the bias is left when that rounding is corrected rather than amplified); a negative amplitude
@@ -141,7 +143,7 @@ from numba import njit, prange
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from brouwer import energy_extended, ensemble, run_compensated, up_in_body_extended  # noqa: E402
-from double_double_top import PIECES, dither_number, pieces_mask, run_series  # noqa: E402
+from double_double_top import PIECES, _shear_turn_matched, dither_number, pieces_mask, run_series  # noqa: E402
 
 from gyrolab.kernels.compensated import (  # noqa: E402
     _add,
@@ -151,8 +153,8 @@ from gyrolab.kernels.compensated import (  # noqa: E402
     _minus_one,
     _normalize,
     _shear_turn,
-    _shear_turn_matched,
     _sin_low,
+    _turn_matched,
     _turn_whole,
     _two_prod,
     kick,
@@ -199,8 +201,9 @@ VARIANTS = {
     "dither_spin": (24, (1e-12,)),
     "turn_exact": (25, (1.0,)),
     "turn_exact_matched": (26, (1.0,)),
+    "turn_exact_rotation": (27, (1.0,)),
 }
-NO_IDENTITY = (0, 4, 21, 22, 25, 26)  # the copy itself, and the variants that have no amplitude giving its bits
+NO_IDENTITY = (0, 4, 21, 22, 25, 26, 27)  # the copy itself, and the variants that have no amplitude giving its bits
 W1, W0 = WEIGHTS[0], WEIGHTS[1]
 
 
@@ -466,7 +469,7 @@ def _flow(w, wl, q, ql, h, body, code, amp, dither=0.0):
         dq = (dq[0] + amp * e[0], dq[1] + amp * e[1], dq[2] + amp * e[2], dq[3] + amp * e[3])
     if code == 19:
         q, ql = _add4_amp(q, ql, dq, amp)
-    elif code == 25 or code == 26:  # the increment of the whole q (the kernel since 2026-12-07)
+    elif code == 25 or code == 26 or code == 27:  # the increment of the whole q (the kernel since 2026-12-07)
         q, ql = _turn_whole(q, ql, (alpha, v0, v1, v2))
     else:
         q, ql = _add4(q, ql, dq)
@@ -493,6 +496,8 @@ def _flow(w, wl, q, ql, h, body, code, amp, dither=0.0):
         x, xl, y, yl = _shear_turn(w[0], wl[0], w[1], wl[1], t, 2.0 * t * c2, c2, 1.0, 1.0, 0.0)
     elif code == 21 or code == 26:
         x, xl, y, yl = _shear_turn_matched(w[0], wl[0], w[1], wl[1], sh, al2, sp, ch * ch)
+    elif code == 27:
+        x, xl, y, yl = _turn_matched(w[0], wl[0], w[1], wl[1], sh, al2)
     elif code == 13 or code == 16:
         x, xl, y, yl = _shear_turn_amplified(w[0], wl[0], w[1], wl[1], t, sp, ch * ch, amp)
     elif code == 18:
@@ -575,14 +580,14 @@ def energy_evaluation_error(states, body, w0, q0):
 
 
 def check_copy(body, w0, q0, dt, variants):
-    """Exit with one line unless ``turn_exact_matched`` is the registered lie_poisson4(accumulate=compensated) bit
+    """Exit with one line unless ``turn_exact_rotation`` is the registered lie_poisson4(accumulate=compensated) bit
     for bit over 1000 steps of the first run, and each variant (but those in NO_IDENTITY) at amplitude 0 is the
     copy (the registered map before 2026-12-07)."""
     now = np.empty((1, 14))
-    _run(w0[:1], q0[:1], body, dt, 1000, VARIANTS["turn_exact_matched"][0], 1.0, now)
+    _run(w0[:1], q0[:1], body, dt, 1000, VARIANTS["turn_exact_rotation"][0], 1.0, now)
     registered = run_compensated("lie_poisson4", w0[:1], q0[:1], body, dt, 1000, 2)[0, 1]
     if not np.array_equal(now[0], registered):
-        raise SystemExit(f"turn_exact_matched and lie_poisson4(accumulate=compensated) differ: {now[0]} {registered}")
+        raise SystemExit(f"turn_exact_rotation and lie_poisson4(accumulate=compensated) differ: {now[0]} {registered}")
     check = np.empty((1, 14))
     _run(w0[:1], q0[:1], body, dt, 1000, 0, 0.0, check)
     for name, (code, _) in variants.items():

@@ -18,9 +18,12 @@ double kernel did before 2026-12-07 instead, on the double-double state's high a
   high part times it, rounded (rotation.quat_mul), then compensated._add4;
 - ``projection``: compensated._normalize (|q|² − 1 from q's high part in double);
 - ``shears``: ω⊥ turned by compensated._shear_turn with t = sh/ch of the double half_angle(c h);
-- ``shears_matched``: ω⊥ turned by compensated._shear_turn_matched, the angle of the double constants' turn
-  (the kernel since 2026-12-07, which is ``kicks,projection,turn_quaternion,application_whole_exact,
-  shears_matched``).
+- ``shears_matched``: ω⊥ turned by ``_shear_turn_matched`` below, Paeth's three shears by the angle of the
+  double constants' turn about e3 (the kernel earlier on 2026-12-07:
+  ``kicks,projection,turn_quaternion,application_whole_exact,shears_matched``);
+- ``turn_matched``: ω⊥ turned by compensated._turn_matched, a rotation by that angle with its constants and
+  products exact to ~eps² (the kernel since, ``kicks,projection,turn_quaternion,application_whole_exact,
+  turn_matched``).
 
 and ``application_high_exact``, ``application_whole_rounded``, ``application_whole_exact`` (with
 ``turn_quaternion``) apply the double quaternion as q's high part times it exactly (its rounding error to the
@@ -41,12 +44,14 @@ import numpy as np
 from numba import njit, prange
 
 from gyrolab.kernels.compensated import (
+    _add,
     _add4,
     _fma,
     _minus_one,
     _normalize,
     _shear_turn,
-    _shear_turn_matched,
+    _sin_low,
+    _turn_matched,
     _turn_whole,
     kick,
 )
@@ -65,6 +70,7 @@ PIECES = {
     "application_whole_rounded": 128,
     "application_whole_exact": 256,
     "shears_matched": 512,
+    "turn_matched": 1024,
 }
 
 
@@ -76,6 +82,22 @@ def pieces_mask(names):
             raise SystemExit(f"--double-double: unknown piece {name!r}; one of {', '.join(PIECES)}")
         mask |= PIECES[name]
     return mask
+
+
+@njit(error_model="numpy")
+def _shear_turn_matched(x, xl, y, yl, sh, al2, s, c2):
+    """The symmetric body's turn of ω⊥ in kernels/compensated.py earlier on 2026-12-07, kept to compare: by the
+    angle of the body's turn about e3, (1 + α2, sh e3), as Paeth's three shears with t + tl = sh/(1 + α2) (the
+    tangent of that turn's half angle) and s + sl closed to it, ω⊥'s low parts sheared too: a rotation to ~eps²,
+    but each shear's rounded product t y, s x (and the rounding of it plus the low part) loses ~eps of it."""
+    dh, dl = _add(1.0, 0.0, al2)  # 1 + α2 = dh + dl exactly
+    t = sh / dh
+    tl = (_fma(-t, dh, sh) - t * dl) / dh
+    sl = _sin_low(t, s, c2) + tl * 2.0 * (1.0 - t * t) * c2 * c2  # d(2t/(1 + t²))/dt = 2(1 − t²)/(1 + t²)²
+    x, xl = _add(x, xl + (tl * y + t * yl), t * y)
+    y, yl = _add(y, yl - (s + sl) * xl, -(s * x) - sl * x)
+    x, xl = _add(x, xl + (tl * y + t * yl), t * y)
+    return x, xl, y, yl
 
 
 # --- double-double arithmetic: (hi, lo) with |lo| ≤ ulp(hi)/2 ---
@@ -250,6 +272,10 @@ def _flow(w0, w1, w2, q, h, rate, k, inv, mask):
     if mask & 8:
         t, s2, c2 = sh_d / ch_d, 2.0 * sh_d * ch_d, ch_d * ch_d
         xh, xl, yh, yl = _shear_turn(w0[0], w0[1], w1[0], w1[1], t, s2, c2, 1.0, 1.0, 0.0)
+        w0, w1 = (xh, xl), (yh, yl)
+    elif mask & 1024:
+        al2 = _minus_one(ch_d, 0.0, 0.0, sh_d)
+        xh, xl, yh, yl = _turn_matched(w0[0], w0[1], w1[0], w1[1], sh_d, al2)
         w0, w1 = (xh, xl), (yh, yl)
     elif mask & 512:
         al2 = _minus_one(ch_d, 0.0, 0.0, sh_d)
