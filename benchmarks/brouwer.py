@@ -14,8 +14,8 @@ perturbed by 1e-9 relative, so that each run rounds differently) of
   overwritten by each flow;
 - the same methods with the state compensated (kernels/compensated.py: ω and q kept as a sum hi + lo,
   each flow applied as an increment added error-free, rotations as a product with q in the form
-  1 + (α, u), turns of ω by three shears and the elliptic flow's change of ω from the increments of
-  sn, cn, dn),
+  1 + (α, u), turns of ω by three shears (a symmetric body's by one rotation exact to ~eps²) and the
+  elliptic flow's change of ω from the increments of sn, cn, dn),
 
 on the 50 Hz heavy top (θ0 = 45°, released) and on the tennis-racket box (free_asymmetric, f = 1 Hz,
 spun near its intermediate axis), both at dt = 2.5e-5 s, where the energy oscillation of the

@@ -159,6 +159,7 @@ from gyrolab.kernels.compensated import (  # noqa: E402
     _two_prod,
     kick,
     quat_mul_low,
+    then_e3_turn,
 )
 from gyrolab.kernels.methods.lie_poisson4 import WEIGHTS  # noqa: E402
 from gyrolab.kernels.rigid_body import gravity_torque  # noqa: E402
@@ -449,10 +450,7 @@ def _flow(w, wl, q, ql, h, body, code, amp, dither=0.0):
     al1 = _minus_one(a1, u0, u1, u2)
     ch, sh = half_angle(c * h)
     al2 = _minus_one(ch, 0.0, 0.0, sh)
-    alpha = al1 + al2 + (al1 * al2 - u2 * sh)
-    v0 = u0 + (al2 * u0 + u1 * sh)
-    v1 = u1 + (al2 * u1 - u0 * sh)
-    v2 = sh + u2 + (al1 * sh + al2 * u2)
+    alpha, v0, v1, v2 = then_e3_turn(al1, u0, u1, u2, al2, sh)
     if code == 15 or code == 16:
         # each formula as (a + b) + (c d ± e f); a one-term first sum (v0, v1) adds 0.0, the same bits
         alpha, ea = _sum_error(al1, al2, al1, al2, -1.0, u2, sh)

@@ -54,6 +54,7 @@ from gyrolab.kernels.compensated import (
     _turn_matched,
     _turn_whole,
     kick,
+    then_e3_turn,
 )
 from gyrolab.kernels.methods.lie_poisson4 import WEIGHTS
 from gyrolab.kernels.rotation import half_angle, quat_from_rotvec, quat_mul
@@ -229,12 +230,8 @@ def _flow(w0, w1, w2, q, h, rate, k, inv, mask):
         a1, u0, u1, u2 = quat_from_rotvec(w0[0] * h[0], w1[0] * h[0], k * w2[0] * h[0])
         al1 = _minus_one(a1, u0, u1, u2)
         al2 = _minus_one(ch_d, 0.0, 0.0, sh_d)
-        p = (
-            (al1 + al2 + (al1 * al2 - u2 * sh_d), 0.0),
-            (u0 + (al2 * u0 + u1 * sh_d), 0.0),
-            (u1 + (al2 * u1 - u0 * sh_d), 0.0),
-            (sh_d + u2 + (al1 * sh_d + al2 * u2), 0.0),
-        )
+        pa, pb, pc, pd = then_e3_turn(al1, u0, u1, u2, al2, sh_d)
+        p = ((pa, 0.0), (pb, 0.0), (pc, 0.0), (pd, 0.0))
     else:
         v0, v1, v2 = mul(w0, h), mul(w1, h), mul_double(mul(w2, h), k)
         a1, s = cos_sinc(mul_double(add(add(mul(v0, v0), mul(v1, v1)), mul(v2, v2)), 0.25), inv)

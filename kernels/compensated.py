@@ -215,17 +215,21 @@ def _turn_matched(x, xl, y, yl, sh, al2):
     step, those losses drifted each run's energy its own way (~5e-19 /s at dt = 5e-4 s, correlated from
     quarter to quarter of a run; benchmarks/double_double_top.py ``shears_matched`` against
     ``turn_matched``)."""
+    # each quotient from a reciprocal, within an ulp or two; its residual (exact by the fma) over the
+    # denominator is its low part, so that the pair is the quotient to ~eps² whatever the rounding of the first
     dh, dl = _add(1.0, 0.0, al2)  # 1 + α2 = dh + dl exactly
-    t = sh / dh
-    tl = (_fma(-t, dh, sh) - t * dl) / dh  # T = t + tl
+    rd = 1.0 / dh
+    t = sh * rd
+    tl = (_fma(-t, dh, sh) - t * dl) * rd  # T = t + tl
     t2, t2e = _two_prod(t, t)
     t2l = t2e + 2.0 * t * tl  # T² = t2 + t2l
     nh, nl = _add(1.0, 0.0, t2)
     nl += t2l  # 1 + T² = nh + nl
-    si = 2.0 * t / nh
-    sil = (_fma(-si, nh, 2.0 * t) + 2.0 * tl - si * nl) / nh  # 2T − si (1 + T²), over 1 + T²
-    ac = -2.0 * t2 / nh
-    acl = -(_fma(ac, nh, 2.0 * t2) + 2.0 * t2l + ac * nl) / nh  # −(2T² + ac (1 + T²)), over 1 + T²
+    rn = 1.0 / nh
+    si = 2.0 * t * rn
+    sil = (_fma(-si, nh, 2.0 * t) + 2.0 * tl - si * nl) * rn  # 2T − si (1 + T²), over 1 + T²
+    ac = -2.0 * t2 * rn
+    acl = -(_fma(ac, nh, 2.0 * t2) + 2.0 * t2l + ac * nl) * rn  # −(2T² + ac (1 + T²)), over 1 + T²
     p1, e1 = _two_prod(ac, x)
     p2, e2 = _two_prod(si, y)
     dx, f = _add(p1, 0.0, p2)
@@ -270,6 +274,20 @@ def _axis_turn(w, wl, q, ql, axis, h, ratios):
 
 
 @njit(cache=True, error_model="numpy")
+def then_e3_turn(al1, u0, u1, u2, al2, sh):
+    """(α, v) of the turn (1 + α1, u) followed by the turn (1 + α2, sh e3) about the body's e3, the product
+    (1 + α1, u) ⊗ (1 + α2, sh e3) = 1 + (α, v) with α = α1 + α2 + α1 α2 − u3 sh and
+    v = u + sh e3 + α1 sh e3 + α2 u + u × sh e3, formed without cancellation (α1, α2 = cos − 1 as
+    ``_minus_one`` gives them).  A symmetric body's two turns in one increment (``_symmetric_flow``, and the
+    copies of it in benchmarks/compensated_bias.py and benchmarks/double_double_top.py)."""
+    alpha = al1 + al2 + (al1 * al2 - u2 * sh)
+    v0 = u0 + (al2 * u0 + u1 * sh)
+    v1 = u1 + (al2 * u1 - u0 * sh)
+    v2 = sh + u2 + (al1 * sh + al2 * u2)
+    return alpha, v0, v1, v2
+
+
+@njit(cache=True, error_model="numpy")
 def _symmetric_flow(w, wl, q, ql, h, body):
     """The exact torque-free flow of a body with I1 = I2 (kernels/free_flow.free_flow's), compensated:
     R(h) = R0 Rot(ω⊥ h + (I3/I1) ω3 h e3) Rot(c h e3), L_b turned by −c h about e3, c = (1 − I3/I1) ω3."""
@@ -279,12 +297,7 @@ def _symmetric_flow(w, wl, q, ql, h, body):
     al1 = _minus_one(a1, u0, u1, u2)
     ch, sh = half_angle(c * h)
     al2 = _minus_one(ch, 0.0, 0.0, sh)
-    # (1 + α1, u) ⊗ (1 + α2, sh e3) = 1 + (α1 + α2 + α1 α2 − u3 sh, u + sh e3 + α1 sh e3 + α2 u + u × sh e3)
-    alpha = al1 + al2 + (al1 * al2 - u2 * sh)
-    v0 = u0 + (al2 * u0 + u1 * sh)
-    v1 = u1 + (al2 * u1 - u0 * sh)
-    v2 = sh + u2 + (al1 * sh + al2 * u2)
-    q, ql = _turn_whole(q, ql, (alpha, v0, v1, v2))
+    q, ql = _turn_whole(q, ql, then_e3_turn(al1, u0, u1, u2, al2, sh))
     q, ql = _normalize(q, ql)
     x, xl, y, yl = _turn_matched(w[0], wl[0], w[1], wl[1], sh, al2)
     return (x, y, w[2]), (xl, yl, wl[2]), q, ql
