@@ -2,6 +2,9 @@
 
     python benchmarks/brouwer.py [--steps 1e8] [--runs 16] [--seed 1] [--figure docs/brouwer.png]
     python benchmarks/brouwer.py --forms plain    # the plain runs only: minutes, not the better part of an hour
+    python benchmarks/brouwer.py --scenes heavy_top --methods split6_exact --forms compensated --runs 32 --seed 2 \
+        --save runs/                              # each ensemble's errors to runs/<scene>_<method>_<form>_seed2.npz
+    python benchmarks/brouwer.py --combine runs/heavy_top_split6_exact_compensated_seed*.npz   # one fit of them all
 
 Round-off in a symplectic integrator whose truncation error is below rounding grows as a random walk,
 |ΔE| ∝ √t (Brouwer 1937), when every rounding is unbiased; a rounding that goes the same way step
@@ -33,10 +36,17 @@ slope, the RMS at the end and the CPU time per step (wall × threads / steps; bo
 one-by-one path), and draws the RMS curves.  On the racket split6_exact has no kicks: its step is seven
 exact elliptic free flows, compensated as the increments of ω they make (kernels/euler_poinsot.py
 ``free_flow_increment``).
+
+An ensemble of a few dozen runs leaves the slope uncertain by ~0.1 and takes the better part of an hour;
+``--save DIR`` keeps each ensemble's per-run errors (|E/E0 − 1| at every sample, the sample times, the
+scene, method, form, dt, steps and seed), and ``--combine FILE ...`` fits the union of ensembles saved with
+different seeds (the same scene, method, form, dt and steps) without running anything: ensembles grow across
+sessions.  Two files of one seed share their first runs (the seed's draws in order), so the union refuses them.
 """
 
 import argparse
 import time
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -46,6 +56,7 @@ from gyrolab.kernels.batch import integrate
 from gyrolab.kernels.driver import ENERGY, FIELDS
 from gyrolab.kernels.registry import get_method
 from gyrolab.kernels.scenes import build_scene
+from gyrolab.safe_files import atomic_write
 
 SCENES = {  # scene: (f Hz, θ0 deg, dt s)
     "heavy_top": (50.0, 45.0, 2.5e-5),
@@ -173,7 +184,16 @@ def main(argv=None):
     ap.add_argument(
         "--forms", default="plain,compensated", help="plain and/or compensated (default both; plain alone is minutes)"
     )
+    ap.add_argument("--save", default=None, help="directory for each ensemble's per-run errors (.npz)")
+    ap.add_argument("--combine", nargs="+", default=None, help="fit the union of ensembles saved by --save; no runs")
     args = ap.parse_args(argv)
+    if args.figure and not args.figure.endswith(".png"):
+        ap.error("--figure: a .png path")
+    if args.combine:
+        curve, args.dt = combine(args.combine, np.random.default_rng(args.seed), args.verbose)
+        if args.figure:
+            _figure([curve], args)
+        return
     if min(args.runs, args.plain_runs) < 2 or args.samples < 10 or args.steps < args.samples:
         ap.error("--runs and --plain-runs take at least 2 runs, --samples at least 10, --steps at least --samples")
     for given, known in ((args.scenes, SCENES), (args.methods, METHODS)):
@@ -183,8 +203,6 @@ def main(argv=None):
     forms = args.forms.split(",")
     if not forms or any(f not in ("plain", "compensated") for f in forms):
         ap.error(f"--forms {args.forms!r}: plain and/or compensated, comma-separated")
-    if args.figure and not args.figure.endswith(".png"):
-        ap.error("--figure: a .png path")
     n = args.samples + 1
     stride = max(1, round(args.steps / args.samples))
     rng = np.random.default_rng(args.seed)
@@ -219,19 +237,67 @@ def main(argv=None):
                     E = energy_extended(w, q, body)
                 wall = time.perf_counter() - t0
                 e = np.asarray(E[:, 1:] / E[:, :1] - 1, dtype=np.float64)
-                s, (a, b) = rms_slope(t[1:], e, rng)
-                rms = np.sqrt(np.mean(e**2, axis=0))
                 cost = wall * 1e9 * min(numba.get_num_threads(), runs) / (runs * steps)
-                fit = f"{s:6.3f} [{a:6.3f}, {b:6.3f}]"
-                # a rounding bias moves every run the same way: the mean over the runs, against its standard error
-                mean = f"{e[:, -1].mean():10.2e} ± {e[:, -1].std(ddof=1) / np.sqrt(runs):8.1e}"
-                print(f"{scene:<16} {method:<13} {form:<12} {runs:4d} {fit} {rms[-1]:11.3e} {mean} {cost:11.1f}")
-                if args.verbose:
-                    marks = np.unique(np.geomspace(1, rms.size, 9).astype(int)) - 1
-                    print("    RMS at t =", ", ".join(f"{t[1 + m]:.3g} s: {rms[m]:.2e}" for m in marks))
-                curves.append((scene, method, form, t[1:], rms, s))
+                curves.append(report(scene, method, form, t[1:], e, rng, args.verbose, cost))
+                if args.save:
+                    key = {"scene": scene, "method": method, "form": form, "dt": dt, "steps": steps}
+                    save_ensemble(Path(args.save), key, args.seed, t[1:], e)
     if args.figure:
         _figure(curves, args)
+
+
+def report(scene, method, form, t, e, rng, verbose=False, cost=None):
+    """Print the ensemble's row (slope and its 95 % interval, RMS and mean ± s.e. at the end, CPU ns per
+    step) and, ``verbose``, its RMS curve at nine times; return the figure's curve."""
+    runs = e.shape[0]
+    s, (a, b) = rms_slope(t, e, rng)
+    rms = np.sqrt(np.mean(e**2, axis=0))
+    fit = f"{s:6.3f} [{a:6.3f}, {b:6.3f}]"
+    # a rounding bias moves every run the same way: the mean over the runs, against its standard error
+    mean = f"{e[:, -1].mean():10.2e} ± {e[:, -1].std(ddof=1) / np.sqrt(runs):8.1e}"
+    cost = "—" if cost is None else f"{cost:.1f}"  # a union of saved ensembles ran nothing here
+    print(f"{scene:<16} {method:<13} {form:<12} {runs:4d} {fit} {rms[-1]:11.3e} {mean} {cost:>11}", flush=True)
+    if verbose:
+        marks = np.unique(np.geomspace(1, rms.size, 9).astype(int)) - 1
+        print("    RMS at t =", ", ".join(f"{t[m]:.3g} s: {rms[m]:.2e}" for m in marks))
+    return scene, method, form, t, rms, s
+
+
+ENSEMBLE_KEY = ("scene", "method", "form", "dt", "steps")  # what ensembles must share to be fitted as one
+
+
+def save_ensemble(where, key, seed, t, e):
+    """Write one ensemble's errors e (runs, samples) at times t (s) to where/<scene>_<method>_<form>_seed<seed>.npz,
+    whole or not at all (gyrolab.safe_files)."""
+    where.mkdir(parents=True, exist_ok=True)
+    path = where / f"{key['scene']}_{key['method']}_{key['form']}_seed{seed}.npz"
+    atomic_write(path, lambda fh: np.savez(fh, t=t, e=e, seed=seed, **key))
+    print(f"    saved {e.shape[0]} runs to {path}")
+
+
+def combine(paths, rng, verbose):
+    """Fit the union of saved ensembles (``--save``): one row, as a run of all their runs would print it.  Returns
+    the figure's curve and the ensembles' dt (s)."""
+    key, seeds, t, errors = None, [], None, []
+    for path in paths:
+        try:
+            with np.load(path) as f:
+                this = {k: f[k].item() for k in ENSEMBLE_KEY}
+                seed, tt, e = int(f["seed"]), f["t"], f["e"]
+        except (OSError, KeyError, ValueError) as err:
+            raise SystemExit(f"brouwer: {path}: not an ensemble saved by --save ({err})") from None
+        if key is None:
+            key, t = this, tt
+        elif this != key or not np.array_equal(tt, t):
+            raise SystemExit(f"brouwer: {path}: {this} is not the ensemble of {paths[0]}: {key}")
+        if seed in seeds:
+            raise SystemExit(f"brouwer: {path}: seed {seed} twice; its runs would count twice")
+        seeds.append(seed)
+        errors.append(e)
+    e = np.concatenate(errors)
+    seeds = ", ".join(map(str, seeds))
+    print(f"{e.shape[0]} runs of seeds {seeds}, {key['steps']:.3g} steps each at dt = {key['dt']:g} s")
+    return report(key["scene"], key["method"], key["form"], t, e, rng, verbose), key["dt"]
 
 
 def _figure(curves, args):
