@@ -41,10 +41,12 @@ An ensemble of a few dozen runs leaves the slope uncertain by ~0.1 and takes the
 ``--save DIR`` keeps each ensemble's per-run errors (|E/E0 − 1| at every sample, the sample times, the
 scene, method, form, dt, steps and seed), and ``--combine FILE ...`` fits the union of ensembles saved with
 different seeds (the same scene, method, form, dt and steps) without running anything: ensembles grow across
-sessions.  Two files of one seed share their first runs (the seed's draws in order), so the union refuses them.
+sessions.  Two files of one seed share their first runs (the seed's draws in order), so the union refuses them,
+and ``--save`` refuses to replace a saved ensemble (before it runs anything).
 """
 
 import argparse
+import itertools
 import time
 from pathlib import Path
 
@@ -203,6 +205,15 @@ def main(argv=None):
     forms = args.forms.split(",")
     if not forms or any(f not in ("plain", "compensated") for f in forms):
         ap.error(f"--forms {args.forms!r}: plain and/or compensated, comma-separated")
+    if args.save:  # before an hour of runs: a directory we can write and no ensemble of this seed to replace
+        where = Path(args.save)
+        try:
+            where.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            ap.error(f"--save {args.save}: {err.strerror}")
+        for scene, method, form in itertools.product(args.scenes.split(","), args.methods.split(","), forms):
+            if ensemble_path(where, scene, method, form, args.seed).exists():
+                ap.error(f"--save: {ensemble_path(where, scene, method, form, args.seed)} exists: another --seed")
     n = args.samples + 1
     stride = max(1, round(args.steps / args.samples))
     rng = np.random.default_rng(args.seed)
@@ -266,11 +277,14 @@ def report(scene, method, form, t, e, rng, verbose=False, cost=None):
 ENSEMBLE_KEY = ("scene", "method", "form", "dt", "steps")  # what ensembles must share to be fitted as one
 
 
+def ensemble_path(where, scene, method, form, seed):
+    return where / f"{scene}_{method}_{form}_seed{seed}.npz"
+
+
 def save_ensemble(where, key, seed, t, e):
-    """Write one ensemble's errors e (runs, samples) at times t (s) to where/<scene>_<method>_<form>_seed<seed>.npz,
-    whole or not at all (gyrolab.safe_files)."""
-    where.mkdir(parents=True, exist_ok=True)
-    path = where / f"{key['scene']}_{key['method']}_{key['form']}_seed{seed}.npz"
+    """Write one ensemble's errors e (runs, samples) at times t (s) to ``ensemble_path``, whole or not at all
+    (gyrolab.safe_files)."""
+    path = ensemble_path(where, key["scene"], key["method"], key["form"], seed)
     atomic_write(path, lambda fh: np.savez(fh, t=t, e=e, seed=seed, **key))
     print(f"    saved {e.shape[0]} runs to {path}")
 
