@@ -225,14 +225,18 @@ def relative_error(values, reference=None):
     """|x(t) − x0| / |x0| along the last axis (x0 = first sample unless given).
 
     When |x0| is tiny next to the run's scale (e.g. L_z ≈ 0), the run's
-    largest |x| is the denominator instead, so the ratio stays meaningful.
+    largest |x| is the denominator instead, so the ratio stays meaningful;
+    a quantity that is 0 at every sample has error 0.
     """
     values = np.asarray(values, dtype=float)
     x0 = values[..., :1] if reference is None else np.asarray(reference, dtype=float)[..., None]
     scale = np.abs(x0)
     big = np.nanmax(np.abs(values), axis=-1, keepdims=True)
     scale = np.where(scale > 1e-9 * big, scale, big)
-    return np.abs(values - x0) / scale
+    diff = np.abs(values - x0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # scale is 0 only for a quantity that is exactly 0 throughout (L_z of a top released from rest): error 0
+        return np.where(scale == 0, 0.0, diff / scale)
 
 
 def invariant_error(run, name):
@@ -249,7 +253,8 @@ def error_series(values):
     values = np.asarray(values, dtype=float)
     if values.ndim == 2:  # (time, xyz): the distance from the initial vector over its length
         scale = np.linalg.norm(values[0]) or np.nanmax(np.linalg.norm(values, axis=-1))
-        return np.linalg.norm(values - values[:1], axis=-1) / scale
+        diff = np.linalg.norm(values - values[:1], axis=-1)
+        return np.zeros_like(diff) if scale == 0 else diff / scale  # a vector that is 0 throughout: error 0
     return relative_error(values)
 
 

@@ -1,6 +1,7 @@
 """Analysis figures: content checks (lines per method, units, log scales, reference lines), CLI behaviour."""
 
 import math
+import warnings
 
 import matplotlib
 import matplotlib.pyplot as plt
@@ -12,7 +13,7 @@ from gyrolab.analysis.figures.energy import drift_figure, drift_table, invariant
 from gyrolab.analysis.figures.nutation import closed_form_nutation, theta_figure, tip_locus_figure
 from gyrolab.analysis.figures.record import choose, facet, limit
 from gyrolab.analysis.figures.registry import standard_figures
-from gyrolab.analysis.io import METHOD_COLORS, SelectionError, parse_selection, select
+from gyrolab.analysis.io import METHOD_COLORS, SelectionError, parse_selection, relative_error, select
 from gyrolab.kernels.closed_form import heavy_top_nutation
 from gyrolab.kernels.scenes import build_scene
 from gyrolab.results import open_results
@@ -118,6 +119,15 @@ def test_invariants_figure_drops_exact_rows_and_says_so(results_file):
     assert all(ax.get_yscale() == "log" for ax in axes.ravel())
     assert "E" in axes[0, 0].get_ylabel() and "L_z" in axes[1, 0].get_ylabel()
     assert any("L_3: kept exactly (error 0) by every run drawn" in n for n in fig.gyrolab_notes)
+
+
+def test_relative_error_of_a_quantity_zero_throughout_is_zero_without_a_warning():
+    # L_z and L_3 of a top released from rest (f = 0) are 0 at every sample: 0/0 was NaN and a RuntimeWarning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert np.array_equal(relative_error(np.zeros((2, 5))), np.zeros((2, 5)))
+        assert relative_error(np.array([0.0, 1e-3, -2e-3]))[2] == pytest.approx(1.0)  # scaled by max |x|
+    assert np.isnan(relative_error(np.array([1.0, np.nan]))[1])  # a diverged sample stays NaN
 
 
 def test_a_run_that_stopped_at_its_first_step_is_not_called_exact(results_file):

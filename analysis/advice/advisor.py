@@ -130,15 +130,15 @@ def check_inputs(inertia, omega0, mgc, T, dt_bounds, budget, metric, tol, method
 
     I = np.asarray(inertia, float)
     if I.shape != (3,) or not np.all(np.isfinite(I)) or np.any(I <= 0):
-        raise AdviceError(f"inertia={list(np.ravel(inertia))}: three finite moments > 0 (kg m^2)")
+        raise AdviceError(f"inertia={np.ravel(inertia).tolist()}: three finite moments > 0 (kg m^2)")
     if np.any(2 * I > I.sum() * (1 + 1e-12)):  # I_i <= I_j + I_k
-        raise AdviceError(f"inertia={list(I)}: violates the triangle inequality (no rigid body has these moments)")
+        raise AdviceError(f"inertia={I.tolist()}: violates the triangle inequality (no rigid body has these moments)")
     w = np.asarray(omega0, float)
     if w.shape != (3,) or not np.all(np.isfinite(w)) or not np.any(w):
-        raise AdviceError(f"omega={list(np.ravel(omega0))}: three finite body rates, not all zero (rad/s)")
+        raise AdviceError(f"omega={np.ravel(omega0).tolist()}: three finite body rates, not all zero (rad/s)")
     c = np.asarray(mgc, float)
     if c.shape != (3,) or not np.all(np.isfinite(c)):
-        raise AdviceError(f"mgc={list(np.ravel(mgc))}: three finite values (N m)")
+        raise AdviceError(f"mgc={np.ravel(mgc).tolist()}: three finite values (N m)")
     if not (math.isfinite(T) and T > 0):
         raise AdviceError(f"T={T}: the horizon must be finite and > 0 s")
     if budget is not None:
@@ -147,7 +147,8 @@ def check_inputs(inertia, omega0, mgc, T, dt_bounds, budget, metric, tol, method
     else:
         lo, hi = dt_bounds
         if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo <= hi):
-            raise AdviceError(f"dt={dt_bounds}: need 0 < lo <= hi, finite (s)")
+            given = f"dt={lo}" if lo == hi else f"dt-range=({lo}, {hi})"
+            raise AdviceError(f"{given}: need 0 < lo <= hi, finite (s)")
         if hi > T:
             raise AdviceError(f"dt={hi}: larger than the horizon T={T} s")
     if metric not in E.METRICS:

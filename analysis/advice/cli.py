@@ -250,7 +250,7 @@ def main(argv=None):
         if last[0]:
             print(file=sys.stderr)
     except (AdviceError, UnsafePathError) as err:
-        print(f"error: {err}", file=sys.stderr)
+        print(f"gyrolab-advise: error: {err}", file=sys.stderr)
         return 2
     print("\n".join(table(a)))
     if args.json:
