@@ -1,5 +1,7 @@
 """Study figures (stability map, seed figures, work-precision, animation) on small simulate-built files."""
 
+import warnings
+
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
@@ -65,6 +67,19 @@ def test_stability_map_cells_and_diverged_marks(tmp_path):
         "energy_drift.png",
         "invariants.png",
     ]
+
+
+def test_stability_map_with_a_top_that_does_not_spin_puts_f_on_a_linear_axis(tmp_path):
+    # f = 0 (a top released from rest) has no place on a log axis: matplotlib warned and dropped the limits
+    path = tmp_path / "f0.h5"
+    build_dataset(path, {"integrator": ["rk4"], "f": [0.0, 5.0], "dt": [1e-3, 2e-3]}, t_end=0.2, every=1e-2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fig = stability_figure(open_results(path))
+    ax = fig.axes[0]
+    assert ax.get_xscale() == "log" and ax.get_yscale() == "linear"
+    assert ax.get_ylim() == pytest.approx((-2.5, 7.5))  # cells centred on f = 0 and 5 Hz
+    assert np.all(np.isfinite(np.asarray(ax.collections[0].get_array())))
 
 
 @pytest.fixture(scope="module")

@@ -30,9 +30,15 @@ from .record import add_note, facet, panel_size, suptitle, wrap_note
 VMIN, VMAX = -16.0, 1.0
 
 
-def _edges(values):
-    """Cell edges on a log axis around sorted positive ``values`` (geometric midpoints)."""
+def _edges(values, log=True):
+    """Cell edges around sorted ``values``: on a log axis (positive values) the geometric midpoints, on a
+    linear one (``log=False``: a spin f = 0 among the rows) the arithmetic ones."""
     v = np.sort(np.asarray(values, dtype=float))
+    if not log:
+        if v.size == 1:
+            return np.array([v[0] - 0.5, v[0] + 0.5])
+        mids = 0.5 * (v[1:] + v[:-1])
+        return np.concatenate(([2 * v[0] - mids[0]], mids, [2 * v[-1] - mids[-1]]))
     if v.size == 1:
         return np.array([v[0] / 1.6, v[0] * 1.6])
     mids = np.sqrt(v[1:] * v[:-1])
@@ -73,9 +79,10 @@ def _panel(ax, sub, method, theta0, measure="energy"):
     logerr = _logerr(run, theta0, measure, sub)
     status = run.status.transpose("f", "dt").values
     f, dt = run.f.values, run.dt.values
+    f_log = bool(np.all(f > 0))  # a non-spinning row (f = 0) puts the spins on a linear axis
     cmap = plt.get_cmap("viridis").with_extremes(bad="0.8")  # diverged cells: grey, no colour of the scale
     shown = np.ma.masked_where((status != 0) | ~np.isfinite(logerr), logerr)
-    mesh = ax.pcolormesh(_edges(dt), _edges(f), shown, cmap=cmap, vmin=VMIN, vmax=VMAX, shading="flat")
+    mesh = ax.pcolormesh(_edges(dt), _edges(f, f_log), shown, cmap=cmap, vmin=VMIN, vmax=VMAX, shading="flat")
     for i, fv in enumerate(f):
         for j, dv in enumerate(dt):
             if status[i, j] == STATUS_UNCONVERGED:  # the implicit solver gave up: a ring, not a cross
@@ -94,13 +101,13 @@ def _panel(ax, sub, method, theta0, measure="energy"):
                 )
     bad = np.argwhere(status != 0)
     for i, j in bad:
-        xe, ye = _edges(dt), _edges(f)
+        xe, ye = _edges(dt), _edges(f, f_log)
         ax.fill_between([xe[j], xe[j + 1]], ye[i], ye[i + 1], facecolor="none", edgecolor="red", hatch="///", lw=0)
     ax.set_xscale("log")
-    ax.set_yscale("log")
+    ax.set_yscale("log" if f_log else "linear")
     for axis in (ax.xaxis, ax.yaxis):  # decade labels only: minor labels (2×10^-4, ...) collide
         axis.set_minor_formatter(NullFormatter())
-    xe, ye = _edges(dt), _edges(f)
+    xe, ye = _edges(dt), _edges(f, f_log)
     grid_dt = np.geomspace(xe[0], xe[-1], 50)
     for w in (0.01, 0.1, 1.0):
         ax.plot(grid_dt, w / (2 * math.pi * grid_dt), ":", color="white", lw=1.0)
