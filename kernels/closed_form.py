@@ -155,8 +155,21 @@ def heavy_top_nutation(scene):
     theta_min, theta_max (rad): the turning points of θ; period (s): time from
     one θ minimum to the next; precession_rate (rad/s): the azimuth gained per
     nutation period divided by the period, i.e. the long-run mean φ̇.
+
+    A top that starts on the vertical (u0 = cos θ0 = ±1) spinning about its axis alone stays there: θ_min =
+    θ_max = θ0 and the precession rate is NaN (no azimuth on the vertical).  There α = β u0, b = a u0 and
+    f(u) = (u − u0)² (β (u0 + u) − a²): small tilts nutate with the period 2π / √(a² − 2β u0) where that is
+    real (always hanging; standing up, Maxwell's criterion I3² ω3² > 4 I1 M g l of the sleeping top), and
+    the period is NaN where the vertical is unstable (the cubic's motion away from it is the Euler angles'
+    singularity, not the top's).
     """
     alpha, beta, a, b = _cubic(scene)
+    u0 = float(scene_rotation(scene).as_matrix()[2, 2])
+    if abs(u0) == 1.0 and b == a * u0:
+        theta0 = 0.0 if u0 > 0 else math.pi
+        rate2 = a * a - 2.0 * beta * u0  # the squared angular frequency of small nutations about the vertical
+        period = 2.0 * math.pi / math.sqrt(rate2) if rate2 > 0 else math.nan
+        return Nutation(theta_min=theta0, theta_max=theta0, period=period, precession_rate=math.nan)
     u1, u2, u3 = nutation_roots(scene)
     m = (u2 - u1) / (u3 - u1)
     period = 4.0 * ellipk(m) / math.sqrt(beta * (u3 - u1))
@@ -164,7 +177,8 @@ def heavy_top_nutation(scene):
     # u = u1 + (u2 − u1) sin² s turns du/√f into 2 ds / √(β (u3 − u)): smooth on [0, π/2].
     def phidot_weight(s):
         u = u1 + (u2 - u1) * math.sin(s) ** 2
-        return (b - a * u) / (1.0 - u * u) * 2.0 / math.sqrt(beta * (u3 - u))
+        lz_off = b - a * u  # 0 throughout for a top without spin (a = b = 0), also where u rounds to ±1: not 0/0
+        return 0.0 if lz_off == 0.0 else lz_off / (1.0 - u * u) * 2.0 / math.sqrt(beta * (u3 - u))
 
     # full_output: near u = 1 rounding in b − au caps the accuracy (quad would warn).
     half = quad(phidot_weight, 0.0, 0.5 * math.pi, epsabs=0.0, epsrel=1e-13, limit=200, full_output=1)[0]

@@ -152,6 +152,30 @@ def test_steady_init_is_a_double_root(f, init):
     assert nut.precession_rate == pytest.approx(sc.omega0[1] / math.sin(math.pi / 4), rel=1e-12)
 
 
+@pytest.mark.parametrize(
+    "f, theta0", [(50.0, 0.0), (27.0, 0.0), (26.0, 0.0), (1.0, 0.0), (0.0, 0.0), (50.0, 180.0), (0.0, 180.0)]
+)
+def test_a_top_started_on_the_vertical_stays_there(f, theta0):
+    """θ0 = 0° or 180° with the spin about the axis: θ stays θ0 (no 0/0 on the pole, no 'no nutation interval'),
+    no azimuth (precession NaN); the period of small nutations where the vertical is stable, by Maxwell's
+    criterion I3² ω3² > 4 I1 M g l standing up (f > 26.25 Hz for this top) and always hanging, which is the
+    limit of the period of tops released a hair off the vertical."""
+    import warnings
+
+    sc = build_scene("heavy_top", f, theta0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        nut = heavy_top_nutation(sc)
+    assert nut.theta_min == nut.theta_max == math.radians(theta0)
+    assert math.isnan(nut.precession_rate)
+    I1, _, I3, mgl = sc.body[:4]
+    stable = theta0 == 180.0 or (I3 * sc.omega0[2]) ** 2 > 4 * I1 * mgl
+    assert math.isfinite(nut.period) == stable
+    if stable:
+        near = heavy_top_nutation(build_scene("heavy_top", f, abs(theta0 - 1e-4)))  # off by O(tilt²)
+        assert nut.period == pytest.approx(near.period, rel=1e-9)
+
+
 # ---------------------------------------------------------------- measured nutation
 
 

@@ -95,9 +95,8 @@ def _theta_panel(ax, sub, f, th, lo, hi, exact_t, exact_theta, nut, flips, metho
 
 def _yardstick_text(sub, f, th, nut, period):
     if nut is not None:
-        return (
-            f"closed form θ ∈ [{math.degrees(nut.theta_min):.2f}°, {math.degrees(nut.theta_max):.2f}°], "
-            f"T = {nut.period * 1e3:.1f} ms"
+        return f"closed form θ ∈ [{math.degrees(nut.theta_min):.2f}°, {math.degrees(nut.theta_max):.2f}°], " + (
+            f"T = {nut.period * 1e3:.1f} ms" if math.isfinite(nut.period) else "no period (an unstable vertical)"
         )
     if period is not None:
         return f"exact; {period.label.split(' 2')[0]} {period.seconds:.3g} s"

@@ -55,7 +55,8 @@ def nutation_caption(path):
         out = "" if th is None else (f"; seed_prev spans {np.nanmin(th):.1f}°–{np.nanmax(th):.1f}° over the run")
         parts.append(
             f"f = {f:g} Hz: θ ∈ [{math.degrees(nut.theta_min):.2f}°, {math.degrees(nut.theta_max):.2f}°], "
-            f"nutation period {nut.period * 1e3:.1f} ms{out}"
+            + (f"nutation period {nut.period * 1e3:.1f} ms" if math.isfinite(nut.period) else "an unstable vertical")
+            + out
         )
     return (
         f"`gyrolab` (default study), `gyrolab-plot nutation {Path(path).name}`. θ(t) at the finest "
