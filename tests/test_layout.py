@@ -11,7 +11,13 @@ import pytest
 
 from gyrolab.analysis.files.compare import compare_files
 from gyrolab.results import ResultsError, open_results
-from gyrolab.results.layout import LAYOUT_VERSION, RUN_VARIABLES, SAMPLE_VARIABLES, required_variables
+from gyrolab.results.layout import (
+    LAYOUT_VERSION,
+    RAW_FIELDS,
+    RUN_VARIABLES,
+    SAMPLE_VARIABLES,
+    required_variables,
+)
 from gyrolab.results.migrate import SOLVER_COUNTS, file_layout_version
 
 from helpers import BIN, make_dataset, synthetic_dataset
@@ -92,6 +98,22 @@ def fresh(tmp_path_factory):
     path = tmp_path_factory.mktemp("fresh") / "results.h5"
     write_results(path, grid, chunks, file_attrs(cfg, grid, 1, config_hash(cfg)))
     return path
+
+
+def test_theta_is_the_tilt_of_the_axis_direction_accurate_on_the_vertical():
+    # an axis (0, 0, 1 − 2e-12), a quaternion's norm drift on a top sleeping exactly upright, is tilt 0, not
+    # arccos(1 − 2e-12) = 2e-6 rad; hanging likewise π; elsewhere the angle of the axis however long it is
+    tilts = np.radians([0.0, 1e-7, 30.0, 45.0, 90.0, 135.0, 180.0])
+    raw = np.zeros((len(tilts) + 2, len(RAW_FIELDS)))
+    ax, ay, az = (RAW_FIELDS.index(n) for n in ("axis_x", "axis_y", "axis_z"))
+    raw[: len(tilts), ax] = np.sin(tilts) * np.cos(0.3)
+    raw[: len(tilts), ay] = np.sin(tilts) * np.sin(0.3)
+    raw[: len(tilts), az] = np.cos(tilts)
+    raw[-2, az], raw[-1, az] = 1.0 - 2e-12, -(1.0 - 2e-12)
+    raw[2] *= 1.0 + 1e-9  # a longer vector, the same direction
+    theta = SAMPLE_VARIABLES["theta"].derive(raw)
+    np.testing.assert_allclose(theta[: len(tilts)], tilts, rtol=1e-15, atol=1e-22)
+    assert theta[-2] == 0.0 and theta[-1] == np.pi
 
 
 def test_a_fresh_file_selects_one_integrator_with_sel_and_opens_with_netcdf_c(fresh):

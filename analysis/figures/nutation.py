@@ -15,6 +15,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.gridspec import GridSpec
 
+from ...results.layout import tilt_angle
 from ..io import DT_STYLES, color, fmt_dt, line_style, pick, scene_label, select
 from . import yardstick
 from .record import (
@@ -96,7 +97,7 @@ def _theta_panel(ax, sub, f, th, lo, hi, exact_t, exact_theta, nut, flips, metho
 def _yardstick_text(sub, f, th, nut, period):
     if nut is not None:
         return f"closed form θ ∈ [{math.degrees(nut.theta_min):.2f}°, {math.degrees(nut.theta_max):.2f}°], " + (
-            f"T = {nut.period * 1e3:.1f} ms" if math.isfinite(nut.period) else "no period (an unstable vertical)"
+            f"T = {nut.period * 1e3:.1f} ms" if math.isfinite(nut.period) else "unstable vertical"
         )
     if period is not None:
         return f"exact; {period.label.split(' 2')[0]} {period.seconds:.3g} s"
@@ -132,7 +133,7 @@ def theta_figure(ds, sel=None, n_periods=3.0):
     for r, ((f, th, g), wins, period) in enumerate(zip(rows, windows, periods)):
         nut = yardstick.nutation(sub, f, th)
         exact = yardstick.exact_axis(sub, f, th, time)
-        exact_theta = None if exact is None else np.degrees(np.arccos(np.clip(exact[:, 2], -1, 1)))
+        exact_theta = None if exact is None else np.degrees(tilt_angle(exact[:, 0], exact[:, 1], exact[:, 2]))
         flips = yardstick.flip_times(sub, f, th, time)
         for c, (lo, hi, what) in enumerate(wins):
             ax = fig.add_subplot(grid[r, c] if len(wins) == ncols else grid[r, :])

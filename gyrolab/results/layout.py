@@ -69,8 +69,15 @@ class SampleVariable:
     vector: bool = False
 
 
+def tilt_angle(x, y, z):
+    """The angle (rad) between the lab vector (x, y, z) and lab z: atan2(√(x² + y²), z).  Not arccos z, which
+    near the vertical turns a rounding ε of z into a tilt √(2ε) (a quaternion's norm drift of 1e-12 read as
+    2e-6 rad of a top that sleeps exactly upright), and which needs the vector's length to be 1."""
+    return np.arctan2(np.hypot(x, y), z)
+
+
 def _theta(raw):
-    return np.arccos(np.clip(raw[..., RAW_FIELDS.index("axis_z")], -1.0, 1.0))
+    return tilt_angle(*(raw[..., i] for i in _raw("axis_x", "axis_y", "axis_z")))
 
 
 def _phi(raw):
