@@ -433,7 +433,7 @@ def _run(args):
         sys.stderr.write(f"gyrolab-combine: error: writing {args.output}: {err.strerror or err}\n")
         return 1
     dims = ", ".join(f"{k}: {v}" for k, v in ds.sizes.items())
-    print(f"gyrolab-combine: {len(files)} files -> {out} ({dims})")
+    print(f"gyrolab-combine: {len(files)} file{'' if len(files) == 1 else 's'} -> {out} ({dims})")
     return 0
 
 
