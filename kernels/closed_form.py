@@ -177,7 +177,7 @@ def heavy_top_nutation(scene):
     # u = u1 + (u2 − u1) sin² s turns du/√f into 2 ds / √(β (u3 − u)): smooth on [0, π/2].
     def phidot_weight(s):
         u = u1 + (u2 - u1) * math.sin(s) ** 2
-        lz_off = b - a * u  # 0 throughout for a top without spin (a = b = 0), also where u rounds to ±1: not 0/0
+        lz_off = b - a * u  # 0 at every u for a top without spin (a = b = 0): φ̇ = 0, also where u rounds to ±1
         return 0.0 if lz_off == 0.0 else lz_off / (1.0 - u * u) * 2.0 / math.sqrt(beta * (u3 - u))
 
     # full_output: near u = 1 rounding in b − au caps the accuracy (quad would warn).

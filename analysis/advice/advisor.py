@@ -147,8 +147,9 @@ def check_inputs(inertia, omega0, mgc, T, dt_bounds, budget, metric, tol, method
     else:
         lo, hi = dt_bounds
         if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo <= hi):
-            given = f"dt={lo}" if lo == hi else f"dt-range=({lo}, {hi})"
-            raise AdviceError(f"{given}: need 0 < lo <= hi, finite (s)")
+            if lo == hi:
+                raise AdviceError(f"dt={lo}: the time step must be finite and > 0 s")
+            raise AdviceError(f"dt-range=({lo}, {hi}): need 0 < LO <= HI, finite (s)")
         if hi > T:
             raise AdviceError(f"dt={hi}: larger than the horizon T={T} s")
     if metric not in E.METRICS:
