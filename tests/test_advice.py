@@ -165,3 +165,27 @@ def test_bad_input_is_one_line_and_exit_2(argv, word, capsys):
     assert P.main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and word in err
+
+
+@pytest.mark.parametrize("w1", [2.0**-20, 1e-3, 0.0])
+def test_orbit_points_near_the_separatrix_stay_on_the_orbit(w1):
+    """2^-20 rad/s off the intermediate axis the orbit is 1e-14 (relative) from the separatrix: its
+    points stay on |m| = G and the energy (scipy's ellipj at m = 1 − 1e-15 reached |m| = 1e14 G past
+    u = K), its period is finite and long; on the axis itself the period is infinite and the points
+    from it are the spin.  (2^-20 makes G² = 100 + 2^-40 exact: with 1e-6, G²'s rounding moves the distance to
+    the separatrix, formed from G² and δ, by 0.6 %, and the period by 1.6e-4.)"""
+    I, w = np.array([[1.0, 2.0, 3.0]]), np.array([[w1, 5.0, 0.0]])
+    Is, perm, G2, delta, pole, sign = P.orbit_state(I, w)
+    m, period = P.orbit_points(Is, G2, delta, pole, sign, n=64)
+    T0 = 0.5 * np.sum(I * w * w)
+    assert np.allclose(np.sum(m * m, axis=-1), G2[0], rtol=1e-12)
+    assert np.allclose(0.5 * np.sum(m * m / Is[:, None, :], axis=-1), T0, rtol=1e-12)
+    if w1 == 0.0:  # without a start, the points are the separatrix's limit orbit (for averages over it)
+        assert math.isinf(period[0])
+        start = np.array([[0.0, 10.0, 0.0]])
+        m, period = P.orbit_points(Is, G2, delta, pole, sign, n=64, start=start, start_rate=np.zeros((1, 3)))
+        assert math.isinf(period[0]) and np.all(m == start)
+    else:
+        # the period 4K / λ: here 1 − k² = (w1 / 5)², K ≈ ln(4 / k') to O(k'²), λ = 5 / √3 rad/s
+        # (Landau & Lifshitz §37 with m = (w1, 10, 0) about the pole e1: δ = 50, δ_sep − δ = w1²/2)
+        assert period[0] == pytest.approx(4 * math.log(4 / (w1 / 5)) / (5 / math.sqrt(3)), rel=1e-6)

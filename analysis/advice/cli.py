@@ -14,8 +14,9 @@ import time
 import numpy as np
 
 from ...kernels.parameters import split_names
-from .advisor import ENGINES, AdviceError, advise
+from .advisor import ENGINES, NEAR_SEPARATRIX, AdviceError, advise
 from .calibrate import DEFAULT_METHODS
+from .model import EPS_FLOOR, RHO_RANGE
 
 WIDTH = 120
 
@@ -28,6 +29,33 @@ def _steps(n, dt):
     return "never" if not math.isfinite(n) else f"{n:.4g} ({n * dt:.3g} s)"
 
 
+def _separatrix_lines(a):
+    """The note for a free body near its separatrix: the intermediate axis's instability, and that the
+    measurement decides (advisor.NEAR_SEPARATRIX)."""
+    d, lam = a.separatrix_distance, a.intermediate_axis_rate
+    if not (d < NEAR_SEPARATRIX):  # NaN: no separatrix
+        return []
+    last = ";" if a.metric in ("orientation", "omega") and d > 0 else ")"
+    if d == 0:
+        growth = lam * a.T
+        factor = f"x{math.exp(growth):.2g}" if growth < 700 else "past any float"
+        out = [
+            "(omega0 is on the separatrix: a spin about the intermediate axis, which the updates keep (w x Iw = 0)",
+            f" but any perturbation leaves: it grows e-fold every {1 / lam:.3g} s, {factor} over T{last}",
+        ]
+    else:
+        out = [
+            f"(omega0 is {d:.2g} from the separatrix, relative to its distance from the pole axis: the body flips,",
+            f" lingering by the intermediate axis, where a perturbation grows e-fold every {1 / lam:.3g} s{last}",
+        ]
+    if last == ";":
+        out += [
+            " when it flips hangs on that distance, and the predicted orientation and omega errors this close",
+            " can be off by 10x-1e4x either way: the measurement decides)",
+        ]
+    return out
+
+
 def table(a):
     """The advice as lines of at most WIDTH characters."""
     out = []
@@ -36,13 +64,14 @@ def table(a):
     out.append(
         f"body I = ({I}) kg m^2" + (f", M g c = {tuple(a.mgc)} N m" if any(a.mgc) else "") + f"; omega0 = ({w}) rad/s"
     )
-    out.append(
-        f"|omega| dt = {a.h:.3g} at dt = {a.dt_bounds[1]:.3g} s, |omega| T = {a.tau:.3g} over T = {a.T:g} s; "
-        f"sin(omega, L) = {a.shape['eps']:.3g}, spins per omega period = {a.shape['rho']:.3g}"
-    )
+    eps = "0 (a principal axis)" if a.shape["eps"] <= EPS_FLOOR else f"{a.shape['eps']:.3g}"
+    rho = "inf (omega constant)" if a.shape["rho"] >= RHO_RANGE[1] else f"{a.shape['rho']:.3g}"
+    out.append(f"|omega| dt = {a.h:.3g} at dt = {a.dt_bounds[1]:.3g} s, |omega| T = {a.tau:.3g} over T = {a.T:g} s")
+    out.append(f"sin(omega, L) = {eps}, spins per omega period = {rho}")
     out.append(f"must be right: {a.metric} <= {a.tol:g}; reference: {a.reference}")
     if a.prediction_note:
         out.append(f"({a.prediction_note})")
+    out += _separatrix_lines(a)
     out.append("")
     wm = max([14] + [len(r.method) + 1 for r in a.rows])  # the method column fits a variant's name
     head = (
@@ -56,8 +85,10 @@ def table(a):
             f"{r.method:<{wm}}{r.order:>2} {r.ns_per_step:>8.0f} {r.dt_user:>9.3g} {_g(r.predicted_at_user):>10}"
             f" {_g(r.measured_at_user):>10} {(f'{r.dt_largest:.3g}' if r.meets else 'none'):>11}"
             f" {_g(r.predicted_at_largest):>10} {_g(r.measured_at_largest):>10} {_g(r.cost_s, '.3g'):>9}"
-            f" {('yes' if r.meets else 'no'):>6}{mark}"
+            f" {('yes' if r.meets and not r.met_by_measurement else 'yes*' if r.meets else 'no'):>6}{mark}"
         )
+    if any(r.met_by_measurement for r in a.rows):
+        out.append("(yes*: predicted to miss at the user's dt, measured to meet there)")
     bases = sorted({r.constants_of for r in a.rows if r.constants_of})
     if bases:
         names = ", ".join(bases)
@@ -84,11 +115,16 @@ def table(a):
                 "error and the order)"
             )
     else:
-        best = min(a.rows, key=lambda r: r.predicted_at_user)
+        best = min(a.rows, key=lambda r: r.predicted_at_user if not math.isnan(r.predicted_at_user) else math.inf)
         out.append(
             f"advice: no method is predicted to meet {a.tol:g} within the step bounds; the most accurate "
-            f"at dt = {best.dt_user:.3g} s is {best.method} ({best.predicted_at_user:.2e} predicted)"
+            f"at dt = {best.dt_user:.3g} s is {best.method} ({_g(best.predicted_at_user)} predicted)"
         )
+        if a.measured_advice:
+            out.append(
+                f"measured advice: {a.measured_advice} at dt = {a.measured_advice_dt:.4g} s "
+                f"(measured {a.measured_advice_error:.2e}: predicted to miss, measured to meet)"
+            )
     out.append(f"time: prediction {a.seconds_predict:.2f} s, measurement {a.seconds_measure:.1f} s")
     if a.engines:
         dt = a.dt_bounds[1]
@@ -98,18 +134,20 @@ def table(a):
             f"{min(a.T / dt, 2e5):.3g} steps):"
         )
         out.append(
-            f"{'engine update':<20} {'kind':<20} {'blow-up step predicted':>24} {'measured':>22} "
-            f"{'dE/dt / E0 (1/s)':>16} {'flips lost':>12}"
+            f"{'engine update':<18} {'kind':<19} {'blow-up predicted':>20} {'measured':>18} "
+            f"{'dE/dt/E0 (1/s)':>14} {'flips lost pred|meas':>25}"
         )
         for e in a.engines:
-            flips = f"{e.flips_lost:.3g}/{e.flips_exact:.3g}" if e.flips_exact >= 1 else "-"
+            flips = "-"
+            if e.flips_exact >= 1:
+                flips = f"{e.flips_lost:.3g}|{_g(e.flips_lost_measured, '.3g')} of {e.flips_exact:.3g}"
+            measured = _steps(e.blow_up_step_measured, dt) if not math.isnan(e.blow_up_step_measured) else "-"
             out.append(
-                f"{e.method:<20} {e.kind:<20} {_steps(e.blow_up_step, dt):>24} "
-                f"{_steps(e.blow_up_step_measured, dt) if not math.isnan(e.blow_up_step_measured) else '-':>22} "
-                f"{e.energy_drift_per_s:>16.3e} {flips:>12}"
+                f"{e.method:<18} {e.kind:<19} {_steps(e.blow_up_step, dt):>20} {measured:>18} "
+                f"{e.energy_drift_per_s:>14.3e} {flips:>25}"
             )
             if e.relaxation:
-                out.append(f"{'':<20} relaxes: {e.relaxation}")
+                out.append(f"{'':<18} relaxes: {e.relaxation}")
     return [line[:WIDTH] for line in out]
 
 
@@ -129,7 +167,13 @@ def figure(a, path):
         h = np.geomspace(min(h_user, Om * r.dt_largest if r.meets else h_user) / 30, 0.5, 80)
         err = model.predicted_error(1.0, r.growth, r.exponent or r.order, h, a.tau, a.rounding_per_step)
         cost = a.T / (h / Om) * r.ns_per_step * 1e-9
-        ax.loglog(cost, err, "-", color=colour, lw=1.2, label=f"{r.method} (order {r.order}) predicted")
+        # solid where the model holds, dotted past its regime (model.SATURATED), none past the largest error
+        # the metric can have (an attitude error is at most π rad)
+        cap = math.pi if a.metric == "orientation" else math.inf
+        inside = np.where(err <= model.SATURATED, err, np.nan)
+        beyond = np.where((err >= model.SATURATED) & (err <= cap), err, np.nan)
+        ax.loglog(cost, inside, "-", color=colour, lw=1.2, label=f"{r.method} (order {r.order}) predicted")
+        ax.loglog(cost, beyond, ":", color=colour, lw=1.2)
         pts = [(r.dt_user, r.measured_at_user)] + ([(r.dt_largest, r.measured_at_largest)] if r.meets else [])
         for dt, e in pts:
             if math.isfinite(e) and e > 0:
@@ -146,8 +190,19 @@ def figure(a, path):
                 mec="k",
                 label=f"advice after measuring: {r.method}, dt = {a.measured_advice_dt:.3g} s",
             )
+    if a.separatrix_distance < NEAR_SEPARATRIX and a.metric in ("orientation", "omega"):
+        ax.text(
+            0.02,
+            0.02,
+            f"{a.separatrix_distance:.2g} from the separatrix: the prediction can be off 10x-1e4x;"
+            " the measurement decides",
+            transform=ax.transAxes,
+            fontsize=8,
+            color="0.3",
+        )
     ax.axhline(a.tol, color="k", ls="--", lw=1)
-    ax.text(ax.get_xlim()[0], a.tol, f"  tolerance {a.tol:g}", va="bottom", ha="left")
+    ax.text(ax.get_xlim()[1], a.tol, f"tolerance {a.tol:g}  ", va="bottom", ha="right")
+    ax.plot([], [], ":", color="gray", label=f"predicted past the model's regime (> {model.SATURATED:g})")
     ax.plot([], [], "o", color="gray", mfc="white", label="measured at the user's and the advised dt")
     if any(math.isfinite(r.measured_at_corrected) for r in a.rows):
         ax.plot([], [], "s", color="gray", mfc="white", label="measured again at a dt cut by the measured error")

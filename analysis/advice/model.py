@@ -21,19 +21,23 @@ the start, its orbit mean k times (secular) plus the running sum of its periodic
 and goes: a symplectic method's bounded energy error), both together, at the horizon's last orbit.
 A change of the orbit's invariants G² and δ changes the period and the turn about L per period: a
 drift of them (a non-symplectic method's energy) makes σ and α grow as k², and their periodic
-wander from the start's values (zero at the start, not on average) as k.  The energy and |L|
+wander from the start's values (zero at the start, not on average) as k, through how much faster a
+body moved to the nearby orbit runs, and turns about L, at each point of it (near the separatrix
+that sensitivity sits at the slow passage by the intermediate axis; weighting the wander by its orbit
+mean missed the orientation error there by 10x-1e4x, mostly over).  The energy and |L|
 errors are the accumulated per-step changes.  Each metric's exponent q in h is measured between
 probes at H_PROBE and H_LOW (rk4's secular energy error goes as h^5 at a given τ, not h^4); then
 error(h) = κ g (h / H_PROBE)^q, κ the calibrated constant of the (method, metric), plus a rounding
 floor: the exact-flow method's measured error per step times T/dt.  With the structure right, κ is
 0.98–1.00 for every default method and metric (it was 0.39–0.96 when secular and periodic parts were
-summed as separate bounds and the turn's k² growth was missing).  What the model reaches: on the
-calibration bodies (120, seed 1, 4 (h, τ) each) 100 / 93 / 94 % of the orientation errors within 2×
-for rk4 / lie_poisson / lie_poisson4 and 98–100 % of the energy errors; on held-out bodies
-(tests/test_advise.py, seed 2025) 92 % (orientation) and 99 % (energy); on the three users' bodies
-of issue 25 measured/predicted 0.97–0.99 (README).  The misses left are the symplectic methods'
-orientation on some bodies (on the calibration bodies mostly near the separatrix); they are why the
-advisor measures after predicting.
+summed as separate bounds and the turn's k² growth was missing; the local wander moved none of them
+by more than 1 %, so the stored constants stand).  What the model reaches: on the calibration bodies
+(120, seed 1, 4 (h, τ) each) 100 / 93 / 97 % of the orientation errors within 2× for rk4 /
+lie_poisson / lie_poisson4 and 98–100 % of the energy errors; on held-out bodies (tests/test_advise.py,
+seed 2025) 96 % (orientation) and 99 % (energy); on the three users' bodies of issue 25
+measured/predicted 0.97–0.99 (README); near the separatrix within 2× down to 1e-4 of it (relative) and
+off closer in (advisor.NEAR_SEPARATRIX).  The misses left (5 of 119 held-out runs, 2–3.7× either way)
+are why the advisor measures after predicting.
 
 ``shape`` gives two descriptive groups the advisor reports: ε = |ω × Iω| / (|ω| |Iω|), the sine of
 the angle between ω and L, and ρ = Ω P / 2π, spin turns per period P of ω(t) in the body.
@@ -45,7 +49,7 @@ from importlib import resources
 
 import numpy as np
 
-from .predict import _delta, orbit_points, orbit_state
+from .predict import _delta, amplitudes, orbit_points, orbit_state, phase_rates, separatrix_delta
 
 CONSTANTS_FILE = "error_constants.json"
 EPS_FLOOR = 1e-9  # ε below this is a spin about a principal axis to rounding
@@ -222,19 +226,36 @@ def probe(method, I, omega0, T, n=None, h=None):
     with np.errstate(divide="ignore", invalid="ignore"):
         dlnd_k = np.nan_to_num(_delta(Is, m_num_s, pole) / _delta(Is, m_ex_s, pole) - 1)
         dlnd = dlnd_k.mean(axis=1)
-        # elasticities of the period (closed form, finite differences; dt units cancel in them)
-        eta = 1e-6
+        # elasticities of the period (closed form, finite differences; dt units cancel in them), each
+        # difference taken away from the separatrix (G² up, δ down) by a fraction of the distance to it
+        # (so that an orbit near it is not moved across it), but far enough above rounding to be a difference
+        eta = np.clip(1e-2 * (separatrix_delta(Is, G2, pole) - delta) / delta, 1e-12, 1e-6)
         _, P_G = orbit_points(Is, G2 * (1 + eta), delta, pole, sign, 1)
-        _, P_d = orbit_points(Is, G2, delta * (1 + eta), pole, sign, 1)
-        eP_G, eP_d = np.log(P_G / period) / eta, np.log(P_d / period) / eta
+        _, P_d = orbit_points(Is, G2, delta * (1 - eta), pole, sign, 1)
+        eP_G, eP_d = np.log(P_G / period) / eta, -np.log(P_d / period) / eta
         dlnP = eP_G * dlnG2 + eP_d * dlnd
         # and the turn about L per period Δφ changes too: the turn α grows as ½ k² (dt/P) dΔφ/step
         phi0 = _turn_per_period(Is, G2, delta, pole, sign)
         ephi_G = (_turn_per_period(Is, G2 * (1 + eta), delta, pole, sign) - phi0) / eta * dt / period
-        ephi_d = (_turn_per_period(Is, G2, delta * (1 + eta), pole, sign) - phi0) / eta * dt / period
+        ephi_d = -(_turn_per_period(Is, G2, delta * (1 - eta), pole, sign) - phi0) / eta * dt / period
         dalpha = ephi_G * dlnG2 + ephi_d * dlnd  # per step², rad
-        yP = np.nan_to_num(eP_G[:, None] * dlnG2_k + eP_d[:, None] * dlnd_k)
-        yphi = np.nan_to_num(ephi_G[:, None] * dlnG2_k + ephi_d[:, None] * dlnd_k)
+        # The invariants' periodic wander (zero at the start, so not zero on average: a symplectic method's
+        # bounded energy error) acts where the body is: a body moved to a nearby orbit runs faster or slower
+        # there, and turns about L more or less per unit of its amplitude φ, by the local sensitivities (at
+        # fixed φ, predict.phase_rates).  Their orbit means are the period's and the turn's elasticities
+        # above, but near the separatrix they peak at the slow passage by the intermediate axis, where a
+        # wander that is zero at the start is small again: weighting the wander by the mean instead missed
+        # the orientation error there by 10x-1e4x, mostly over (tests/test_advise.py
+        # ::test_near_the_separatrix_the_orientation_error_is_predicted)
+        sphi, cphi = amplitudes(Is, G2, delta, pole, m)
+        f0, p0 = phase_rates(Is, G2, delta, pole, sphi, cphi)
+        fG, pG = phase_rates(Is, G2 * (1 + eta), delta, pole, sphi, cphi)
+        fd, pd = phase_rates(Is, G2, delta * (1 - eta), pole, sphi, cphi)
+        e = eta[:, None]
+        c_G, c_d = np.nan_to_num(np.log(fG / f0) / e), np.nan_to_num(-np.log(fd / f0) / e)  # ∂ ln φ̇ / ∂ ln (G², δ)
+        # ∂ (ψ̇/φ̇) / ∂ ln (G², δ) times the φ of a step: rad per step
+        t_G = np.nan_to_num((pG / fG - p0 / f0) / e * f0 * dt[:, None])
+        t_d = np.nan_to_num(-(pd / fd - p0 / f0) / e * f0 * dt[:, None])
     dlnP = np.where(np.isfinite(dlnP), dlnP, 0.0)
     dalpha = np.where(np.isfinite(dalpha), dalpha, 0.0)
     finite = np.isfinite(period) & (period > 0)
@@ -245,11 +266,11 @@ def probe(method, I, omega0, T, n=None, h=None):
     # The times the errors are evaluated at: the last orbit of the horizon (n + 1 points, T ≥ P), or
     # the points it covers and T itself (T < P); their steps from the start and orbit points
     j = np.arange(n + 1)[None, :] / n
-    Pn = np.where(finite, period, np.inf)[:, None]
-    t = np.where(covered[:, None] >= n, T_arr[:, None] - Pn * (1 - j), np.minimum(j * Pn, T_arr[:, None]))
-    t = np.where(np.isfinite(t), t, T_arr[:, None] * j)  # no period (a spin about a pole): uniform
+    Pf = np.where(finite, period, 1.0)[:, None]
+    t = np.where(covered[:, None] >= n, T_arr[:, None] - Pf * (1 - j), np.minimum(j * Pf, T_arr[:, None]))
+    t = np.where(finite[:, None], t, T_arr[:, None] * j)  # no period (a spin about an axis): uniform
     steps = t / dt[:, None]
-    pos = np.where(finite[:, None], np.mod(t, np.where(finite, period, 1.0)[:, None]) / Pn * n, 0.0)
+    pos = np.where(finite[:, None], np.mod(t, Pf) / Pf * n, 0.0)
     idx = np.minimum(np.floor(pos), n - 1).astype(int)
     frac = pos - idx
     rows = np.arange(B)[:, None]
@@ -266,28 +287,24 @@ def probe(method, I, omega0, T, n=None, h=None):
     def growth(x):
         return np.abs(accumulated(x)).max(axis=1)
 
-    def offset_sum(y):
-        """Σ over the steps so far of the periodic part of y's running sum, at the evaluation times: the
-        phase that the invariants' periodic wander away from their start's values (zero at the start,
-        so not zero on average: a symplectic method's bounded energy error) moves the body by, y being
-        the per-step change of ln P (σ) or of the turn per step (α) it causes."""
-        mean = y.mean(axis=1)
-        dev = (y - mean[:, None]) * per_point[:, None]
+    def wander(x):
+        """The running sum of the periodic part of the per-step change x (B·n), over each point (B, n): how far
+        the invariant has wandered from its start's value there (its mean drift is dlnP's and dalpha's)."""
+        x = x.reshape(B, n)
+        dev = (x - x.mean(axis=1)[:, None]) * per_point[:, None]
         run = np.concatenate([np.zeros((B, 1)), np.cumsum(dev, axis=1)], axis=1)
-        lvl = 0.5 * (run[:, :-1] + run[:, 1:])  # the level over each point
-        avg = lvl.mean(axis=1)
-        dev2 = (lvl - avg[:, None]) * per_point[:, None]
-        run2 = np.concatenate([np.zeros((B, 1)), np.cumsum(dev2, axis=1)], axis=1)
-        out = avg[:, None] * steps + run2[rows, idx] + dev2[rows, idx] * frac
-        return np.where(finite[:, None], out, 0.0)
+        return 0.5 * (run[:, :-1] + run[:, 1:])
 
     # The state after k steps is the exact one at k + σ steps turned about L by α (both a solution:
     # the free flow commutes with turns about L), so the attitude error is |α m̂ + σ ω| (body frame,
     # ω in rad per step), α and σ the accumulated a and s, secular and periodic parts together (in
     # phase, as they are: a and s's periodic parts nearly cancel when ω is nearly along L).  A drift
-    # of the orbit's invariants adds −½ k² dlnP to σ.
-    sigma = accumulated(s) - 0.5 * steps**2 * dlnP[:, None] - offset_sum(yP)
-    alpha = accumulated(a) + 0.5 * steps**2 * dalpha[:, None] + offset_sum(yphi)
+    # of the orbit's invariants adds −½ k² dlnP to σ; their wander adds the local rates' sums.
+    W_G, W_d = wander(dlnG2_k), wander(dlnd_k)
+    z_sigma = np.where(finite[:, None], c_G * W_G + c_d * W_d, 0.0)  # steps gained per step
+    z_alpha = np.where(finite[:, None], t_G * W_G + t_d * W_d, 0.0)  # rad turned per step
+    sigma = accumulated(s) - 0.5 * steps**2 * dlnP[:, None] + accumulated(z_sigma)
+    alpha = accumulated(a) + 0.5 * steps**2 * dalpha[:, None] + accumulated(z_alpha)
     w_step = wu.reshape(B, n, 3)[rows, idx]  # rad per step, (B, n + 1, 3)
     mh = m_hat.reshape(B, n, 3)[rows, idx]
     A = np.linalg.norm(alpha[..., None] * mh + sigma[..., None] * w_step, axis=2).max(axis=1)

@@ -35,8 +35,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import ellipj, ellipk, ellipkinc
+from numba import njit
 
+from ...kernels import elliptic
 from ...kernels.batch import integrate
 from ...kernels.body import N_FIELDS as N_BODY
 from ...kernels.driver import FIELDS
@@ -103,50 +104,150 @@ def separatrix_delta(Is, G2, pole):
     return G2 * np.abs(Ip / Is[:, 1] - 1.0)
 
 
-def orbit_points(Is, G2, delta, pole, sign, n=N_ORBIT, start=None, start_rate=None):
-    """Body momenta m (B, n, 3), sorted frame, uniform in time over one period of the orbit.
+def separatrix_distance(I, w):
+    """(δ_sep − δ) / δ_sep (B,) of the orbits through body rates w (B, 3) rad/s of bodies I (B, 3) kg m²:
+    how far the orbit is from the separatrix 2T = G²/I2, relative (1 on a pole spin, 0 on the
+    separatrix: the spin about the intermediate axis); NaN unless the three moments differ."""
+    Is, _, G2, delta, pole, _ = orbit_state(np.atleast_2d(I), np.atleast_2d(w))
+    dsep = separatrix_delta(Is, G2, pole)
+    distinct = (Is[:, 0] < Is[:, 1]) & (Is[:, 1] < Is[:, 2])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(distinct, np.maximum(dsep - delta, 0.0) / dsep, np.nan)
 
-    Closed form (Landau & Lifshitz §37), written for either pole p with o the opposite extreme
-    axis: m_o = a_o cn u, m_2 = a_2 sn u, m_p = ± a_p dn u, u = λ t, u over one period 4K(k²).
-    Also returns the period in seconds (inf for a body with equal moments about the pole: no motion).
-    ``start`` (B, 3), sorted momenta on the orbits, and ``start_rate``, their dm/dt (sorted): the points
-    begin there and follow the motion forward in time (else they begin at u = 2K / n, in the direction
-    of increasing u, which is backward in time for about half the orbits: a sorted frame is left-handed
-    for an odd permutation)."""
-    B = Is.shape[0]
-    idx = np.arange(B)
+
+def intermediate_axis_rate(I, G):
+    """λ (1/s): the e-folding rate of a small perturbation of the spin about the intermediate axis of
+    moments I (3,) kg m² with |L| = G kg m²/s, Ω √((I2 − I1)(I3 − I2) / (I1 I3)), Ω = G / I2 (the
+    linearised Euler equations at that spin; Landau & Lifshitz §37)."""
+    I1, I2, I3 = np.sort(np.asarray(I, float))
+    return G / I2 * math.sqrt(max((I2 - I1) * (I3 - I2), 0.0) / (I1 * I3))
+
+
+# An orbit whose δ is within this many roundings of the separatrix's is on it: a spin about the
+# intermediate axis (or a motion towards it), which the elliptic closed form cannot tell from a flip
+SEPARATRIX_ROUNDINGS = 4
+SEPARATRIX_MC = SEPARATRIX_ROUNDINGS * np.finfo(float).eps
+
+
+@njit(cache=True, error_model="numpy")
+def _jacobi(u, mc):
+    """(sn, cn, dn) of u (B, n) at parameters m = 1 − mc (B,), 0 ≤ mc ≤ 1 (kernels/elliptic.py's
+    sncndn: accurate as m → 1, where scipy's ellipj is not past u ≈ K for m > 1 − 1e-9)."""
+    sn = np.empty_like(u)
+    cn = np.empty_like(u)
+    dn = np.empty_like(u)
+    for b in range(u.shape[0]):
+        for j in range(u.shape[1]):
+            sn[b, j], cn[b, j], dn[b, j] = elliptic.sncndn(u[b, j], mc[b])
+    return sn, cn, dn
+
+
+@njit(cache=True, error_model="numpy")
+def _quarter_period_and_start(mc, phi):
+    """K(m) (B,) and the elliptic argument F(φ | m) (B,) of amplitudes φ, m = 1 − mc, 0 < mc ≤ 1."""
+    K = np.empty_like(mc)
+    u0 = np.empty_like(mc)
+    for b in range(mc.shape[0]):
+        K[b] = elliptic.ellipk(mc[b])
+        u0[b] = elliptic.ellipf(phi[b], mc[b])
+    return K, u0
+
+
+def _orbit_constants(Is, G2, delta, pole):
+    """(o, a_o², a_2², a_p², m_c, λ, on_separatrix) (B,) of the orbits (sorted moments Is, G², δ, pole p):
+    o the opposite extreme axis, the squared amplitudes of m_o = a_o cn u, m_2 = a_2 sn u, m_p = ± a_p dn u,
+    the complementary parameter m_c = 1 − k² (formed from the distance to the separatrix, not as a
+    difference: an orbit 1e-14 of δ from it keeps its period, as scipy's ellipk(1 − 1e-15) would not),
+    the rate λ (1/s) of u = λt, and whether δ is within SEPARATRIX_ROUNDINGS roundings of the separatrix's
+    (m_c is then SEPARATRIX_MC: the nearest orbit the closed form tells from it)."""
+    idx = np.arange(Is.shape[0])
     o = 2 - pole
     Ip, Io, Im = Is[idx, pole], Is[idx, o], Is[:, 1]
-    dpo, dpm, dmo = np.abs(Ip - Io), np.abs(Ip - Im), np.abs(Im - Io)
+    dpo, dpm = np.abs(Ip - Io), np.abs(Ip - Im)
+    dsep = separatrix_delta(Is, G2, pole)
     with np.errstate(divide="ignore", invalid="ignore"):
         a_o2 = np.where(dpo > 0, delta * Io / dpo, 0.0)
         a_m2 = np.where(dpm > 0, delta * Im / dpm, 0.0)
         a_p2 = np.maximum(G2 - a_o2, 0.0)
         X = (G2 * dpo - delta * Io) / Ip  # |G² − 2T I_o| > 0
-        k2 = np.where((dpm > 0) & (X > 0), dmo * delta / (dpm * X), 0.0)
-        k2 = np.clip(np.nan_to_num(k2), 0.0, 1.0 - 1e-15)
+        elliptic_orbit = (dpm > 0) & (X > 0)
+        # 1 − k² = (dpm X − dmo δ) / (dpm X), and dpm X − dmo δ = dpo Im (δ_sep − δ) / Ip
+        mc = np.where(elliptic_orbit, dpo * Im * (dsep - delta) / (Ip * dpm * X), 1.0)
+        mc = np.clip(np.nan_to_num(mc, nan=1.0), 0.0, 1.0)
         lam = np.sqrt(np.maximum(dpm * X, 0.0) / (Is[:, 0] * Is[:, 1] * Is[:, 2]))
-    K = ellipk(k2)
-    u = 4.0 * K[:, None] * (np.arange(n) + (0.5 if start is None else 0.0))[None, :] / n
+    on_separatrix = elliptic_orbit & (dsep - delta <= SEPARATRIX_ROUNDINGS * np.finfo(float).eps * dsep)
+    return o, a_o2, a_m2, a_p2, np.where(on_separatrix, SEPARATRIX_MC, mc), lam, on_separatrix
+
+
+def amplitudes(Is, G2, delta, pole, m):
+    """(sin φ, cos φ) (B, n) of the sorted momenta m (B, n, 3) on their orbits (sorted moments Is, G², δ,
+    pole): sn u = m_2 / a_2, cn u = m_o / a_o, φ = am u; φ = 0 where the orbit is a point (a pole spin)."""
+    o, a_o2, a_m2, _, _, _, _ = _orbit_constants(Is, G2, delta, pole)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = m[:, :, 1] / np.sqrt(a_m2)[:, None]
+        c = np.take_along_axis(m, o[:, None, None], 2)[..., 0] / np.sqrt(a_o2)[:, None]
+        r = np.hypot(s, c)
+        ok = np.isfinite(r) & (r > 0)
+        return np.where(ok, s / r, 0.0), np.where(ok, c / r, 1.0)
+
+
+def phase_rates(Is, G2, delta, pole, sin_phi, cos_phi):
+    """(φ̇, ψ̇) (B, n) rad/s at the amplitudes φ (sin φ, cos φ (B, n)) of the orbits (sorted moments Is,
+    G², δ, pole): φ = am u, so φ̇ = λ dn u = λ √(m_c + k² cos² φ), and ψ̇ = G (2T − m_p²/I_p)/(G² − m_p²)
+    the turn rate about L (Landau & Lifshitz §37; m_p² = a_p² dn² u).  At a fixed φ the point of a nearby
+    orbit is the one across from it, so the derivatives in G² and δ at fixed φ are how a body moved to
+    that orbit runs faster or slower there."""
+    idx = np.arange(Is.shape[0])
+    _, _, _, a_p2, mc, lam, _ = _orbit_constants(Is, G2, delta, pole)
+    dn2 = mc[:, None] + (1.0 - mc)[:, None] * cos_phi**2
+    mp2 = a_p2[:, None] * dn2
+    Ip = Is[idx, pole][:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        psidot = np.sqrt(G2)[:, None] * (two_T(Is, G2, delta, pole)[:, None] - mp2 / Ip) / (G2[:, None] - mp2)
+    return lam[:, None] * np.sqrt(dn2), psidot
+
+
+def orbit_points(Is, G2, delta, pole, sign, n=N_ORBIT, start=None, start_rate=None):
+    """Body momenta m (B, n, 3), sorted frame, uniform in time over one period of the orbit.
+
+    Closed form (Landau & Lifshitz §37), written for either pole p with o the opposite extreme
+    axis: m_o = a_o cn u, m_2 = a_2 sn u, m_p = ± a_p dn u, u = λ t, u over one period 4K(k²).
+    Also returns the period in seconds (inf for a body with equal moments about the pole: no motion;
+    inf on the separatrix, δ within SEPARATRIX_ROUNDINGS roundings of its: the spin about the
+    intermediate axis, or a motion that nears it forever; its points are then all the start, or without
+    a start those of the nearest orbit the closed form tells from it, 1 − k² = SEPARATRIX_MC, whose
+    average over a period is the separatrix's limit).
+    ``start`` (B, 3), sorted momenta on the orbits, and ``start_rate``, their dm/dt (sorted): the points
+    begin there and follow the motion forward in time (else they begin at u = 2K / n, in the direction
+    of increasing u, which is backward in time for about half the orbits: a sorted frame is left-handed
+    for an odd permutation).  Near the separatrix (1 − k² → 0) see ``_orbit_constants`` and ``_jacobi``."""
+    B = Is.shape[0]
+    idx = np.arange(B)
+    o, a_o2, a_m2, a_p2, mc, lam, on_separatrix = _orbit_constants(Is, G2, delta, pole)
+    k2 = 1.0 - mc
+    phi = np.zeros(B)
     if start is not None:  # the start's u: its amplitude φ (sn u = sin φ, cn u = cos φ), then F(φ | k²)
         with np.errstate(divide="ignore", invalid="ignore"):
             phi = np.arctan2(np.nan_to_num(start[:, 1] / np.sqrt(a_m2)), np.nan_to_num(start[idx, o] / np.sqrt(a_o2)))
-        half = np.floor(phi / math.pi + 0.5)
-        u0 = ellipkinc(phi - half * math.pi, k2) + 2.0 * K * half
-        sn0, cn0, dn0, _ = ellipj(u0, k2)
+    K, u0 = _quarter_period_and_start(np.maximum(mc, 1e-300), phi)
+    u = 4.0 * K[:, None] * (np.arange(n) + (0.5 if start is None else 0.0))[None, :] / n
+    if start is not None:
+        sn0, cn0, dn0 = (v[:, 0] for v in _jacobi(u0[:, None], mc))
         tangent = np.zeros((B, 3))  # dm/du at the start
         tangent[idx, o] = -np.sqrt(a_o2) * sn0 * dn0
         tangent[:, 1] = np.sqrt(a_m2) * cn0 * dn0
         tangent[idx, pole] = -sign * np.sqrt(a_p2) * k2 * sn0 * cn0
         forward = np.where(np.sum(tangent * start_rate, axis=1) < 0, -1.0, 1.0)
         u = u0[:, None] + forward[:, None] * u
-    sn, cn, dn, _ = ellipj(u, k2[:, None])
+    sn, cn, dn = _jacobi(u, mc)
     m = np.empty((B, n, 3))
     m[idx, :, o] = np.sqrt(a_o2)[:, None] * cn
     m[:, :, 1] = np.sqrt(a_m2)[:, None] * sn
     m[idx, :, pole] = (sign * np.sqrt(a_p2))[:, None] * dn
+    if start is not None and on_separatrix.any():  # the body stays at the spin (or nears it forever)
+        m[on_separatrix] = start[on_separatrix][:, None, :]
     with np.errstate(divide="ignore"):
-        period = np.where(lam > 0, 4.0 * K / lam, np.inf)
+        period = np.where((lam > 0) & ~on_separatrix, 4.0 * K / lam, np.inf)
     return m, period
 
 
@@ -231,6 +332,9 @@ def predict_many(method, I, omega0, dt, n_max=1e5, criterion="energy", frac=0.1,
     target = np.array([""] * B, dtype=object)
     d_start = np.full(B, np.nan)  # distance to the relaxation target at the start
     kind = KINDS.get(method, "")
+    # a spin exactly about a principal axis stays (ω × Iω = 0 in every update): about the intermediate
+    # axis too, where the orbit's closed form is the separatrix, whose limit would drift
+    active &= np.count_nonzero(omega0, axis=1) > 1
     for stage in range(max_stages):
         if not active.any():
             break
@@ -251,6 +355,12 @@ def predict_many(method, I, omega0, dt, n_max=1e5, criterion="energy", frac=0.1,
         with np.errstate(divide="ignore"):
             dn = np.where(scale > 0, frac / scale, np.inf)
         dn = np.minimum(dn, n_max - n_done[a])
+        if kind == "|L| rescale":
+            # the separatrix attracts these: a stage moves δ by at most frac of the distance left to it, so the
+            # slow trajectory nears it and settles instead of stepping across and back
+            with np.errstate(divide="ignore", invalid="ignore"):
+                gap = separatrix_delta(Is[a], G2[a], pole[a]) - delta[a]
+                dn = np.where(rd > 0, np.minimum(dn, frac * gap / rd), dn)
         gG2, gd2 = gG.copy(), gd.copy()
         todo = np.isfinite(dn)
         for _ in range(10):
@@ -366,11 +476,14 @@ def amplification(method, I, omega0, dt, eps=1e-7):
 DEFAULT_METHODS = ("mujoco_euler", "bullet_explicit", "mujoco_implicit", "jolt_rescale_bare", "rapier_rescale")
 
 
-def measure_blow_up(method, I, omega0, dt, n_max, horizon_steps=None):
-    """Measured blow-up step (|E − E0| > BLOWUP_ENERGY E0; inf: none in the horizon) and the kinetic
-    energy (J) after min(horizon, n_max) steps (NaN once blown up), at a resolution of 1/2000 of it."""
+def measure_blow_up(method, I, omega0, dt, n_max, horizon_steps=None, n_samples=2001):
+    """Measured blow-up step (|E − E0| > BLOWUP_ENERGY E0; inf: none in the horizon), the kinetic
+    energy (J) after min(horizon, n_max) steps (NaN once blown up), the steps run, and the flips
+    (sign changes of the intermediate axis's rate, counted on the samples up to the blow-up; NaN for a
+    body without a distinct intermediate moment, or when the samples are too few to resolve them: more
+    than one flip per 4 samples), sampled ``n_samples`` times over the horizon."""
     horizon = int(min(n_max, horizon_steps or n_max))
-    stride = max(1, math.ceil(horizon / 2000))
+    stride = max(1, math.ceil(horizon / (n_samples - 1)))
     bodies = np.zeros((1, N_BODY))
     bodies[0, :3] = I
     q0 = np.array([[1.0, 0.0, 0.0, 0.0]])
@@ -379,7 +492,14 @@ def measure_blow_up(method, I, omega0, dt, n_max, horizon_steps=None):
         method, bodies, np.asarray(omega0, float)[None], q0, [dt], stride, n_samples, threshold=BLOWUP_ENERGY
     )
     blown = float(n_steps[0]) if status[0] != 0 else math.inf
-    return blown, float(out[0, -1, FIELDS.index("energy")]), (n_samples - 1) * stride
+    flips = math.nan
+    order = np.argsort(I)
+    if I[order[0]] < I[order[1]] < I[order[2]]:
+        w_mid = out[0, : int(min(n_steps[0], horizon)) // stride + 1, FIELDS.index("omega_1") + int(order[1])]
+        signs = np.sign(w_mid[np.isfinite(w_mid) & (w_mid != 0)])
+        counted = int(np.count_nonzero(signs[1:] != signs[:-1]))
+        flips = float(counted) if 4 * counted <= len(signs) else math.nan
+    return blown, float(out[0, -1, FIELDS.index("energy")]), (n_samples - 1) * stride, flips
 
 
 def _fmt_steps(n, dt):
@@ -449,7 +569,7 @@ def main(argv=None):
         row = f"{method:<20} {p.kind:<20} {lam:>13.6f} {_fmt_steps(p.blow_up_step, dt):>22} "
         row += f"{p.energy_rate_relative:>17.3e} {relax:>28}"
         if args.check:
-            blown, E_end, n_run = measure_blow_up(method, I, w, dt, args.steps)
+            blown, E_end, n_run, _ = measure_blow_up(method, I, w, dt, args.steps)
             E0 = 0.5 * float(np.sum(I * w * w))
             pred_end = energy_after(p, n_run) / E0
             ends = f"{pred_end:>9.4g}|{E_end / E0:<10.4g}" if not math.isfinite(blown) else f"{'blown up':>20}"
