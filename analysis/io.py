@@ -221,41 +221,68 @@ def fmt_dt(dt):
     return f"dt = {float(dt):.0e} s".replace("e-0", "e-")
 
 
-def relative_error(values, reference=None):
+def relative_error(values, reference=None, scale=None):
     """|x(t) − x0| / |x0| along the last axis (x0 = first sample unless given).
 
-    When |x0| is tiny next to the run's scale (e.g. L_z ≈ 0), the run's
-    largest |x| is the denominator instead, so the ratio stays meaningful;
-    a quantity that is 0 at every sample has error 0.
+    When |x0| is ~0 (below 1e-9 of the quantity's scale) the scale is the denominator instead, so the
+    ratio stays meaningful: ``scale`` (broadcast against x0) is the quantity's physical size where the
+    caller knows it (``invariant_scale``: T0 + |M g c| for the energy of a top released from rest
+    level, |L| for L_z), else the run's largest |x|; a quantity that is 0 at every sample has error 0.
     """
     values = np.asarray(values, dtype=float)
     x0 = values[..., :1] if reference is None else np.asarray(reference, dtype=float)[..., None]
-    scale = np.abs(x0)
-    big = np.nanmax(np.abs(values), axis=-1, keepdims=True)
-    scale = np.where(scale > 1e-9 * big, scale, big)
+    size = np.nanmax(np.abs(values), axis=-1, keepdims=True)
+    if scale is not None:
+        size = np.broadcast_to(np.asarray(scale, dtype=float), np.shape(x0)) + 0 * size
+    denom = np.where(np.abs(x0) > 1e-9 * size, np.abs(x0), size)
     diff = np.abs(values - x0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        # scale is 0 only for a quantity that is exactly 0 throughout (L_z of a top released from rest): error 0
-        return np.where(scale == 0, 0.0, diff / scale)
+        # denom is 0 only for a quantity that is exactly 0 throughout (L_z of a top released from rest): error 0
+        return np.where(denom == 0, 0.0, diff / denom)
+
+
+# what ``invariant_scale`` measures each invariant against when it starts at ~0 (for figure notes)
+SCALE_NAMES = {"energy": "T0 + |M g c|", "Lz": "|L|", "L3": "|L|"}
+
+
+def invariant_scale(ds, name):
+    """The physical size of invariant ``name`` in each run of ``ds`` (a DataArray over its run dims), the
+    denominator of its relative error when its initial value is ~0 (``relative_error``), or None for an
+    invariant whose own values are its size: the energy's T0 + |M g c| (J; T0 = ½ ω0·Iω0 from the stored
+    run inputs: a top released from rest level has E0 = 0 while it swaps M g l between V and T), and for
+    L_z and L_3 the length of L at the start, or its largest over the run when it starts at 0."""
+    if name == "energy" and {"body", "omega0"} <= set(ds.data_vars):
+        body, w0 = ds["body"], ds["omega0"]
+        inertia = body.sel(body_param=["I1", "I2", "I3"]).values
+        T0 = 0.5 * np.sum(inertia * w0.transpose(*body.dims[:-1], "xyz").values ** 2, axis=-1)
+        mgc = np.sqrt(sum(body.sel(body_param=k) ** 2 for k in ("mgc1", "mgc2", "mgl")))
+        return mgc + T0
+    if name in ("Lz", "L3") and "L" in ds.data_vars:
+        L = np.sqrt((ds["L"] ** 2).sum("xyz", skipna=False))
+        start = L.isel(time=0)
+        return start.where(start > 0, L.max("time"))
+    return None
 
 
 def invariant_error(run, name):
     """Relative error series of invariant ``name`` of one run (a Dataset over time):
-    |X(t) − X0| / |X0|, with |·| the vector norm for L (layout.invariant gives X)."""
+    |X(t) − X0| / |X0|, with |·| the vector norm for L (layout.invariant gives X), X0 ~ 0 measured
+    against ``invariant_scale``."""
     from ..kernels.invariants import invariant
 
-    return error_series(invariant(run, name).values)
+    scale = invariant_scale(run, name)
+    return error_series(invariant(run, name).values, None if scale is None else scale.values)
 
 
-def error_series(values):
+def error_series(values, scale=None):
     """``invariant_error`` of one run's invariant values, (time,) or (time, xyz) for a vector: the
-    distance from the initial value over its size."""
+    distance from the initial value over its size (``scale``: ``relative_error``'s, for a scalar)."""
     values = np.asarray(values, dtype=float)
     if values.ndim == 2:  # (time, xyz): the distance from the initial vector over its length
-        scale = np.linalg.norm(values[0]) or np.nanmax(np.linalg.norm(values, axis=-1))
+        size = np.linalg.norm(values[0]) or np.nanmax(np.linalg.norm(values, axis=-1))
         diff = np.linalg.norm(values - values[:1], axis=-1)
-        return np.zeros_like(diff) if scale == 0 else diff / scale  # a vector that is 0 throughout: error 0
-    return relative_error(values)
+        return np.zeros_like(diff) if size == 0 else diff / size  # a vector that is 0 throughout: error 0
+    return relative_error(values, scale=scale)
 
 
 def drawable_invariants(ds):

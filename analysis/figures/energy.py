@@ -13,15 +13,18 @@ marked "diverged" in the legend.
 import matplotlib.pyplot as plt
 import numpy as np
 
+from ...kernels import invariants as invariant_table
 from ...kernels.invariants import invariant, needed_variables
 from ...results.layout import conserved
 from ..io import (
     DT_STYLES,
     FLOOR,
     QUANTITY_LABELS,
+    SCALE_NAMES,
     drawable_invariants,
     error_series,
     fmt_dt,
+    invariant_scale,
     line_style,
     missing_variable_error,
     relative_error,
@@ -52,12 +55,14 @@ def drift_table(ds, quantity="energy", sel=None):
     """{(method, f, theta0, dt): (max, final) relative error of ``quantity``} over each run."""
     sub = select(ds, sel)
     out = {}
+    scale = _run_scales(sub, quantity)
     for m in sub.integrator.values:
         for f in sub.f.values:
             for th in sub.theta0.values:
                 for dt in sub.dt.values:
-                    run = sub[quantity].sel({"integrator": m, "f": f, "theta0": th, "dt": dt}).values
-                    err = relative_error(run)
+                    at = {"integrator": m, "f": f, "theta0": th, "dt": dt}
+                    run = sub[quantity].sel(at).values
+                    err = relative_error(run, scale=None if scale is None else scale.sel(at).values)
                     finite = err[np.isfinite(err)]
                     final = err[-1] if np.isfinite(err[-1]) else np.inf
                     out[(str(m), float(f), float(th), float(dt))] = (
@@ -84,6 +89,12 @@ def _check_quantity(ds, quantity):
 RUN_DIMS = ("integrator", "f", "theta0", "dt")
 
 
+def _run_scales(sub, quantity):
+    """``invariant_scale`` of ``quantity`` broadcast over the runs of ``sub`` (None: its own values)."""
+    scale = invariant_scale(sub, quantity)
+    return None if scale is None else scale.broadcast_like(sub.status).transpose(*RUN_DIMS)
+
+
 def run_errors(sub, quantity):
     """{(method, f, θ0, dt): (error series, status)} of every run of ``sub``: the invariant computed once
     over the whole selection and each run's row taken from it (a figure draws thousands of runs, and
@@ -91,9 +102,14 @@ def run_errors(sub, quantity):
     values = invariant(sub, quantity)
     values = values.transpose(*RUN_DIMS, "time", *(["xyz"] if "xyz" in values.dims else [])).values
     status = sub.status.transpose(*RUN_DIMS).values
+    scale = _run_scales(sub, quantity)
+    scale = np.full(status.shape, None) if scale is None else scale.values
     labels = [sub[d].values for d in RUN_DIMS]
     return {
-        (str(m), float(f), float(th), float(dt)): (error_series(values[i, j, k, n]), int(status[i, j, k, n]))
+        (str(m), float(f), float(th), float(dt)): (
+            error_series(values[i, j, k, n], scale[i, j, k, n]),
+            int(status[i, j, k, n]),
+        )
         for i, m in enumerate(labels[0])
         for j, f in enumerate(labels[1])
         for k, th in enumerate(labels[2])
@@ -130,6 +146,21 @@ def _coincidences(series):
     return sorted((sorted(g, key=order.index) for g in common), key=lambda g: order.index(g[0]))
 
 
+def _scale_note(runs, quantity):
+    """[note] when a run of ``runs`` (one panel's) starts with ``quantity`` ~0, so that its error is relative
+    to the quantity's physical size (io.invariant_scale) rather than to its start; [] otherwise."""
+    scale = invariant_scale(runs, quantity)
+    if scale is None:
+        return []
+    size = float(scale.max())
+    start = np.abs(invariant(runs.isel(time=0), quantity).values)
+    if not np.any(start <= 1e-9 * size):
+        return []
+    sym = QUANTITY_LABELS.get(quantity, quantity)
+    units = invariant_table.INVARIANTS[quantity].units
+    return [f"{sym}(0) ≈ 0: relative to {SCALE_NAMES[quantity]} = {size:.3g} {units} instead"]
+
+
 def _panel(ax, sub, quantity, f, th, envelope=True, methods=None, errors=None):
     """One panel: the drift of ``quantity`` of ``methods`` (default: all) at (f, θ0), colour and marker =
     method, line style = dt; a run that stopped ends in an ×.  ``errors``: ``run_errors(sub, quantity)``
@@ -163,6 +194,7 @@ def _panel(ax, sub, quantity, f, th, envelope=True, methods=None, errors=None):
     notes = [coincidence_text(groups, "same curve")] if (groups := _coincidences(series)) else []
     if any_zero:
         notes.append("at 1e-17: exactly conserved")
+    notes += _scale_note(sub.sel({"f": f, "theta0": th}), quantity)
     if notes:
         panel_note(ax, notes)
     return series

@@ -21,7 +21,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ...results import find_results, open_results
-from ..io import DT_STYLES, FLOOR, SelectionError, color, fmt_dt, relative_error, save_figure, scene_options
+from ..io import DT_STYLES, FLOOR, SelectionError, color, fmt_dt, invariant_error, save_figure, scene_options
 from .nutation import closed_form_nutation
 
 REGIME_TITLES = {
@@ -224,7 +224,7 @@ def next_vs_prev_figure(jobs):
         ax = axes[0, c]
         for m in ("seed_next", "seed_prev"):
             for k, dt in enumerate(ds.dt.values):
-                e = relative_error(ds.energy.sel({"integrator": m, "f": f, "theta0": th, "dt": dt}).values)
+                e = invariant_error(ds.sel({"integrator": m, "f": f, "theta0": th, "dt": dt}), "energy")
                 ax.plot(
                     tp,
                     np.maximum(np.fmax.accumulate(e), FLOOR),

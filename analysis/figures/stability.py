@@ -23,7 +23,7 @@ import numpy as np
 from matplotlib.ticker import NullFormatter
 
 from ...kernels.driver import STATUS_UNCONVERGED
-from ..io import pick, relative_error, scene_label, select
+from ..io import invariant_scale, pick, relative_error, scene_label, select
 from . import yardstick
 from .record import add_note, facet, panel_size, suptitle, wrap_note
 
@@ -45,9 +45,10 @@ def _edges(values, log=True):
     return np.concatenate(([v[0] ** 2 / mids[0]], mids, [v[-1] ** 2 / mids[-1]]))
 
 
-def max_energy_error(energy):
-    """log10 of max_t |E − E0|/|E0| per run; ``energy`` (..., time) in J; NaN samples skipped."""
-    err = relative_error(np.asarray(energy))
+def max_energy_error(energy, scale=None):
+    """log10 of max_t |E − E0|/|E0| per run; ``energy`` (..., time) in J; NaN samples skipped; ``scale``
+    (...) J: the energy's size, for E0 ~ 0 (io.relative_error)."""
+    err = relative_error(np.asarray(energy), scale=None if scale is None else np.asarray(scale)[..., None])
     with np.errstate(all="ignore"):
         worst = np.nanmax(np.where(np.isfinite(err), err, np.nan), axis=-1)
     return np.log10(np.maximum(worst, 1e-17))
@@ -65,7 +66,10 @@ def _logerr(run, theta0, measure, full):
     """(f, dt) array of log10 errors of one method's runs (run: dims f, dt, time[, xyz]; full: the file's
     Dataset, for the stored run inputs)."""
     if measure == "energy":
-        return max_energy_error(run.energy.transpose("f", "dt", "time").values)
+        scale = invariant_scale(run, "energy")
+        if scale is not None:
+            scale = scale.broadcast_like(run.status).transpose("f", "dt").values
+        return max_energy_error(run.energy.transpose("f", "dt", "time").values, scale)
     out = np.empty((run.f.size, run.dt.size))
     for i, f in enumerate(run.f.values):
         exact = yardstick.exact_axis(full, f, theta0, run.time.values)

@@ -20,13 +20,13 @@ import numpy as np
 from ...results import open_results
 from ...safe_files import UnsafePathError, check_output, write_text
 from ..figures import yardstick
-from ..io import invariant_error, relative_error
+from ..io import invariant_error
 
 
 def worst_error(ds, quantity, **at):
     """max_t relative error of ``quantity`` of one run (inf when it diverged)."""
     run = ds.sel(at)
-    err = invariant_error(run, quantity) if quantity != "energy" else relative_error(run.energy.values)
+    err = invariant_error(run, quantity)
     finite = err[np.isfinite(err)]
     return float(finite.max()) if finite.size and int(run.status) == 0 else math.inf
 
