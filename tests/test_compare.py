@@ -280,6 +280,7 @@ def test_main_exit_status_and_one_line_errors(pair, tmp_path, capsys):
         ([str(a), __file__], "not a readable results file"),
         ([str(a), str(variant(lambda ds: ds.isel(dt=[0]), "dt.h5"))], "different grids: dt"),
         ([str(a), str(b), "--rtol", "enrgy=1e-9"], "error: --rtol enrgy=1e-09: no variable enrgy"),
+        ([str(a), str(b), "--ignore", "enrgy"], "error: --ignore enrgy: no variable enrgy in either file"),
         ([str(a), str(b), "--atol", "x=y"], "error: --atol x=y: not a number"),
     ]:
         assert main(argv) == 2

@@ -437,6 +437,13 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
 
     da, db = current(da), current(db)
     ignored = dict(IGNORED)
+    from ...results.layout import RUN_VARIABLES, SAMPLE_VARIABLES
+
+    for name in ignore:  # a misspelt --ignore would leave the variable compared and say nothing of it
+        known = name in SAMPLE_VARIABLES or name in RUN_VARIABLES  # (absent from files of an older layout)
+        if not known and name not in da.data_vars and name not in db.data_vars:
+            held = sorted(set(da.data_vars) | set(db.data_vars))
+            raise OptionError(f"--ignore {name}: no variable {name} in either file (variables: {', '.join(held)})")
     ignored.update({name: "asked" for name in ignore})
     dims = [member_dim(d) for d in (da, db)]
     if dims[0] != dims[1]:
@@ -667,7 +674,7 @@ def build_parser():
         action="append",
         default=[],
         metavar="VAR",
-        help="skip a variable (repeatable); wall_time is always skipped",
+        help="skip a variable (repeatable; a name no file or layout has is refused); wall_time is always skipped",
     )
     p.add_argument(
         "--shared-runs",
