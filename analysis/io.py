@@ -416,7 +416,10 @@ def marker(method):
     return MARKERS[_rank(method) % len(MARKERS)]
 
 
-def line_style(method):
-    """matplotlib keyword arguments (colour, marker every tenth of the line, open face) that draw
-    ``method``'s curves in a time-series figure."""
-    return dict(color=color(method), marker=marker(method), markevery=0.1, ms=3.5, mfc="none", mew=0.8)
+def line_style(method, n_points):
+    """matplotlib keyword arguments (colour, a marker every tenth of the line's ``n_points``, open face)
+    that draw ``method``'s curves in a time-series figure.  The stride is a whole number of points:
+    matplotlib's fractional markevery=0.1 raises IndexError at draw time on a line without a finite
+    point (a run that diverged before the window drawn)."""
+    every = max(1, n_points // 10)
+    return dict(color=color(method), marker=marker(method), markevery=every, ms=3.5, mfc="none", mew=0.8)

@@ -231,3 +231,18 @@ def test_a_top_released_level_from_rest_has_its_energy_error_against_mgl():
     fig = drift_figure(ds)
     notes = [t.get_text() for ax in fig.axes for t in ax.texts]
     assert any("E(0) ≈ 0: relative to T0 + |M g c| = 1 J" in n for n in notes), notes
+
+
+def test_the_nutation_figure_draws_a_run_that_diverged_before_its_end_window():
+    """MuJoCo's Euler at 50 Hz, dt = 1 ms diverges at 0.15 s of 2 s: its θ in the figure's end window is
+    all NaN, and matplotlib's fractional markevery raised IndexError when the figure was saved."""
+    import io as bytes_io
+
+    from helpers import make_dataset
+
+    ds = make_dataset({"integrator": ["mujoco_euler", "lie_poisson"], "f": [50.0], "dt": [1e-3]}, t_end=2.0)
+    assert int(ds.status.sel(integrator="mujoco_euler").max()) != 0
+    fig = theta_figure(ds)
+    assert len(fig.axes) >= 2  # a start and an end window
+    fig.savefig(bytes_io.BytesIO(), format="png")
+    assert any("diverged" in t.get_text() for t in fig.legends[0].get_texts())

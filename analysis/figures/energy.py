@@ -176,7 +176,7 @@ def _panel(ax, sub, quantity, f, th, envelope=True, methods=None, errors=None):
         status = errors[(m, float(f), float(th), dt)][1]
         any_zero |= _kept_exactly(err, status)
         label = f"{m}" + (f", {fmt_dt(dt)}" if sub.dt.size > 1 else "")
-        style = line_style(m)
+        style = line_style(m, time.size)
         if status != 0:
             label += " (diverged)"
             last = np.flatnonzero(np.isfinite(err))

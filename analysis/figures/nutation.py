@@ -67,7 +67,7 @@ def _theta_panel(ax, sub, f, th, lo, hi, exact_t, exact_theta, nut, flips, metho
                 label += " (diverged)"
             y = np.degrees(run.theta.values[mask])
             series[label] = y
-            ax.plot(time[mask], y, DT_STYLES[k % 4], lw=1.1, label=label, **line_style(m))
+            ax.plot(time[mask], y, DT_STYLES[k % 4], lw=1.1, label=label, **line_style(m, y.size))
     if exact_theta is not None:
         keep = (exact_t >= lo - 1e-12) & (exact_t <= hi + 1e-12)
         ax.plot(exact_t[keep], exact_theta[keep], **EXACT_STYLE, label=yardstick.label(sub))

@@ -211,7 +211,7 @@ def method_handles(methods, dts=(), diverged=None):
     diverged = diverged or {}
     handles, labels = [], []
     for m in methods:
-        style = {k: v for k, v in line_style(m).items() if k != "markevery"}
+        style = {k: v for k, v in line_style(m, 1).items() if k != "markevery"}
         handles.append(mlines.Line2D([], [], lw=1.2, **style))
         labels.append(m + (f" ({diverged[m]})" if m in diverged else ""))
     if len(dts) > 1:
