@@ -16,8 +16,11 @@ per member is what the separate files would have given (members differ in
 scene, options and invariants, so no figure could share their panels).
 
 Output: -o PATH (default ``<kind>.png`` next to FILE); --format png
-svg pdf for several.  Only ``work-precision`` runs anything (its DOP853 peer,
-scipy, at several tolerances); every other kind reads the stored samples.
+svg pdf for several.  Only ``work-precision`` and ``sciml`` run anything (their
+scipy peers at several tolerances; sciml times four solvers, best of 7, and
+re-times each method: minutes on a fast spin, one progress line per solver,
+``--no-peers`` or ``--repeats 1`` to shorten); every other kind reads the stored
+samples.
 When a figure cannot draw every value of the grid it says which it drew, in
 the figure and on a ``gyrolab-plot: note:`` line, with the command that draws
 the others.  -o into a directory that does not exist is refused unless

@@ -152,7 +152,19 @@ def sciml_data(ds, sel=None, retime=True, peers=PEERS, repeats=REPEATS, toleranc
             seconds = time_method(str(m), scene, dt, t_end, every, repeats) if retime and ok else float(run.wall_time)
             pts.append((dt, seconds, int(run.n_steps), error))
         methods[str(m)] = pts
-    peer = {name: peer_points(scene, t_end, ref, name, repeats, tolerances) for name in peers}
+    peer = {}
+    for name in peers:
+        # a progress line per solver: on a fast spin (a 50 Hz heavy top over 1 s: 10.5 min in all, measured)
+        # nothing else said that the figure was still being made
+        start = time.perf_counter()
+        print(
+            f"sciml figure: scipy {name} at {len(tolerances)} tolerance pairs, best of {repeats} each ...",
+            end="",
+            file=sys.stderr,
+            flush=True,
+        )
+        peer[name] = peer_points(scene, t_end, ref, name, repeats, tolerances)
+        print(f" {time.perf_counter() - start:.0f} s", file=sys.stderr, flush=True)
     loads.append(machine_load())
     return {
         "load": loads,
