@@ -190,7 +190,7 @@ def figure(a, path):
                 mec="k",
                 label=f"advice after measuring: {r.method}, dt = {a.measured_advice_dt:.3g} s",
             )
-    if a.separatrix_distance < NEAR_SEPARATRIX and a.metric in ("orientation", "omega"):
+    if 0 < a.separatrix_distance < NEAR_SEPARATRIX and a.metric in ("orientation", "omega"):
         ax.text(
             0.02,
             0.02,

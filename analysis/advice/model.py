@@ -323,14 +323,9 @@ def probe(method, I, omega0, T, n=None, h=None):
 def _turn_per_period(Is, G2, delta, pole, sign, n=64):
     """Δφ (rad): the turn about L over one period of the orbit (sorted moments Is, invariants G², δ),
     the period times the mean of φ̇ = G (2T − m_p²/I_p) / (G² − m_p²) (Landau & Lifshitz §37, with the
-    pole axis p as the third: R(t + P) = Rot_L(Δφ) R(t))."""
-    from .predict import two_T
-
+    pole axis p as the third: R(t + P) = Rot_L(Δφ) R(t)); φ̇ is predict.phase_rates' ψ̇."""
     m, period = orbit_points(Is, G2, delta, pole, sign, n)
-    mp2 = np.take_along_axis(m, pole[:, None, None], 2)[..., 0] ** 2
-    Ip = np.take_along_axis(Is, pole[:, None], 1)
-    G = np.sqrt(G2)[:, None]
-    rate = G * (two_T(Is, G2, delta, pole)[:, None] - mp2 / Ip) / (G2[:, None] - mp2)
+    _, rate = phase_rates(Is, G2, delta, pole, *amplitudes(Is, G2, delta, pole, m))
     return period * rate.mean(axis=1)
 
 
