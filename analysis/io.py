@@ -231,9 +231,10 @@ def relative_error(values, reference=None, scale=None):
     """
     values = np.asarray(values, dtype=float)
     x0 = values[..., :1] if reference is None else np.asarray(reference, dtype=float)[..., None]
-    size = np.nanmax(np.abs(values), axis=-1, keepdims=True)
-    if scale is not None:
-        size = np.broadcast_to(np.asarray(scale, dtype=float), np.shape(x0)) + 0 * size
+    if scale is None:
+        size = np.nanmax(np.abs(values), axis=-1, keepdims=True)
+    else:
+        size = np.broadcast_to(np.asarray(scale, dtype=float), np.shape(x0))
     denom = np.where(np.abs(x0) > 1e-9 * size, np.abs(x0), size)
     diff = np.abs(values - x0)
     with np.errstate(divide="ignore", invalid="ignore"):
