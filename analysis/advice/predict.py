@@ -229,7 +229,7 @@ def orbit_points(Is, G2, delta, pole, sign, n=N_ORBIT, start=None, start_rate=No
     if start is not None:  # the start's u: its amplitude φ (sn u = sin φ, cn u = cos φ), then F(φ | k²)
         with np.errstate(divide="ignore", invalid="ignore"):
             phi = np.arctan2(np.nan_to_num(start[:, 1] / np.sqrt(a_m2)), np.nan_to_num(start[idx, o] / np.sqrt(a_o2)))
-    K, u0 = _quarter_period_and_start(np.maximum(mc, 1e-300), phi)
+    K, u0 = _quarter_period_and_start(mc, phi)  # mc > 0: SEPARATRIX_MC on the separatrix
     u = 4.0 * K[:, None] * (np.arange(n) + (0.5 if start is None else 0.0))[None, :] / n
     if start is not None:
         sn0, cn0, dn0 = (v[:, 0] for v in _jacobi(u0[:, None], mc))

@@ -437,7 +437,7 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
 
     da, db = current(da), current(db)
     ignored = dict(IGNORED)
-    from ...results.layout import RUN_VARIABLES, SAMPLE_VARIABLES
+    from ...results.layout import RUN_VARIABLES, SAMPLE_VARIABLES, absence_reason, held_variables
 
     for name in ignore:  # a misspelt --ignore would leave the variable compared and say nothing of it
         known = name in SAMPLE_VARIABLES or name in RUN_VARIABLES  # (absent from files of an older layout)
@@ -471,7 +471,6 @@ def compare_datasets(da, db, rtol=0.0, atol=0.0, ignore=(), shared_runs=False, s
         ignored.update({v: "provenance of the combined files" for v in d.data_vars if "source" in d[v].dims})
     va = [v for v in da.data_vars if v not in ignored and v not in INPUT_VARIABLES]
     vb = [v for v in db.data_vars if v not in ignored and v not in INPUT_VARIABLES]
-    from ...results.layout import SAMPLE_VARIABLES, absence_reason, held_variables
     from ...results.migrate import ABSENT_BEFORE, file_layout_version
 
     # A file of an older layout lacks some variables: compare the rest, and say so.
