@@ -58,6 +58,20 @@ def test_different_grids_fill_the_gaps_with_status_minus_one(tmp_path):
     assert "-1: not in this scene's grid" in out["status"].attrs["legend"]
 
 
+def test_names_longer_than_the_first_files_are_written_whole(tmp_path):
+    """The first file's string coordinate carries its on-disk width (encoding dtype <U3 for "rk4"):
+    the combined file must not write lie_poisson4 cut to that width (it read back as "lie")."""
+    a = make_file(tmp_path / "a.h5", "sweep.f=[10]", "sweep.method=[rk4]")
+    b = make_file(tmp_path / "b.h5", "sweep.f=[10]", "sweep.method=[lie_poisson4]", "scene=free_symmetric")
+    write(combine([a, b]), tmp_path / "c.h5")
+    with xr.open_dataset(tmp_path / "c.h5", engine="h5netcdf") as out:
+        assert sorted(out["integrator"].values) == ["lie_poisson4", "rk4"]
+        assert list(out["scene"].values) == ["heavy_top", "free_symmetric"]
+        # each input's code is on record, not only its commit
+        assert all(len(str(h)) == 16 for h in out["source_kernel_source_hash"].values)
+        assert set(out["source_git_dirty"].values) <= {"0", "1"}
+
+
 def test_cli_writes_the_file_and_refuses_bad_arguments(tmp_path, capsys):
     make_file(tmp_path / "a.h5", "sweep.f=[10]")
     make_file(tmp_path / "b.h5", "sweep.f=[50]")

@@ -27,9 +27,9 @@ status -1 (n_steps 0, solver counts -1); every other attr that differs between t
 (``conserved``, ``closed_form``, ``config``, ...) becomes such a coordinate too (a vector scene
 option as JSON text, coordinate attr ``encoding: json``), so that a member read back
 (analysis/io.py ``open_members``) carries its own attrs.  Each input file's provenance (config,
-git commit, creation time, path) is kept in variables along a ``source`` dimension.  The inputs are
-loaded into memory; the output is written through a temporary file, fsync
-and rename (gyrolab/safe_files.py atomic_replace).
+git commit and dirty flag, kernel source hash, creation time, path) is kept in variables along a
+``source`` dimension.  The inputs are loaded into memory; the output is written through a temporary
+file, fsync and rename (gyrolab/safe_files.py atomic_replace).
 """
 
 import argparse
@@ -73,7 +73,7 @@ from ...safe_files import (
 KNOWN_LAYOUTS = tuple(range(LAYOUT_VERSION + 1))
 IDENTITY_PREFIXES = ("scene",)
 IDENTITY_KEYS = ("t_end", "every", "divergence_threshold")
-PROVENANCE = ("config", "git_commit", "created", "gyrolab_version")
+PROVENANCE = ("config", "git_commit", "git_dirty", "kernel_source_hash", "created", "gyrolab_version")
 LAYOUT_DIMS = {name: GRID_DIMS + sample_dims(name) for name in SAMPLE_VARIABLES}
 LAYOUT_DIMS.update({name: GRID_DIMS for name in RUN_VARIABLES})
 LAYOUT_DIMS.update({name: INPUT_DIMS + (own,) for name, (own, _) in INPUT_VARIABLES.items()})
@@ -357,7 +357,13 @@ def _label(values, dim):
 
 def write(ds, path):
     """Write ``ds`` to ``path`` (h5netcdf) through a temporary file, fsync and rename (holding
-    ``<path>.lock``, removing temporaries a killed combine left)."""
+    ``<path>.lock``, removing temporaries a killed combine left).  A string variable drops the on-disk
+    width its first input file gave it (encoding dtype ``<U3`` for "rk4"): kept, it would cut the longer
+    names of the other inputs to that width, silently."""
+    ds = ds.copy()
+    for var in ds.variables.values():
+        if var.dtype.kind in "OSU":
+            var.encoding.pop("dtype", None)
     with OutputLock(path):
         remove_stale_temporaries(path)
         atomic_replace(path, lambda tmp: ds.to_netcdf(tmp, engine="h5netcdf"))
