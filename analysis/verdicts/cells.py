@@ -37,6 +37,8 @@ def fmt_order(rec, short=False):
             return f"exact to rounding (err ≤ {errs.max():.0e} at every dt)"
         if errs.size >= MIN_LADDER and errs.max() < 10 * errs.min():
             return f"— (flat: err ≈ {np.median(errs):.0e} at every dt)"
+        if reason and short and "slopes disagree" in reason:  # no asymptotic range (classify.fit_order)
+            return "— (local slopes disagree)"
         if reason:
             return f"— ({reason.split(' after ')[0] if short else reason})"  # the record's own reason
         return "— (err does not fall with dt)" if excl else "—"

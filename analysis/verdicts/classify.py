@@ -72,7 +72,8 @@ class OrderFit(_Record):
     NaN with 2 points); stderr: the slope's standard error; dt_min, dt_max (s):
     the range of steps used; n_points: how many; used: per input point (in the
     caller's order) whether it entered the fit; excluded: per input point why
-    not ("nonfinite", "diverged", "floor", "reference", "flat", "pre_asymptotic", or "").
+    not ("nonfinite", "diverged", "floor", "reference", "flat", "pre_asymptotic", "slopes_disagree",
+    "not_falling", "too_few", or "").
     reason: "" for a fit, else why there is none.
     """
 
@@ -132,7 +133,10 @@ def fit_order(
        Finer points are ``flat`` (a rounding or reference floor above the eps
        threshold, where the error no longer falls or scatters); coarser ones
        ``pre_asymptotic`` (a higher-order term still dominates, e.g.
-       seed_next's dt² term at dt ≥ 2e-4 s on the 50 Hz top).
+       seed_next's dt² term at dt ≥ 2e-4 s on the 50 Hz top).  Without such a
+       run every point left is ``slopes_disagree`` (no ``min_points`` − 1
+       neighbouring slopes agree) or ``not_falling`` (they agree, but below
+       ``min_slope``), and the reason lists the local slopes.
 
     The fit needs ``min_points`` (≥ 2) points; with 2 the CI is NaN.  Returns an
     ``OrderFit``.
@@ -159,13 +163,14 @@ def fit_order(
     order = [i for i in np.argsort(-dt, kind="stable") if not excluded[i]]
     slopes = _local_slopes(np.log(dt[order]), np.log(err[order])) if len(order) >= 2 else np.array([])
     need = max(2, min_points) - 1  # slopes in a run
-    chosen = None
+    chosen, long_enough = None, False
     for end in range(len(slopes) - 1, -1, -1):  # the run's finest slope, finest first
         run = [slopes[end]]
         start = end
         while start > 0 and abs(slopes[start - 1] - np.median(run)) <= slope_tol:
             start -= 1
             run.append(slopes[start])
+        long_enough = long_enough or len(run) >= need
         if len(run) >= need and np.median(run) >= min_slope:
             chosen = (start, end)
             break
@@ -176,18 +181,39 @@ def fit_order(
         for i in order[:start]:
             excluded[i] = "pre_asymptotic"
         order = order[start : end + 2]
-    else:
+    elif slopes.size:
+        # points enough for slopes, but no asymptotic range among them: say which rule left them out
+        for i in order:
+            excluded[i] = "not_falling" if long_enough else "slopes_disagree"
         order = []
     fit = OrderFit(confidence=confidence, excluded=excluded, used=[not e for e in excluded])
     if len(order) < max(2, min_points):
         fit.used = [False] * n
         fit.excluded = [e or "too_few" for e in excluded]
+        listed = ", ".join(f"{slope:.3g}" for slope in slopes)
+        words = {
+            # no ``need`` neighbouring local slopes agree within slope_tol: no asymptotic range to fit
+            "slopes_disagree": (
+                f"whose local slopes disagree ({listed}: no {need} neighbours within {slope_tol:g} of each other)"
+            ),
+            # agreeing slopes, but below min_slope: the error does not fall with dt
+            "not_falling": f"where err does not fall with dt (local slopes {listed}; need >= {min_slope:g})",
+        }
         fit.reason = (
             f"{len(order)} usable point(s) after excluding "
             + (
                 ", ".join(
-                    f"{excluded.count(k)} {k}"
-                    for k in ("nonfinite", "diverged", "floor", "reference", "flat", "pre_asymptotic")
+                    f"{excluded.count(k)} {words.get(k, k)}"
+                    for k in (
+                        "nonfinite",
+                        "diverged",
+                        "floor",
+                        "reference",
+                        "flat",
+                        "pre_asymptotic",
+                        "slopes_disagree",
+                        "not_falling",
+                    )
                     if excluded.count(k)
                 )
                 or "none"
@@ -228,9 +254,10 @@ class Drift(_Record):
     stop; run_longer (s), how long a record would decide bounded or saturating.
     preserved_to_rounding: max |e| ≤ preserved_ulps · eps.  amplitude: max |e|
     (finite part); mean: mean of e; late_mean: mean of e over the last window;
-    t_diverged (s): first time e is non-finite (or past ``blowup`` when
-    given; NaN otherwise).  Diagnostics of the rule: n_windows, window (s), z_trend,
-    accel, eta, zeta, oscillation, wander; reason: why, in words.
+    t_diverged (s): when the run stopped, ``t_stop`` when the caller knows it (n_steps · dt of a
+    stopped run: its last finite sample, where the kernel's divergence test fired), else the first
+    time e is non-finite (or past ``blowup`` when given; NaN otherwise).  Diagnostics of the rule:
+    n_windows, window (s), z_trend, accel, eta, zeta, oscillation, wander; reason: why, in words.
     """
 
     drift_class: str
@@ -416,6 +443,7 @@ def classify_drift(
     slowing_min=0.5,
     df_crit=-3.5,
     min_samples=8,
+    t_stop=None,
     _tail=False,
 ):
     """Drift class of a relative error series e(t) = X(t)/X(0) − 1 of an invariant X.
@@ -425,7 +453,9 @@ def classify_drift(
 
     1. ``diverged``: e is non-finite anywhere: the run stopped (a runner
        NaN-fills a run's samples after its kernel's divergence test, the
-       energy off by ``runner.divergence_threshold``).  A finite invariant
+       energy off by ``runner.divergence_threshold``; ``t_diverged`` is
+       ``t_stop`` when given, the time the run stopped, else the first
+       non-finite sample's, one sample later).  A finite invariant
        off by more than 100 % is not by itself a divergence: an |L|
        rescale that turns L, a damped energy that settles below zero, are
        bounded runs and are classed by their shape below (a collapse, a
@@ -518,6 +548,11 @@ def classify_drift(
     )
     if not finite.all():
         first = int(np.argmax(~finite))
+        if t_stop is not None and math.isfinite(t_stop):
+            # the kernel stopped the run at t_stop (its divergence test fired on that sample, kept finite)
+            # and NaN-filled the samples after it: the first NaN is one sample later than the stop
+            why = f"stopped at t = {t_stop:g} s (non-finite from t = {t[first]:g} s)"
+            return Drift("diverged", t_diverged=float(t_stop), reason=why, **base)
         return Drift("diverged", t_diverged=float(t[first]), reason=f"non-finite at t = {t[first]:g} s", **base)
     if e.size < min_samples:
         return Drift("undetermined", reason=f"{e.size} samples: too few to classify (need {min_samples})", **base)

@@ -25,20 +25,29 @@ def marker(method, methods):
     return MARKERS[methods.index(method) % len(MARKERS)] if method in methods else "o"
 
 
+LINESTYLES = ("-", "--", ":", "-.")  # of the order fits, one per (f, θ0) group
+MAX_DRIFT_ROWS = 4  # rows of drift panels, one per (f, θ0) group, in a scene's figure
+
+
+def group_style(k):
+    """(line style of the fit, marker face: 'none' hollow or None filled) of the k-th (f, θ0) group."""
+    return LINESTYLES[k % len(LINESTYLES)], ("none", None)[k % 2]
+
+
 def _order_panel(ax, orders, methods):
+    groups = list(dict.fromkeys((o["f"], o["theta0"]) for o in orders))
     for o in orders:
+        style, face = group_style(groups.index((o["f"], o["theta0"])))
         dt, err = np.array(o["ladder_dt"], float), np.array(o["ladder_err"], float)
         ok = np.isfinite(err) & (err > 0)
         c = color(o["method"])
-        ax.loglog(
-            dt[ok], np.maximum(err[ok], FLOOR), marker(o["method"], methods), ms=3, color=c, alpha=0.6, mfc="none"
-        )
+        ax.loglog(dt[ok], np.maximum(err[ok], FLOOR), marker(o["method"], methods), ms=3, color=c, alpha=0.6, mfc=face)
         if o["order"] is not None and math.isfinite(o["order"]):
             used = np.array(o["ladder_used"], bool)
             p = o["order"]
             logc = np.mean(np.log(err[used]) - p * np.log(dt[used]))
             x = np.geomspace(o["order_dt_range"][0], o["order_dt_range"][1], 10)
-            ax.loglog(x, np.exp(logc) * x**p, "-", color=c, lw=1.2)
+            ax.loglog(x, np.exp(logc) * x**p, style, color=c, lw=1.2)
     # Below the reference's own error the points measure the reference, not the method (left out of the fits).
     ref_errors = [o.get("reference_error") or 0.0 for o in orders]
     if ref_errors and max(ref_errors) > FLOOR:
@@ -46,11 +55,20 @@ def _order_panel(ax, orders, methods):
         ax.text(0.02, 0.02, "≤ reference (its own error)", transform=ax.transAxes, fontsize=6.5, color="0.35")
     ax.set_xlabel("time step dt (s)")
     ax.set_ylabel("final-state error (dimensionless)")
-    o = orders[0] if orders else None
-    ref = o["reference"] if o else ""
+    if len(groups) > 1:  # several (f, θ0): the fits' line style says which
+        keys = [
+            plt.Line2D([], [], color="0.3", ls=group_style(k)[0], marker="o", ms=3, mfc=group_style(k)[1])
+            for k in range(len(groups))
+        ]
+        ax.legend(keys, [group_words(*g) for g in groups], fontsize=6.5, loc="lower right")
+    t_ends = list(dict.fromkeys(o["t_end"] for o in orders))
+    refs = list(dict.fromkeys(o["reference"] for o in orders))
+    when = f"t = {t_ends[0]:g} s" if len(t_ends) == 1 else f"t = {', '.join(f'{t:g}' for t in t_ends)} s"
+    ref = refs[0] if len(refs) == 1 else f"{len(refs)} references, one per group (see the verdict table)"
+    where = f"{group_words(*groups[0])}, " if len(groups) == 1 else ""
     ax.set_title(
-        f"(a) order fits: lines over the asymptotic range, final state at t = {o['t_end']:g} s\nreference: {ref}"
-        if o
+        f"(a) order fits: lines over the asymptotic range, {where}final state at {when}\nreference: {ref}"
+        if orders
         else "(a) no dt ladder",
         fontsize=9,
     )
@@ -119,13 +137,28 @@ def _drift_panel(ax, q, runs, datasets):
             ax.plot(max(r["t_diverged"], t[1]), 1.0, "x", color=c, ms=6)
         elif r["drift_class"] == "collapse" and r.get("collapse_time") is not None:
             ax.plot(max(r["collapse_time"], t[1]), abs(r["collapse_size"]), "v", color=c, ms=5)
-    r = runs[0] if runs else None
-    cond = f"f = {r['f']:g} Hz, θ0 = {r['theta0']:g}°, dt = {r['dt']:g} s" if r else ""
-    ax.set_title(f"(c) |e| of {q}: {cond}\ndashed: fitted line / √t; dotted: bounded max; ▽ collapse", fontsize=8.5)
+    ax.set_title(
+        f"(c) |e| of {q}: {drift_conditions(runs)}\ndashed: fitted line / √t; dotted: bounded max; ▽ collapse",
+        fontsize=8.5,
+    )
     ax.set_xlabel("time t (s)")
     ax.set_ylabel(f"|{q}(t) − {q}(0)| / |{q}(0)|")
     ax.set_ylim(1e-17, 10)
     ax.grid(alpha=0.3, which="both")
+
+
+def group_words(f, theta0):
+    return f"f = {f:g} Hz, θ0 = {theta0:g}°"
+
+
+def drift_conditions(runs):
+    """'f = 10 Hz, θ0 = 45°, dt = 0.005 s' of the drift records ``runs`` (one (f, θ0) group, a panel's):
+    its steps listed when the methods' runs differ (files of other sweeps)."""
+    if not runs:
+        return ""
+    dts = sorted({r["dt"] for r in runs})
+    steps = f"dt = {dts[0]:g} s" if len(dts) == 1 else f"dt = {', '.join(f'{d:g}' for d in dts)} s by method"
+    return f"{group_words(runs[0]['f'], runs[0]['theta0'])}, {steps}"
 
 
 def fitted_line(r, t):
@@ -152,6 +185,7 @@ def _has_run(ds, r):
         and ds.sizes["time"] > 2
         and np.any(np.isclose(ds.dt.values, r["dt"]))
         and np.any(np.isclose(ds.f.values, r["f"]))
+        and np.any(np.isclose(ds.theta0.values, r["theta0"]))
     )
 
 
@@ -162,21 +196,40 @@ def scene_figure(scene, records, datasets):
     summ = [r for r in records if r["kind"] == "summary" and r["scene"] == scene]
     quantities = [q for q in dict.fromkeys(r["quantity"] for r in summ) if q is not None]  # None: declares none
     methods = list(dict.fromkeys(r["method"] for r in summ))
+    # one row of drift panels per (f, θ0) group with a drift run: each panel's curves and title its group's
+    groups = list(
+        dict.fromkeys((r["f"], r["theta0"]) for r in summ if r["quantity"] in quantities and r.get("drift_class"))
+    )
+    if quantities and not groups:
+        groups = [None]  # a row of empty panels still shows the scene's invariants
+    n_groups, groups = len(groups), groups[:MAX_DRIFT_ROWS]  # a 10 × 10 sweep: 4 rows, and the title says so
     ncol = max(3, len(quantities))
-    rows = 2 if quantities else 1  # no conserved quantity (forced_body): no drift row
-    fig = plt.figure(figsize=(4.2 * ncol, 10.5 if quantities else 5.8))
-    grid = fig.add_gridspec(rows, ncol, height_ratios=[1.1, 1.0][:rows])
+    rows = 1 + len(groups) if quantities else 1  # no conserved quantity (forced_body): no drift row
+    fig = plt.figure(figsize=(4.2 * ncol, 5.8 + 4.7 * (rows - 1)))
+    grid = fig.add_gridspec(rows, ncol, height_ratios=[1.1] + [1.0] * (rows - 1))
     half = ncol // 2 + ncol % 2
     _order_panel(fig.add_subplot(grid[0, :half]), orders, methods)
     _threshold_panel(fig.add_subplot(grid[0, half:]), thresholds)
-    for k, q in enumerate(quantities):
-        runs = [r for r in summ if r["quantity"] == q and r.get("drift_class")]
-        _drift_panel(fig.add_subplot(grid[1, k]), q, runs, datasets)
+    for row, group in enumerate(groups, start=1):
+        for k, q in enumerate(quantities):
+            runs = [
+                r
+                for r in summ
+                if r["quantity"] == q
+                and r.get("drift_class")
+                and (r["f"], r["theta0"]) == (group or (r["f"], r["theta0"]))
+            ]
+            _drift_panel(fig.add_subplot(grid[row, k]), q, runs, datasets)
     handles = [plt.Line2D([], [], color=color(m), lw=2, marker=marker(m, methods), mfc="none") for m in methods]
     ncol_legend = min(10, len(methods))
     fig.legend(handles, methods, loc="lower center", ncol=ncol_legend, fontsize=7.5, bbox_to_anchor=(0.5, 0.0))
     measured = ", long-time invariant errors" if quantities else " (the scene declares no conserved quantity)"
-    fig.suptitle(f"Verdicts measured on {scene}: order, stability threshold{measured}", fontsize=12)
+    shown = (
+        f"\n(c) rows: the first {len(groups)} of {n_groups} (f, θ0) groups; the verdict table has every group"
+        if n_groups > len(groups)
+        else ""
+    )
+    fig.suptitle(f"Verdicts measured on {scene}: order, stability threshold{measured}{shown}", fontsize=12)
     # the panels above the legend: ~0.17 in a legend row (7.5 pt), so that 39 methods' rows do not cover
     # the bottom panels' axis labels
     legend_rows = math.ceil(len(methods) / max(ncol_legend, 1))

@@ -34,8 +34,10 @@ Summary records (``kind: "summary"``, one per scene, method and invariant)
 take the order from the ladder and the drift from the method's run with the
 most steps; per-run records (``kind: "run"``) and order records (``kind:
 "order"``) carry f (Hz), θ0 (deg) and dt (s).  Bad input (missing,
-unreadable or foreign file, no runs): one line on stderr, exit 2, nothing
-written.
+unreadable or foreign file, no runs, or nothing to judge: no dt ladder and
+too few samples for a drift class): one line on stderr, exit 2, nothing
+written.  A file named twice (or as itself and through its directory) is
+judged once, with a note on stderr.
 """
 
 import argparse
@@ -107,6 +109,7 @@ def load(paths):
         found = find_results(paths)
     except ResultsError as err:
         raise VerdictError(str(err)) from None
+    found = _once(found)
     for path in found:
         try:
             whole, version = open_file(path)
@@ -122,6 +125,22 @@ def load(paths):
             if ds.sizes.get("integrator", 0) == 0 or int((ds["status"] >= 0).sum()) == 0:
                 raise VerdictError(f"FILE={name}: holds no runs")
             out.append((name, ds))
+    return out
+
+
+def _once(found):
+    """``found`` with each file once (a file named twice, or as itself and through its directory, would
+    count every run twice); one line on stderr names what was left out."""
+    first, out, again = {}, [], []
+    for path in found:
+        key = Path(path).resolve()
+        if key in first:
+            again.append(f"{path} (= {first[key]})" if str(path) != str(first[key]) else str(path))
+            continue
+        first[key] = path
+        out.append(path)
+    if again:
+        sys.stderr.write(f"gyrolab-verdict: note: judged once, named more than once: {', '.join(again)}\n")
     return out
 
 
@@ -330,9 +349,11 @@ def drift_records(ds):
                     run = ds.sel({"integrator": m, "f": f, "theta0": th, "dt": dt})
                     n_steps = int(run.n_steps)
                     solver = solver_counts(run)
+                    # a stopped run stopped after its n_steps steps; its samples after that are NaN
+                    t_stop = n_steps * float(dt) if int(run.status) > 0 else None
                     for q in names:
                         e = signed_error(invariant(run, q).values)
-                        d = classify_drift(t, e, preserved_ulps=preserved_ulps(n_steps))
+                        d = classify_drift(t, e, preserved_ulps=preserved_ulps(n_steps), t_stop=t_stop)
                         d.drift_reason = d.reason
                         # A drift whose total stays below 0.1 ulp per step is a rounding bias, not truncation.
                         rounding_drift = is_rounding_drift(
@@ -550,7 +571,12 @@ def verdict(paths, stability=None, reference="auto", at=None):
     """All records (summary, order, run, threshold) from the results files ``paths``; ``stability``: T (s)
     of the threshold bisection, None to skip it; ``at``: {'f': Hz, 'theta0': deg} to judge only that
     group (default: every (method, f, θ0) group of the files)."""
-    datasets = select_at(load(paths), at)
+    return judge(select_at(load(paths), at), stability=stability, reference=reference)
+
+
+def judge(datasets, stability=None, reference="auto"):
+    """All records of ``verdict`` from loaded ``datasets`` ([(name, Dataset)], ``load``); VerdictError
+    when none of them holds anything to judge (``nothing_to_judge`` says why)."""
     refs = References(reference)
     orders, runs = [], []
     for _, ds in datasets:
@@ -558,10 +584,38 @@ def verdict(paths, stability=None, reference="auto", at=None):
         runs += drift_records(ds)
     thresholds = threshold_records(datasets, stability) if stability else []
     out = summaries(datasets, orders, runs, thresholds) + orders + runs + thresholds
+    if not out:
+        raise VerdictError(nothing_to_judge(datasets))
     for rec in out:  # every record carries every key of RECORD_KEYS (None where it does not apply)
         for key in RECORD_KEYS:
             rec.setdefault(key, None)
     return out
+
+
+def nothing_to_judge(datasets):
+    """Why ``datasets`` give no record, in one line: per file, what ``order_records`` and ``drift_records``
+    need that it lacks."""
+    from ...kernels.invariants import has_invariant
+    from ...results.layout import conserved
+
+    whys = {}
+    for name, ds in datasets:
+        n_dt, n_t = ds.sizes["dt"], ds.sizes["time"]
+        lacks = []
+        if n_dt < MIN_LADDER:
+            lacks.append(f"{n_dt} step size{'s' * (n_dt != 1)}, no dt ladder (an order needs >= {MIN_LADDER})")
+        elif n_t < 2:
+            lacks.append(f"{n_t} sample per run (an order needs a final state after the start)")
+        if not [q for q in conserved(ds) if has_invariant(ds, q)]:
+            lacks.append("no conserved quantity (a drift class needs one)")
+        elif n_t < MIN_DRIFT_SAMPLES:
+            lacks.append(f"{n_t} samples per run (a drift class needs >= {MIN_DRIFT_SAMPLES})")
+        whys.setdefault(" and ".join(lacks), []).append(str(name))
+    files = "; ".join(f"{', '.join(names)}: {why}" for why, names in whys.items())
+    return (
+        f"nothing to judge: {files}; add dt values (sweep.dt), more samples (output.every, sweep.t_end), "
+        "or pass --stability T"
+    )
 
 
 def jsonable(value):
@@ -594,9 +648,9 @@ def markdown(records, title="Verdicts measured by gyrolab"):
         "state's error max(‖axis − ref‖∞, ‖ω − ref‖∞/|ω0|).  Drift: class of e(t) = (X(t) − X0)/|X0| of each "
         "declared invariant (|L(t) − L0|/|L0| for L) with its fitted rate; bounded shows max |e|; a collapse "
         "its size, the time it took and what follows; a trend that bends, how long a run would decide; "
-        "'wander' (σ√t) claims no randomness; 'diverged (t = …)': the run stopped there (NaN, or its energy "
-        "past runner.divergence_threshold × (T0 + |Mgl|)), while an invariant of a run that goes on is classed "
-        "by its shape however far it moves.  "
+        "'wander' (σ√t) claims no randomness; 'diverged (t = …)': the run stopped there, after its "
+        "n_steps steps (NaN, or its energy past runner.divergence_threshold × (T0 + |Mgl|)), while an "
+        "invariant of a run that goes on is classed by its shape however far it moves.  "
         "Preserved: max |e| ≤ max(500, 5√N) eps over N steps; 'rounding drift': a trend (linear, √t, slowing "
         "or the start of a slow oscillation) whose total stays below 0.1 eps per step; '!' = declared in "
         "PRESERVES but not kept.  '≤ reference': the errors lie below the reference's own error estimate, "
@@ -653,31 +707,42 @@ def ladder_words(dts):
     return f"{d.size} steps, {word}"
 
 
+_LADDER_KEY = ("f", "theta0", "t_end", "reference", "ladder_dt")
+
+
 def _conditions(records, scene):
     """Sentences stating f, θ0, dt and t_end behind the numbers of ``scene``."""
     out = []
     orders = [r for r in records if r["kind"] == "order" and r["scene"] == scene]
-    for key in dict.fromkeys((o["f"], o["theta0"], o["t_end"], o["reference"]) for o in orders):
-        o = next(x for x in orders if (x["f"], x["theta0"], x["t_end"], x["reference"]) == key)
+    # one sentence per ladder: the methods of one (f, θ0) may differ in ladder (a yardstick's own reference
+    # run is left out of it) or reference; then each sentence names its methods
+    ladders = _methods_by(orders, *_LADDER_KEY)
+    for key, methods in ladders.items():
+        o = next(x for x in orders if _row_key(x, _LADDER_KEY) == key)
         dts = o["ladder_dt"]
+        shared = sum(k[:2] == key[:2] for k in ladders) > 1
+        who = f" ({', '.join(f'`{m}`' for m in methods)})" if shared else ""
         drive = o.get("drive_window")
         if drive and drive[0] >= o["t_end"]:  # the drive never acted on these runs: say so
             drive = f"; the drive acts on [{drive[0]:.4g}, {drive[1]:.4g}] s, after t = {o['t_end']:g} s: undriven here"
         elif drive:
             drive = f"; the drive acts on [{drive[0]:.4g}, {drive[1]:.4g}] s"
         out.append(
-            f"order: f = {o['f']:g} Hz, θ0 = {o['theta0']:g}°, final state at t = {o['t_end']:g} s, "
+            f"order{who}: f = {o['f']:g} Hz, θ0 = {o['theta0']:g}°, final state at t = {o['t_end']:g} s, "
             f"dt = {max(dts):.3g} … {min(dts):.3g} s ({ladder_words(dts)}); reference: {o['reference']}{drive or ''}"
         )
     runs = [r for r in records if r["kind"] == "summary" and r["scene"] == scene and r.get("drift_class")]
-    for key in dict.fromkeys(
-        (r["f"], r["theta0"], r["dt"], r["t_end"], r["n_steps"]) for r in runs if r.get("status") == 0
-    ):
+    drifts = _methods_by([r for r in runs if r.get("status") == 0], "f", "theta0", "dt", "t_end", "n_steps")
+    for key, methods in drifts.items():
         f, th, dt, t_end, n = key
         mine = [r for r in runs if (r["f"], r["theta0"], r["dt"], r["t_end"], r["n_steps"]) == key]
         solved = solver_words(mine)
         solved = f"; solver iterations a step (most in one step): {solved}" if solved else ""
-        out.append(f"drift: f = {f:g} Hz, θ0 = {th:g}°, dt = {dt:g} s, t_end = {t_end:g} s ({n:.3g} steps){solved}")
+        shared = sum(k[:2] == key[:2] for k in drifts) > 1
+        who = f" ({', '.join(f'`{m}`' for m in methods)})" if shared else ""
+        out.append(
+            f"drift{who}: f = {f:g} Hz, θ0 = {th:g}°, dt = {dt:g} s, t_end = {t_end:g} s ({n:.3g} steps){solved}"
+        )
     thr = [r for r in records if r["kind"] == "threshold" and r["scene"] == scene]
     for key in dict.fromkeys((r["f"], r["theta0"], r["stability_t_end"], r["omega"]) for r in thr):
         f, th, t_end, omega = key
@@ -697,6 +762,21 @@ def _cell(text, width):
     return text.ljust(width) if len(text) <= width else text[: width - 1] + "…"
 
 
+def _row_key(r, keys):
+    return tuple(tuple(r[k]) if isinstance(r[k], list) else r[k] for k in keys)
+
+
+def _methods_by(rows, *keys):
+    """{(the rows' values of ``keys``, lists as tuples): [methods]} in the rows' order."""
+    out = {}
+    for r in rows:
+        key = _row_key(r, keys)
+        out.setdefault(key, [])
+        if r["method"] not in out[key]:
+            out[key].append(r["method"])
+    return out
+
+
 def table(records, width=TABLE_WIDTH):
     """Plain-text verdict, ``width`` columns at most: per (scene, f, θ0) group the lines stating it, then
     per method its measured order (on its first row) and one row per invariant: drift, (‖ω‖dt)_crit."""
@@ -709,21 +789,34 @@ def table(records, width=TABLE_WIDTH):
         rows = [r for r in summ if (r["scene"], r["f"], r["theta0"]) == key]
         scene, f, th = key
         lines += ["", f"{scene}: f = {fmt_number(f)} Hz, θ0 = {fmt_number(th)}°"]
-        first = next((r for r in rows if r.get("ladder_dt")), None)
-        if first:
-            dts = first["ladder_dt"]
+        # Methods of one group may differ in ladder (a yardstick's own reference run is left out of it;
+        # files of other sweeps), reference and drift run: one line per each, naming its methods when
+        # there are several.
+        ladders = _methods_by([r for r in rows if r.get("ladder_dt")], "order_t_end", "ladder_dt")
+        for (t_end, dts), methods in ladders.items():
+            who = f" of {', '.join(methods)}" if len(ladders) > 1 else ""
             lines.append(
                 _cell(
-                    f"  order: final state at t = {fmt_number(first.get('order_t_end'))} s, dt = {max(dts):.3g} … "
+                    f"  order{who}: final state at t = {fmt_number(t_end)} s, dt = {max(dts):.3g} … "
                     f"{min(dts):.3g} s ({ladder_words(dts)})",
                     width,
                 ).rstrip()
             )
-            lines.append(_cell(f"  reference: {first['reference']}", width).rstrip())
-        run = next((r for r in rows if r.get("dt") is not None), None)
-        if run:
-            dt, t_end = fmt_number(run["dt"]), fmt_number(run["t_end"])
-            lines.append(f"  drift: dt = {dt} s over {t_end} s ({run['n_steps']:.3g} steps)")
+        references = _methods_by([r for r in rows if r.get("ladder_dt")], "reference")
+        for (reference,), methods in references.items():
+            who = f" of {', '.join(methods)}" if len(references) > 1 else ""
+            lines.append(_cell(f"  reference{who}: {reference}", width).rstrip())
+        drifts = _methods_by([r for r in rows if r.get("dt") is not None], "dt", "t_end")
+        for (dt, t_end), methods in drifts.items():
+            mine = [r for r in rows if r["method"] in methods and (r.get("dt"), r.get("t_end")) == (dt, t_end)]
+            steps = max((r["n_steps"] for r in mine if r.get("status") == 0), default=round(t_end / dt))
+            who = f" of {', '.join(methods)}" if len(drifts) > 1 else ""
+            lines.append(
+                _cell(
+                    f"  drift{who}: dt = {fmt_number(dt)} s over {fmt_number(t_end)} s ({steps:.3g} steps)", width
+                ).rstrip()
+            )
+        if drifts:
             solved = solver_words(rows)
             if solved:
                 lines.append(_cell(f"  implicit solvers, iterations a step (most in one): {solved}", width).rstrip())
@@ -851,8 +944,8 @@ def main(argv=None):
                 fail(err)
     try:
         at = parse_at(args.at)
-        records = verdict(args.file, stability=args.stability, reference=args.reference, at=at)
-        datasets = select_at(load(args.file), at) if args.figures else None
+        datasets = select_at(load(args.file), at)
+        records = judge(datasets, stability=args.stability, reference=args.reference)
     except VerdictError as err:
         fail(err)
     print(table(records))
