@@ -68,6 +68,11 @@ def test_errors_are_the_known_perturbation():
         (["1", "2", "3", "--omega", "1", "2", "3", "--dt-range", "1e-2", "1e-3", "--T", "1"], "dt"),
         (["1", "2", "3", "--omega", "1", "2", "3", "--dt", "1e-3", "--T", "nan"], "T="),
         (["1", "2", "3", "--omega", "1", "2", "3", "--budget", "0", "--T", "1"], "budget"),
+        # a budget that buys less than one step: it advised dt = 601 s for T = 10 s
+        (["1", "2", "3", "--omega", "1", "2", "3", "--budget", "1e-9", "--T", "10"], "less than one step"),
+        # ω·Iω under- or overflows: SVD did not converge (a traceback), or inf
+        (["1", "2", "3", "--omega", "1e-300", "0", "0", "--dt", "1e-2", "--T", "10"], "underflows"),
+        (["1", "2", "3", "--omega", "1e200", "1", "1", "--dt", "1e-2", "--T", "10"], "overflows"),
         (["1", "2", "3", "--omega", "1", "2", "3", "--dt", "1e-3", "--T", "1", "--metric", "spin"], "metric"),
         (["1", "2", "3", "--omega", "1", "2", "3", "--dt", "1e-3", "--T", "1", "--tol", "0"], "tol"),
         (["1", "2", "3", "--omega", "1", "2", "3", "--dt", "1e-3", "--T", "1", "--methods", "rk5"], "rk5"),

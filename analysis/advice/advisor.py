@@ -147,6 +147,11 @@ def check_inputs(inertia, omega0, mgc, T, dt_bounds, budget, metric, tol, method
     w = np.asarray(omega0, float)
     if w.shape != (3,) or not np.all(np.isfinite(w)) or not np.any(w):
         raise AdviceError(f"omega={np.ravel(omega0).tolist()}: three finite body rates, not all zero (rad/s)")
+    with np.errstate(over="ignore", under="ignore"):
+        kinetic = 0.5 * float(np.dot(I * w, w))
+    if not (0 < kinetic < math.inf):  # 1e-300 rad/s: ω·Iω underflows to 0 and the orbit's constants are 0/0
+        where = "underflows to 0" if kinetic == 0 else "overflows"
+        raise AdviceError(f"omega={w.tolist()}: ½ ω·Iω {where} in double precision (J); rescale the body's units")
     c = np.asarray(mgc, float)
     if c.shape != (3,) or not np.all(np.isfinite(c)):
         raise AdviceError(f"mgc={np.ravel(mgc).tolist()}: three finite values (N m)")
@@ -186,6 +191,14 @@ def check_inputs(inertia, omega0, mgc, T, dt_bounds, budget, metric, tol, method
             raise AdviceError(f"engine {m!r}: not predicted; choose from {', '.join(KINDS)}")
     if not methods:
         raise AdviceError("methods: give at least one")
+    if budget is not None:  # the budget must buy one step of each method: its dt at most T
+        costly = max(methods, key=lambda m: float(constants[calibrated_name(m)]["ns_per_step"]))
+        ns = float(constants[calibrated_name(costly)]["ns_per_step"])
+        if budget < ns * 1e-9:
+            raise AdviceError(
+                f"budget={budget:g} s: buys less than one step of {costly} ({ns:.3g} ns a step); "
+                f"give at least {ns * 1e-9:.3g} s"
+            )
 
 
 def _aligned_schedule(dt, T):

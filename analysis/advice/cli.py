@@ -14,6 +14,7 @@ import time
 import numpy as np
 
 from ...kernels.parameters import split_names
+from . import errors as E
 from .advisor import ENGINES, NEAR_SEPARATRIX, AdviceError, advise
 from .calibrate import DEFAULT_METHODS
 from .model import EPS_FLOOR, RHO_RANGE
@@ -249,7 +250,9 @@ def main(argv=None):
     step.add_argument("--dt-range", nargs=2, type=float, metavar=("LO", "HI"), help="allowed time steps (s)")
     step.add_argument("--budget", type=float, help="wall-clock budget for the horizon (s)")
     ap.add_argument("--T", type=float, required=True, help="horizon (s)")
-    ap.add_argument("--metric", default="orientation", help="what must be right: orientation, omega, energy, L_norm")
+    ap.add_argument(
+        "--metric", default="orientation", help=f"what must be right: {', '.join(E.METRICS)} (default orientation)"
+    )
     ap.add_argument("--tol", type=float, default=1e-3, help="tolerance (rad for orientation, else relative)")
     ap.add_argument(
         "--methods",
@@ -274,7 +277,7 @@ def main(argv=None):
                 math.isfinite(args.omega_max) and args.omega_max > 0
             ):
                 raise AdviceError(
-                    f"--omega-max {args.omega_max} --axis {list(axis)}: need |omega| > 0 and a non-zero axis"
+                    f"--omega-max {args.omega_max} --axis {axis.tolist()}: need |omega| > 0 and a non-zero axis"
                 )
             omega0 = args.omega_max * axis / np.linalg.norm(axis)
         for path in (args.json, args.figure):
