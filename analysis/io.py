@@ -217,8 +217,15 @@ def scene_label(ds):
 
 
 def fmt_dt(dt):
-    """1e-4 -> '1e-04 s' style label text (compact)."""
-    return f"dt = {float(dt):.0e} s".replace("e-0", "e-")
+    """'dt = 1e-4 s', 'dt = 2.5e-4 s': the fewest significant digits that give the step back,
+    so that two steps of a sweep never share a label (one digit called 2.5e-4 '3e-4' and 1.25e-4 '1e-4')."""
+    dt = float(dt)
+    for digits in range(17):
+        text = f"{dt:.{digits}e}"
+        if float(text) == dt:
+            break
+    mantissa, exponent = text.split("e")
+    return f"dt = {mantissa}e{int(exponent)} s"
 
 
 def relative_error(values, reference=None, scale=None):
@@ -284,6 +291,13 @@ def error_series(values, scale=None):
         diff = np.linalg.norm(values - values[:1], axis=-1)
         return np.zeros_like(diff) if size == 0 else diff / size  # a vector that is 0 throughout: error 0
     return relative_error(values, scale=scale)
+
+
+def running_max(err):
+    """max over s ≤ t of ``err(s)`` along the last axis, NaN where ``err`` is NaN: the curve of a run that
+    stopped ends at its last sample instead of running on flat to t_end."""
+    err = np.asarray(err, dtype=float)
+    return np.where(np.isnan(err), np.nan, np.fmax.accumulate(err, axis=-1))
 
 
 def drawable_invariants(ds):

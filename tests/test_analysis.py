@@ -246,3 +246,32 @@ def test_the_nutation_figure_draws_a_run_that_diverged_before_its_end_window():
     assert len(fig.axes) >= 2  # a start and an end window
     fig.savefig(bytes_io.BytesIO(), format="png")
     assert any("diverged" in t.get_text() for t in fig.legends[0].get_texts())
+
+
+def test_the_energy_figure_ends_a_stopped_runs_curve_where_it_stopped():
+    """MuJoCo's Euler at 50 Hz, dt = 1 ms stops at ~0.15 s of 2 s: its running-max curve ran on flat to
+    2 s (np.fmax.accumulate carries values over the NaN samples), and its × sat at t_end."""
+    from helpers import make_dataset
+
+    ds = make_dataset({"integrator": ["mujoco_euler", "lie_poisson"], "f": [50.0], "dt": [1e-3]}, t_end=2.0)
+    run = ds.sel(integrator="mujoco_euler").squeeze()
+    stopped = int(run.n_steps) * 1e-3
+    assert int(run.status) != 0 and stopped < 1.0
+    fig = drift_figure(ds)
+    ax = fig.axes[0]
+    line = next(ln for ln in ax.get_lines() if ln.get_label().startswith("mujoco_euler"))
+    t, y = np.asarray(line.get_xdata(), float), np.asarray(line.get_ydata(), float)
+    assert np.nanmax(t[np.isfinite(y)]) <= stopped + 1e-12  # the curve ends where the run stopped
+    cross = next(ln for ln in ax.get_lines() if ln.get_marker() == "x")
+    assert float(cross.get_xdata()[0]) <= stopped + 1e-12  # and so does its ×
+
+
+def test_dt_labels_tell_every_step_apart():
+    """One significant digit called 2.5e-4 '3e-4' and both 1.25e-4 and 1e-4 '1e-4'."""
+    from gyrolab.analysis.io import fmt_dt
+
+    dts = [1e-3, 5e-4, 2.5e-4, 2e-4, 1.5e-4, 1.25e-4, 1e-4, 1.0000000001e-3]
+    labels = [fmt_dt(d) for d in dts]
+    assert len(set(labels)) == len(dts), labels
+    assert labels[:3] == ["dt = 1e-3 s", "dt = 5e-4 s", "dt = 2.5e-4 s"]
+    assert all(float(label[5:-2]) == d for label, d in zip(labels, dts))

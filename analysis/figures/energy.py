@@ -28,6 +28,7 @@ from ..io import (
     line_style,
     missing_variable_error,
     relative_error,
+    running_max,
     scene_label,
     scene_name,
     select,
@@ -123,7 +124,7 @@ def _series(errors, f, th, envelope, methods, dts):
     for m in methods:
         for dt in dts:
             err = errors[(str(m), float(f), float(th), float(dt))][0]
-            out[(str(m), float(dt))] = np.fmax.accumulate(err) if envelope else err
+            out[(str(m), float(dt))] = running_max(err) if envelope else err
     return out
 
 

@@ -21,7 +21,17 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ...results import find_results, open_results
-from ..io import DT_STYLES, FLOOR, SelectionError, color, fmt_dt, invariant_error, save_figure, scene_options
+from ..io import (
+    DT_STYLES,
+    FLOOR,
+    SelectionError,
+    color,
+    fmt_dt,
+    invariant_error,
+    running_max,
+    save_figure,
+    scene_options,
+)
 from .nutation import closed_form_nutation
 
 REGIME_TITLES = {
@@ -227,7 +237,7 @@ def next_vs_prev_figure(jobs):
                 e = invariant_error(ds.sel({"integrator": m, "f": f, "theta0": th, "dt": dt}), "energy")
                 ax.plot(
                     tp,
-                    np.maximum(np.fmax.accumulate(e), FLOOR),
+                    np.maximum(running_max(e), FLOOR),
                     DT_STYLES[k % 4],
                     color=color(m),
                     lw=1.1,
