@@ -13,12 +13,15 @@ before any work, and the dry run's plan), runner/sweep.py (the sweep: run the
 missing runs, assemble the file, draw the figures; a full disk or another I/O
 error is one line and exit 1 with the journal intact) on a backend
 (runner/local_backend.py, this process's threads, or runner/dask_backend.py).
+A reader of stdout that stops early (``gyrolab --help | head -5``) ends gyrolab quietly with exit status
+141 (128 + SIGPIPE; ``main``).
 Test hook: the environment variable GYROLAB_TEST_CHUNK_DELAY (seconds) sleeps
 after each stored chunk.
 """
 
 import os
 import re
+import signal
 import sys
 from pathlib import Path
 
@@ -61,6 +64,8 @@ def hydra_main(cfg):
     except (ConfigError, OutputBusyError, UnsafePathError) as err:
         remove_empty_dirs(run_dir, os.getcwd())
         fail(err)
+    except BrokenPipeError:  # here, or Hydra reports the job as failed on stderr
+        stop_on_broken_pipe()
     finally:
         if cfg.runner.dry_run:
             remove_empty_dirs(run_dir, os.getcwd())
@@ -102,8 +107,24 @@ def describe_hydra_error(err, argv):
             in_file = re.search(r"In '([^']+)'", text)
             token = token or (f"{key} (in {in_file.group(1)}.yaml)" if in_file else key)
     if "is not a ListConfig" in reason:
-        reason += " (sweep axes are lists, e.g. sweep.f=[10])"
+        reason += list_hint((token or key or "").lstrip("+~").split("=", 1)[0])
     return f"{token}: {reason}" if token else reason
+
+
+def list_hint(name):
+    """A hint, in parentheses, for a value given to ``name`` (a full key) that takes a list."""
+    from ..kernels.scenes import SCENES
+
+    if name.startswith("sweep."):
+        return " (sweep axes are lists, e.g. sweep.f=[10])"
+    option = name.split(".", 1)[1] if name.startswith("scene.") else None
+    vectors = [m.OPTIONS[option] for m in SCENES.values() if isinstance(m.OPTIONS.get(option), (list, tuple))]
+    if vectors:
+        example = ",".join(f"{float(v):g}" for v in vectors[0])
+        return f" ({name} is a body-frame vector of three numbers [x, y, z], e.g. {name}=[{example}])"
+    if name == "output.variables":
+        return " (output.variables is a list of names, e.g. output.variables=[theta,energy])"
+    return f" ({name} takes a list, in brackets)" if name else ""
 
 
 def describe_yaml_error(err):
@@ -114,8 +135,34 @@ def describe_yaml_error(err):
     return f"{where}: YAML syntax error: {problem}"
 
 
+# Exit status when the reader of stdout went away (``gyrolab --help | head -5``): 128 + SIGPIPE, what a
+# shell reports for a program a closed pipe stops, as runner/signals.py exits 128 + the signal number.
+EXIT_BROKEN_PIPE = 128 + signal.SIGPIPE
+
+
 def main():
-    """Console entry point ``gyrolab``."""
+    """Console entry point ``gyrolab``.  When the reader of stdout closes the pipe (``gyrolab --help | head -5``,
+    ``gyrolab runner.dry_run=true ... | head -3``), gyrolab stops quietly, no traceback, with status
+    EXIT_BROKEN_PIPE (141); a write that fails while the runs are computed is runner/sweep.py's I/O error."""
+    try:
+        try:
+            _main()
+        finally:  # what is still buffered fails here, not in the interpreter's exit
+            sys.stdout.flush()
+    except BrokenPipeError:
+        stop_on_broken_pipe()
+
+
+def stop_on_broken_pipe():
+    """Exit with EXIT_BROKEN_PIPE, stdout pointed at /dev/null: nothing writes to the closed pipe again
+    (the interpreter's last flush would print an 'Exception ignored' trace)."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
+    sys.exit(EXIT_BROKEN_PIPE)
+
+
+def _main():
     import yaml
 
     register_configs()

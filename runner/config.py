@@ -173,11 +173,11 @@ def check_values(cfg):
         raise ConfigError(f"output.every={output.every}: the sample interval must be > 0 s")
     if sweep.t_end < output.every:
         raise ConfigError(f"sweep.t_end={sweep.t_end}: shorter than the sample interval output.every={output.every}")
-    samples = sweep.t_end / output.every
-    if abs(samples - round(samples)) > 1e-6 * max(1.0, samples):  # else the runs silently end early
+    last = last_sample(float(sweep.t_end), float(output.every))
+    if last is not None:  # else the runs silently end early
         raise ConfigError(
             f"sweep.t_end={sweep.t_end}: not a multiple of output.every={output.every} (the last sample "
-            f"would be at t = {int(samples) * output.every:g} s); make it one"
+            f"would be at t = {last:.12g} s); make it one"
         )
     check_sizes(sweep, output)
     check_variables(output.variables)
@@ -194,6 +194,20 @@ def check_values(cfg):
     if runner.backend not in BACKENDS:
         raise ConfigError(f"runner.backend={runner.backend}: choose from {', '.join(BACKENDS)}")
     check_cluster(runner)
+
+
+def last_sample(t_end, every):
+    """None when the runs end at ``t_end``: it is a multiple of ``every`` to float64 rounding; else the time
+    (s) of the last sample, where they would end.  The kernels' rule (kernels/batch.py sample_schedule:
+    the samples of t = 0 to t_end / every rounded down, after raising it by 1e-12 relative, so a quotient
+    rounded just under a whole number is that number), so no t_end they would cut short passes; the
+    quotient is allowed as much over a whole number (0.3 / 0.1 is 2.9999999999999996, 1.1 / 0.1 is
+    11.000000000000002), no more."""
+    from ..kernels.batch import sample_schedule
+
+    samples = t_end / every
+    whole = sample_schedule(every, every, t_end)[1] - 1  # intervals the kernels store
+    return None if samples - whole <= 1e-12 * samples else whole * every
 
 
 # Largest sample count and step count of one run: beyond these the sizes overflow int64 arithmetic

@@ -22,7 +22,15 @@ from ..kernels.real import STEP_RATES as REAL_STEP_RATES
 from ..kernels.real import check_bodies, check_steps, is_real
 from ..kernels.registry import DRIVEN_REFUSAL, driven_methods, get_method, sees_time, select_methods
 from ..kernels.scenes import SCENES, build_scene
-from ..results.layout import RAW_PER_SAMPLE, SAMPLE_VARIABLES, chosen_variables, stored_per_sample
+from ..results.layout import (
+    FIXED_COORDS,
+    INPUT_VARIABLES,
+    RAW_PER_SAMPLE,
+    RUN_VARIABLES,
+    SAMPLE_VARIABLES,
+    chosen_variables,
+    stored_per_sample,
+)
 from .config import ConfigError, check_values
 
 # Rough steps per second per thread of each method on the development machine
@@ -58,6 +66,19 @@ PER_RUN_BYTES = 200
 JOURNAL_RATE = 5.0e8
 ASSEMBLY_RATE = 3.5e8
 ASSEMBLY_PER_RUN = 2e-5
+# What a results file holds besides its variables' values and coordinates: the attrs (the resolved
+# config as YAML, the provenance: ~20 kB) and HDF5's object headers, FILE_METADATA_BYTES, plus each
+# per-sample variable's header and chunk index (a chunked dataset), SAMPLE_METADATA_BYTES.  Measured
+# (file size less the datasets' storage): 35 kB for a 2000-run file of theta alone, 78 kB for a 2-run
+# file of all nine, 49 kB for a 100000-run file of theta alone (its four chunks).
+FILE_METADATA_BYTES = 30e3
+SAMPLE_METADATA_BYTES = 5.5e3
+# Bytes a string coordinate's value takes in the file (a variable-length string: its 16-byte
+# reference; the characters themselves go to the global heap, inside FILE_METADATA_BYTES).
+STRING_BYTES = 16
+# Bytes per run of the per-run variables (status, n_steps, wall_time, the solver counts), as the file
+# and each journal chunk store them; a journal chunk adds each run's number (int64).
+RUN_BYTES = sum(np.dtype(dtype).itemsize for dtype, _ in RUN_VARIABLES.values())
 
 
 @dataclass(frozen=True)
@@ -116,8 +137,30 @@ class Grid:
         )
 
     def bytes_stored(self):
-        """Size of the per-sample data in the results file (bytes)."""
+        """Size of the per-sample data in the results file (bytes); ``file_bytes`` is the whole file."""
         return self.n_runs * self.n_samples * stored_per_sample(self.variables) * 8
+
+    def file_bytes(self):
+        """Size of the whole results file (bytes), from its layout (gyrolab/results/layout.py): the
+        per-sample variables, the per-run ones (RUN_VARIABLES), the runs' inputs over (f, theta0)
+        (INPUT_VARIABLES), the coordinates, the attrs and HDF5's headers (FILE_METADATA_BYTES,
+        SAMPLE_METADATA_BYTES)."""
+        inputs = len(self.f) * len(self.theta0) * sum(len(FIXED_COORDS[own]) for own, _ in INPUT_VARIABLES.values())
+        numeric = len(self.f) + len(self.theta0) + len(self.dt) + self.n_samples  # float64 coordinates
+        strings = len(self.methods) + sum(len(v) for v in FIXED_COORDS.values())
+        return (
+            self.bytes_stored()
+            + self.n_runs * RUN_BYTES
+            + (inputs + numeric) * 8
+            + strings * STRING_BYTES
+            + FILE_METADATA_BYTES
+            + SAMPLE_METADATA_BYTES * len(self.variables)
+        )
+
+    def journal_bytes(self):
+        """Size of the journal of every run (bytes): the raw samples, the run numbers and per-run
+        variables of each chunk (runner/store.py CHUNK_KEYS)."""
+        return self.n_runs * (self.n_samples * RAW_PER_SAMPLE * 8 + 8 + RUN_BYTES)
 
     @property
     def driven(self):
@@ -129,14 +172,18 @@ class Grid:
         return self.n_samples * (RAW_PER_SAMPLE + stored_per_sample(self.variables)) * 8
 
 
-def check_grid_size(shape):
+def check_grid_size(shape, given=None, at_least=False):
     """ConfigError when the grid of ``shape`` (methods, f, theta0, dt) has more than MAX_RUNS runs;
-    O(axes): nothing per run is built before this."""
+    O(axes): nothing per run is built before this.  ``given``: sweep.method as written, named in the
+    message when its selectors (``all``, ...) stand for more methods (``at_least``: a lower bound)."""
     n = math.prod(shape)
     if n > MAX_RUNS:
         m, f, t, d = shape
+        methods = f"{m} method"
+        if given is not None and len(given) != m:
+            methods += f" (sweep.method=[{','.join(map(str, given))}] selects {'at least ' if at_least else ''}{m})"
         raise ConfigError(
-            f"sweep: {m} method x {f} f x {t} theta0 x {d} dt = {n:.3g} runs, more than the {MAX_RUNS:.0e} one "
+            f"sweep: {methods} x {f} f x {t} theta0 x {d} dt = {n:.3g} runs, more than the {MAX_RUNS:.0e} one "
             "sweep may hold (its per-run bookkeeping alone would need ~{:.3g} GB); split it into jobs "
             "(gyrolab -m ...) and join them with gyrolab-combine".format(n * PER_RUN_BYTES / 1e9)
         )
@@ -144,12 +191,19 @@ def check_grid_size(shape):
 
 def build_grid(cfg):
     """Check the whole config and build every run's inputs; ConfigError on bad input."""
-    try:  # first, before any check that costs time (check_values imports the figure modules)
-        shape = tuple(len(cfg.sweep[axis]) for axis in ("method", "f", "theta0", "dt"))
-    except Exception:  # an axis that is not a list or does not resolve: check_values says which
+    # The grid's size first, before any check that costs time (check_values imports the figure
+    # modules) and before anything is built per (f, theta0) or per run.  With selectors expanded
+    # (sweep.method=[all] is 41 methods): on a driven scene ``all`` means fewer methods, and whether
+    # the scene drives its body is known once the scenes are built, so this counts the fewer and
+    # the exact count is checked again below, when the scenes are built and the selectors expanded.
+    try:
+        given = list(cfg.sweep.method)
+        fewest = len(select_methods(given, driven_scene=True))
+        shape = (fewest,) + tuple(len(cfg.sweep[axis]) for axis in ("f", "theta0", "dt"))
+    except Exception:  # an axis that is not a list or does not resolve, a bad name: the checks below say which
         shape = None
     if shape is not None:
-        check_grid_size(shape)
+        check_grid_size(shape, given, at_least=fewest != len(select_methods(given)))
     check_values(cfg)
     sweep, scene_cfg = cfg.sweep, OmegaConf.to_container(cfg.scene, resolve=True)
     for m in sweep.method:
@@ -180,6 +234,7 @@ def build_grid(cfg):
     # Selectors (sweep.method=[all], ...) become the methods they select, in the config too, so the
     # stored config, the journal's config hash and the figures name the methods that ran.
     chosen = select_methods(list(sweep.method), driven_scene=is_driven(bodies))
+    check_grid_size((len(chosen), nf, nt, len(sweep.dt)), list(sweep.method))  # before anything per run is built
     if chosen != list(sweep.method):
         sweep.method = chosen
     with np.errstate(over="ignore", invalid="ignore"):

@@ -9,12 +9,11 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from ..results.layout import RAW_PER_SAMPLE
 from ..safe_files import UnsafePathError, check_replaceable
 from .config import ConfigError
 from .execute import compile_estimate, compile_memory
 from .grid import estimate_writing_seconds
-from .store import Journal, partial_dir
+from .store import START_OVER, Journal, JournalError, partial_dir
 
 # Loading one method's kernels from a warm numba cache, the checks and the file's open and close
 # (the "rest" of benchmarks/bench_pipeline.py: 0.5-0.9 s with 2 to 4 methods).
@@ -56,8 +55,16 @@ def check_run_dirs(argv):
 
 
 def resolve_output(path, run_dir):
-    """The results file: ``output.path`` relative to Hydra's output directory."""
-    out = Path(os.path.expanduser(str(path)))
+    """The results file: ``output.path`` relative to Hydra's output directory.  ConfigError when the
+    path names a directory (it ends in a separator, or in . or ..): the file would take the
+    directory's name."""
+    text = str(path)
+    if text.endswith(("/", os.sep)) or os.path.basename(text) in (".", ".."):
+        raise ConfigError(
+            f"output.path={text}: names a directory, not a file; give the file's name too "
+            f"(e.g. output.path={os.path.join(text, 'results.h5')})"
+        )
+    out = Path(os.path.expanduser(text))
     out = out if out.is_absolute() else Path(run_dir) / out
     return out.parent.resolve() / out.name  # the name itself not resolved: a link there is refused, not followed
 
@@ -115,13 +122,17 @@ def output_state(out, chash, overwrite, resume):
             )
     if journal.exists():
         if resume:
-            manifest = journal.manifest()
+            try:
+                manifest = journal.manifest()
+            except JournalError as err:  # its advice, output.overwrite=true, also needs runner.resume=true left out
+                reason = str(err).removesuffix(f"; {START_OVER}")
+                raise JournalError(f"{reason}; {start_over(overwrite, 'the journal')}") from None
             if manifest.get("config_hash") != chash:
                 raise ConfigError(
-                    f"runner.resume=true: {journal.dir} holds runs of a different config; "
-                    "set output.overwrite=true to discard them"
+                    f"runner.resume=true: {journal.dir} holds runs of a different config, so this sweep has "
+                    f"nothing to resume; {start_over(overwrite)}"
                 )
-            check_same_code(journal, manifest)
+            check_same_code(journal, manifest, overwrite)
             return "resume"
         if not overwrite:
             raise ConfigError(
@@ -138,9 +149,18 @@ def output_state(out, chash, overwrite, resume):
     return "fresh"
 
 
-def check_same_code(journal, manifest):
+def start_over(overwrite, what="them"):
+    """What to do to discard a journal that runner.resume=true cannot resume, and start over.  A
+    resume never discards a journal, output.overwrite=true or not: it asks for those runs, and a
+    journal can hold hours of them (a config typo must not lose them)."""
+    if overwrite:
+        return f"to discard {what} and start over, leave out runner.resume=true (output.overwrite=true is set)"
+    return f"to discard {what} and start over, leave out runner.resume=true and set output.overwrite=true"
+
+
+def check_same_code(journal, manifest, overwrite=False):
     """ConfigError when the journal's runs were computed by other kernel code than this gyrolab's:
-    one results file must not hold runs of two kernel versions."""
+    one results file must not hold runs of two kernel versions.  ``overwrite``: output.overwrite."""
     from ..kernels import SOURCE_HASH
 
     recorded = manifest.get("kernel_source_hash")
@@ -148,8 +168,7 @@ def check_same_code(journal, manifest):
         made = f"kernel_source_hash {recorded[:12]}" if isinstance(recorded, str) else "no kernel_source_hash"
         raise ConfigError(
             f"runner.resume=true: {journal.dir} was computed by other kernel code ({made}, this gyrolab's is "
-            f"{SOURCE_HASH[:12]}: kernels/ changed); resume with the code that made it, or start over with "
-            "output.overwrite=true"
+            f"{SOURCE_HASH[:12]}: kernels/ changed); resume with the code that made it, or {start_over(overwrite)}"
         )
 
 
@@ -192,9 +211,9 @@ def check_fits(grid, out, chunks):
 
 
 def disk_needed(grid):
-    """Peak disk use (bytes): the journal of raw samples plus the results file being assembled."""
-    journal = grid.n_runs * grid.n_samples * RAW_PER_SAMPLE * 8
-    return journal + grid.bytes_stored()
+    """Peak disk use (bytes): the journal (raw samples and per-run variables) plus the results file
+    being assembled (all it holds: ``Grid.file_bytes``)."""
+    return grid.journal_bytes() + grid.file_bytes()
 
 
 def _size(n):
@@ -229,7 +248,7 @@ def describe(grid):
 def figure_memory(grid):
     """Estimated peak memory (bytes) of the sweep's process while it draws the figures of ``grid``'s
     results file (FIGURE_BASE_BYTES, FIGURE_PER_BYTE)."""
-    return FIGURE_BASE_BYTES + FIGURE_PER_BYTE * grid.bytes_stored()
+    return FIGURE_BASE_BYTES + FIGURE_PER_BYTE * grid.file_bytes()
 
 
 def dry_run(grid, out, chunks, backend, peak, state, figures=True, chunk_seconds=1.0):
@@ -271,7 +290,7 @@ def dry_run(grid, out, chunks, backend, peak, state, figures=True, chunk_seconds
         need, memory = figure_memory(grid), available_memory()
         print(
             f"  figure step: peak memory ~{_size(need)} (the figures read the results file slab by slab: "
-            f"~{_size(FIGURE_BASE_BYTES)} + {FIGURE_PER_BYTE:g} x its {_size(grid.bytes_stored())})"
+            f"~{_size(FIGURE_BASE_BYTES)} + {FIGURE_PER_BYTE:g} x its {_size(grid.file_bytes())})"
             + (
                 f"; more than the {_size(memory)} available: set output.figures=false and draw a selection "
                 "with gyrolab-plot KIND FILE key=..."
@@ -282,7 +301,7 @@ def dry_run(grid, out, chunks, backend, peak, state, figures=True, chunk_seconds
     else:
         print("  figure step: none (output.figures=false)")
     print(
-        f"  output: {out} ~ {_size(grid.bytes_stored())} (peak disk {_size(disk_needed(grid))} with the partial chunks)"
+        f"  output: {out} ~ {_size(grid.file_bytes())} (peak disk {_size(disk_needed(grid))} with the partial chunks)"
     )
     if state != "fresh":
         print(f"  note: runner.resume=true would {'skip: the file is complete' if state == 'done' else 'resume it'}")

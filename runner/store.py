@@ -60,6 +60,9 @@ class JournalError(ConfigError):
     """A journal whose manifest cannot be trusted (one-line message)."""
 
 
+START_OVER = "start over with output.overwrite=true"  # the advice of a JournalError's message, last
+
+
 # A chunk's arrays: its runs (flat numbers), their raw samples and each per-run variable of the layout.
 CHUNK_KEYS = ("runs", "samples", *RUN_VARIABLES)
 # Each chunk proves it belongs to its sweep: ``binding`` (the config hash and the kernel-source hash
@@ -137,14 +140,11 @@ class Journal:
                 manifest = json.loads(fh.read().decode())
         except (OSError, UnicodeDecodeError, ValueError) as err:
             raise JournalError(
-                f"{self.manifest_path}: damaged journal manifest ({_reason(err)}); "
-                "start over with output.overwrite=true"
+                f"{self.manifest_path}: damaged journal manifest ({_reason(err)}); {START_OVER}"
             ) from None
         problem = _manifest_problem(manifest)
         if problem:
-            raise JournalError(
-                f"{self.manifest_path}: damaged journal manifest ({problem}); start over with output.overwrite=true"
-            )
+            raise JournalError(f"{self.manifest_path}: damaged journal manifest ({problem}); {START_OVER}")
         return manifest
 
     def create(self, manifest):
@@ -485,7 +485,7 @@ ASSEMBLY_DELAY_ENV = "GYROLAB_TEST_ASSEMBLY_DELAY"
 def assemble(out, grid, journal, attrs, before_replace=None):
     """Write the results file from the journal into a temporary name, fsync it, rename it to ``out``
     (``before_replace`` as in atomic_replace)."""
-    need = grid.bytes_stored() * 1.05 + 2**20  # samples plus HDF5 metadata, coordinates and inputs
+    need = grid.file_bytes() * 1.05 + 2**20  # all the file holds (runner/grid.py), and a margin
     free = shutil.disk_usage(Path(out).parent).free
     if free < need:  # HDF5 can crash (not raise) when the disk fills while it closes a file
         raise OSError(

@@ -1,12 +1,14 @@
 """What gyrolab does with an existing output, and how Hydra's errors become one line."""
 
+import re
+
 import pytest
 from hydra import compose, initialize_config_module
 
 from gyrolab.kernels.scenes import SCENES
 from gyrolab.runner.app import describe_hydra_error, remove_empty_dirs
 from gyrolab.runner.config import ConfigError, register_configs
-from gyrolab.runner.preflight import output_state
+from gyrolab.runner.preflight import output_state, resolve_output
 from gyrolab.runner.store import Journal
 
 register_configs()
@@ -69,6 +71,56 @@ def composition_error(*overrides):
 )
 def test_hydra_errors_become_one_line_with_key_and_value(override, line):
     assert composition_error(override) == line
+
+
+@pytest.mark.parametrize(
+    "overrides, hint",
+    [
+        (("sweep.f=5",), "(sweep axes are lists, e.g. sweep.f=[10])"),
+        (
+            ("scene=heavy_body", "scene.com=3"),
+            "(scene.com is a body-frame vector of three numbers [x, y, z], e.g. scene.com=[0.03,0.01,0.1])",
+        ),
+        (("output.variables=theta",), "(output.variables is a list of names, e.g. output.variables=[theta,energy])"),
+    ],
+)
+def test_a_value_that_should_be_a_list_gets_the_hint_of_its_key(overrides, hint):
+    """scene.com=3 was told that sweep axes are lists."""
+    line = composition_error(*overrides)
+    assert line.startswith(f"{overrides[-1]}: ") and line.endswith(hint)
+    assert line.count("(") == 1
+
+
+@pytest.mark.parametrize("path", ["sub/", "a/sub/", "/abs/sub/", "sub/.", ".", ".."])
+def test_an_output_path_naming_a_directory_is_refused(tmp_path, path):
+    """output.path=sub/ wrote the results into a file named sub."""
+    with pytest.raises(ConfigError, match=rf"output.path={re.escape(path)}: names a directory, not a file"):
+        resolve_output(path, tmp_path)
+    assert resolve_output("sub/results.h5", tmp_path) == tmp_path.resolve() / "sub" / "results.h5"
+
+
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_a_journal_that_cannot_be_resumed_says_what_to_do(out, overwrite):
+    """runner.resume=true over a journal of another config or other kernel code, or a damaged one, is refused
+    whatever output.overwrite (a resume never discards the runs it was asked to finish), and the message
+    says what to do: leave out runner.resume=true, with output.overwrite=true.  It used to say "set
+    output.overwrite=true" when it was set."""
+    action = "leave out runner.resume=true" + (
+        " (output.overwrite=true is set)" if overwrite else " and set output.overwrite=true"
+    )
+    Journal(out).create({"config_hash": "h"})
+    with pytest.raises(ConfigError, match="different config") as info:
+        output_state(out, "other", overwrite, True)
+    assert str(info.value).endswith(f"to discard them and start over, {action}")
+    Journal(out).create({"config_hash": "h", "kernel_source_hash": "0123456789abcdef-old-code"})
+    with pytest.raises(ConfigError, match="other kernel code") as info:
+        output_state(out, "h", overwrite, True)
+    assert str(info.value).endswith(f"or to discard them and start over, {action}")
+    Journal(out).manifest_path.write_bytes(b"{")
+    with pytest.raises(ConfigError, match="damaged journal manifest") as info:
+        output_state(out, "h", overwrite, True)
+    assert str(info.value).endswith(f"to discard the journal and start over, {action}")
+    assert output_state(out, "h", True, False) == "fresh"  # what the message says: overwrite, no resume
 
 
 def test_only_empty_directories_are_removed(tmp_path):

@@ -200,7 +200,7 @@ def test_dry_run_figure_memory_follows_the_file_and_the_setting(tmp_path):
     from gyrolab.runner.preflight import figure_memory
 
     for file_bytes, measured in ((1.09e9, 501e6), (5.45e9, 518e6)):
-        assert figure_memory(SimpleNamespace(bytes_stored=lambda b=file_bytes: b)) == pytest.approx(measured, rel=0.1)
+        assert figure_memory(SimpleNamespace(file_bytes=lambda b=file_bytes: b)) == pytest.approx(measured, rel=0.1)
     result = gyrolab("runner.dry_run=true", "output.figures=false", cwd=tmp_path)
     assert_ok(result)
     assert "figure step: none (output.figures=false)" in result.stdout
@@ -362,6 +362,11 @@ BAD_INPUTS = [
     (["runner.resume=true", "hydra.run.dir={tmp}/nothing"], "runner.resume=true: nothing to resume"),
     (["hydra.run.dir={existing}"], "hydra.run.dir={existing}: exists and is not a directory"),
     (["hydra.run.dir=/proc/gyrolab-test"], "hydra.run.dir=/proc/gyrolab-test: cannot write"),
+    # a directory's name as output.path: the file took the name (sub/ wrote a file named sub)
+    (["output.path=sub/"], "output.path=sub/: names a directory, not a file"),
+    (["output.path={tmp}/sub/"], "output.path={tmp}/sub/: names a directory, not a file"),
+    # a t_end just off a multiple of output.every: the runs ended at the multiple below it, exit 0
+    (["sweep.t_end=0.09999995"], "sweep.t_end=0.09999995: not a multiple of output.every=0.001"),
 ]
 
 
@@ -379,3 +384,23 @@ def test_bad_input_is_refused_in_one_line_with_status_2_and_no_file(tmp_path, ar
     assert "Traceback" not in result.stdout + result.stderr
     assert [p.name for p in tmp_path.rglob("*")] == ["old.h5"]
     assert existing.read_bytes() == b"an earlier result"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("args", [["--help"], ["runner.dry_run=true", *TINY]], ids=["help", "dry_run"])
+def test_a_reader_that_stops_early_ends_gyrolab_quietly(tmp_path, args):
+    """gyrolab --help | head -5, gyrolab runner.dry_run=true ... | head -3: stdout closed before gyrolab
+    writes; exit 141 (128 + SIGPIPE), nothing on stderr (it was a BrokenPipeError traceback, exit 1)."""
+    proc = subprocess.Popen(
+        command("gyrolab", "gyrolab.runner.app") + args,
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=environment(),
+    )
+    proc.stdout.close()  # the reader is gone before the first line
+    err = proc.stderr.read()
+    assert proc.wait(timeout=300) == 141, err
+    assert err == ""
+    assert not list(tmp_path.iterdir())

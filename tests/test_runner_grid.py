@@ -181,3 +181,102 @@ def test_block_chunks_are_costed_at_the_block_paths_speed():
     measured = {("seed_next", False): 1e6}
     assert chunk_estimate(grid, runs, 2, measured) == blocks
     assert chunk_estimate(grid, runs[:8], 2, measured) == pytest.approx(4 * 1000 / 1e6)
+
+
+# --------------------------------------------------------------------------- the grid's size, selectors expanded
+
+
+@pytest.fixture
+def max_runs_100(monkeypatch):
+    """MAX_RUNS of 100: the selectors' expansion is checked on grids of a few runs."""
+    from gyrolab.runner import grid as grid_module
+
+    monkeypatch.setattr(grid_module, "MAX_RUNS", 100)
+
+
+def test_a_selector_is_counted_as_its_methods_before_any_scene_is_built(max_runs_100, monkeypatch):
+    """sweep.method=[all] on 1 x 1 x 5 grid points: 205 runs (41 methods), or at least 115 (the 23 of a
+    driven scene): refused before a single scene is built (it used to count as 1 method, so a grid of
+    41e6 runs passed the 1e7 limit, built 1e6 scenes and 2.9 GB of plan before anything said no)."""
+    from gyrolab.runner import grid as grid_module
+
+    def no_scene(*args, **kwargs):
+        raise AssertionError("a scene was built before the grid's size was checked")
+
+    monkeypatch.setattr(grid_module, "build_scene", no_scene)
+    dts = "sweep.dt=[1e-3,5e-4,2.5e-4,2e-4,1e-4]"
+    with pytest.raises(ConfigError, match=r"sweep: 23 method \(sweep.method=\[all\] selects at least 23\) x 1 f"):
+        grid_of("sweep.method=[all]", "sweep.f=[10]", "sweep.theta0=[45]", dts, "sweep.t_end=0.01")
+
+
+def test_a_selector_is_counted_exactly_once_the_scene_is_known(max_runs_100):
+    """3 grid points: [all] is 41 methods (123 runs, refused) on the heavy top, 23 (69 runs, accepted) on
+    a driven scene."""
+    dts = "sweep.dt=[1e-3,5e-4,2.5e-4]"
+    common = ("sweep.method=[all]", "sweep.f=[10]", "sweep.theta0=[45]", dts, "sweep.t_end=0.01")
+    with pytest.raises(ConfigError, match=r"sweep: 41 method \(sweep.method=\[all\] selects 41\) x 1 f .* = 123 runs"):
+        grid_of(*common)
+    assert grid_of(*common, "scene=forced_body").n_runs == 69
+
+
+# --------------------------------------------------------------------------- the file's size, estimated
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        # many runs of few samples: the per-run variables and the runs' inputs are most of the file
+        (
+            "sweep.f=${linspace:1,40,40}",
+            "sweep.theta0=${linspace:1,179,50}",
+            "sweep.t_end=0.01",
+            "output.every=1e-2",
+            "output.variables=[theta]",
+        ),
+        # few runs of many samples: the per-sample variables are
+        ("sweep.f=[10,50]", "sweep.t_end=1"),
+    ],
+    ids=["many_runs", "many_samples"],
+)
+def test_the_file_size_estimate_counts_all_the_file_holds(tmp_path, overrides):
+    """The dry run's size of the results file, and the disk it checks for, count every variable the file
+    holds (per sample, per run, per (f, theta0) input) and the coordinates: 1.6 MB were estimated for
+    a file of 20.2 MB (100000 runs of 2 samples of theta).  Within 10 % of a real file's size (1 to 2 %)."""
+    from gyrolab.results.layout import RAW_PER_SAMPLE
+    from gyrolab.runner.preflight import disk_needed
+
+    from helpers import FILE_BASE, make_file
+
+    grid = grid_of(*FILE_BASE, *overrides)
+    size = make_file(tmp_path / "results.h5", *overrides).stat().st_size
+    assert grid.file_bytes() == pytest.approx(size, rel=0.1)
+    assert disk_needed(grid) > 0.8 * size + grid.n_runs * grid.n_samples * RAW_PER_SAMPLE * 8  # + the journal
+
+
+# --------------------------------------------------------------------------- t_end against output.every
+
+
+@pytest.mark.parametrize(
+    "t_end, every, last",
+    [("999.9995", "1e-3", "999.999"), ("0.09999995", "1e-3", "0.099"), ("1.0000001", "1e-3", "1")],
+)
+def test_a_t_end_the_kernels_would_cut_short_is_refused(t_end, every, last):
+    """The kernels store the samples of t = 0 to t_end rounded down to a multiple of output.every
+    (kernels/batch.py sample_schedule); t_end=999.9995 with every=1e-3 passed the check (within 1e-6 x the
+    sample count) and the runs ended at 999.999 s, exit 0, attr t_end 999.9995."""
+    with pytest.raises(ConfigError) as info:
+        grid_of(*GRID, f"sweep.t_end={t_end}", f"output.every={every}", "sweep.dt=[1e-3]")
+    assert str(info.value).startswith(f"sweep.t_end={t_end}: not a multiple of output.every=")
+    assert f"(the last sample would be at t = {last} s)" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    "t_end, every, samples", [(1, 1e-3, 1001), (0.3, 0.1, 4), (0.7, 0.1, 8), (1.1, 0.1, 12), (1000, 1e-3, 1000001)]
+)
+def test_a_t_end_that_is_a_multiple_to_rounding_passes(t_end, every, samples):
+    """0.3 / 0.1 is 2.9999999999999996, 1.1 / 0.1 is 11.000000000000002: multiples, to float rounding."""
+    from gyrolab.runner.config import last_sample
+
+    assert last_sample(t_end, every) is None
+    grid = grid_of(*GRID, f"sweep.t_end={t_end}", f"output.every={every}", "sweep.dt=[1e-3]")
+    assert grid.n_samples == samples
