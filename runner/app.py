@@ -14,14 +14,13 @@ missing runs, assemble the file, draw the figures; a full disk or another I/O
 error is one line and exit 1 with the journal intact) on a backend
 (runner/local_backend.py, this process's threads, or runner/dask_backend.py).
 A reader of stdout that stops early (``gyrolab --help | head -5``) ends gyrolab quietly with exit status
-141 (128 + SIGPIPE; ``main``).
+141 (128 + SIGPIPE; gyrolab/pipes.py).
 Test hook: the environment variable GYROLAB_TEST_CHUNK_DELAY (seconds) sleeps
 after each stored chunk.
 """
 
 import os
 import re
-import signal
 import sys
 from pathlib import Path
 
@@ -30,6 +29,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.errors import HydraException
 from omegaconf.errors import OmegaConfBaseException
 
+from ..pipes import quiet_on_broken_pipe, stop_on_broken_pipe
 from ..results import EXIT_BAD_INPUT
 from ..safe_files import OutputBusyError, UnsafePathError
 from .config import ConfigError, register_configs
@@ -135,31 +135,12 @@ def describe_yaml_error(err):
     return f"{where}: YAML syntax error: {problem}"
 
 
-# Exit status when the reader of stdout went away (``gyrolab --help | head -5``): 128 + SIGPIPE, what a
-# shell reports for a program a closed pipe stops, as runner/signals.py exits 128 + the signal number.
-EXIT_BROKEN_PIPE = 128 + signal.SIGPIPE
-
-
+@quiet_on_broken_pipe
 def main():
     """Console entry point ``gyrolab``.  When the reader of stdout closes the pipe (``gyrolab --help | head -5``,
-    ``gyrolab runner.dry_run=true ... | head -3``), gyrolab stops quietly, no traceback, with status
-    EXIT_BROKEN_PIPE (141); a write that fails while the runs are computed is runner/sweep.py's I/O error."""
-    try:
-        try:
-            _main()
-        finally:  # what is still buffered fails here, not in the interpreter's exit
-            sys.stdout.flush()
-    except BrokenPipeError:
-        stop_on_broken_pipe()
-
-
-def stop_on_broken_pipe():
-    """Exit with EXIT_BROKEN_PIPE, stdout pointed at /dev/null: nothing writes to the closed pipe again
-    (the interpreter's last flush would print an 'Exception ignored' trace)."""
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(devnull, sys.stdout.fileno())
-    os.close(devnull)
-    sys.exit(EXIT_BROKEN_PIPE)
+    ``gyrolab runner.dry_run=true ... | head -3``), gyrolab stops quietly, no traceback, with status 141
+    (gyrolab/pipes.py); a write that fails while the runs are computed is runner/sweep.py's I/O error."""
+    return _main()
 
 
 def _main():

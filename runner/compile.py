@@ -27,6 +27,8 @@ import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing import get_context, resource_tracker
 
+from ..pipes import quiet_on_broken_pipe
+
 PATHS = ("runs", "blocks", "driven")
 KERNEL_ENTRIES = {"runs": "run_batch", "driven": "run_batch_driven", "blocks": "run_blocks"}
 
@@ -249,6 +251,7 @@ def _compile(todo, jobs, report, prefix):
     return done
 
 
+@quiet_on_broken_pipe
 def main(argv=None):
     from ..kernels.registry import METHODS, select_methods
     from ..results import EXIT_BAD_INPUT

@@ -14,6 +14,7 @@ import time
 import numpy as np
 
 from ...kernels.parameters import split_names
+from ...pipes import quiet_on_broken_pipe
 from . import errors as E
 from .advisor import ENGINES, NEAR_SEPARATRIX, AdviceError, advise
 from .calibrate import DEFAULT_METHODS
@@ -220,6 +221,7 @@ def figure(a, path):
     plt.close(fig)
 
 
+@quiet_on_broken_pipe
 def main(argv=None):
     """The ``gyrolab-advise`` command."""
     ap = argparse.ArgumentParser(

@@ -33,6 +33,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from ...pipes import quiet_on_broken_pipe
+
 
 def _common(p, many=False):
     if many:
@@ -210,6 +212,7 @@ def _write_members(figure, members, args, out, sel, options, notes):
     return paths
 
 
+@quiet_on_broken_pipe
 def main(argv=None):
     """Console entry point ``gyrolab-plot``."""
     from ..io import SelectionError

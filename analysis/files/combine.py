@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from ...pipes import quiet_on_broken_pipe
 from ...results import ResultsError, find_results, open_file
 from ...results.identity import VOLATILE_ATTRS
 from ...results.layout import (
@@ -369,6 +370,7 @@ def write(ds, path):
         atomic_replace(path, lambda tmp: ds.to_netcdf(tmp, engine="h5netcdf"))
 
 
+@quiet_on_broken_pipe
 def main(argv=None):
     """Console entry point ``gyrolab-combine``."""
     parser = argparse.ArgumentParser(prog="gyrolab-combine", description=__doc__.split("\n\n")[0])

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...pipes import quiet_on_broken_pipe
 from ...results.layout import GRID_DIMS as RUN_DIMS
 from ...results.layout import INPUT_VARIABLES
 
@@ -683,6 +684,7 @@ def build_parser():
     return p
 
 
+@quiet_on_broken_pipe
 def main(argv=None):
     parser = build_parser()
     args = parser.parse_args(argv)

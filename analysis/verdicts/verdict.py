@@ -48,6 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...pipes import quiet_on_broken_pipe
 from ...results import EXIT_BAD_INPUT
 from ...safe_files import UnsafePathError, check_replaceable, write_text
 from .cells import fmt_drift, fmt_number, fmt_order, fmt_preserved, fmt_threshold
@@ -929,6 +930,7 @@ def write_outputs(records, json_path=None, markdown_path=None, figures_dir=None,
     return written
 
 
+@quiet_on_broken_pipe
 def main(argv=None):
     args = build_parser().parse_args(argv)
     if args.stability is not None and not (math.isfinite(args.stability) and args.stability > 0):
