@@ -263,6 +263,13 @@ def test_parse_tolerances():
         parse_tolerances(["energy=abc"], "--atol")
     with pytest.raises(CompareError, match="--rtol -1: must be a finite number >= 0"):
         parse_tolerances(["-1"], "--rtol")
+    # '=1' was the default for every variable; a name given twice kept only its last value
+    with pytest.raises(CompareError, match="--atol =1: no variable before '='"):
+        parse_tolerances(["=1"], "--atol")
+    with pytest.raises(CompareError, match="--rtol energy=1e-3: energy is given twice"):
+        parse_tolerances(["energy=1e-9", "energy=1e-3"], "--rtol")
+    with pytest.raises(CompareError, match="--rtol 1e-3: the default is given twice"):
+        parse_tolerances(["1e-9", "1e-3"], "--rtol")
 
 
 @pytest.mark.slow

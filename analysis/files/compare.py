@@ -160,11 +160,17 @@ def tolerance_for(tol, name):
 
 
 def parse_tolerances(items, option):
-    """``["energy=1e-9", "1e-12"]`` -> ``{"energy": 1e-9, "*": 1e-12}``; CompareError on bad items."""
+    """``["energy=1e-9", "1e-12"]`` -> ``{"energy": 1e-9, "*": 1e-12}``; CompareError on bad items: an
+    empty name (``=1``), or a variable (or the default) given twice (the first value would be lost)."""
     out = {}
     for item in items or []:
-        name, _, value = item.rpartition("=")
+        name, eq, value = item.rpartition("=")
+        if eq and not name.strip():
+            raise OptionError(f"{option} {item}: no variable before '=' (use {option} 1e-9 or {option} energy=1e-9)")
         name = name.strip() or "*"
+        if name in out:
+            what = "the default" if name == "*" else name
+            raise OptionError(f"{option} {item}: {what} is given twice ({option} {out[name]:g} before)")
         try:
             number = float(value)
         except ValueError:
