@@ -93,7 +93,7 @@ def _canonical_method(name):
 def parse_selection(words, members=False):
     """``["integrator=seed_next,rk4", "f=10"]`` -> {"integrator": ["seed_next", "rk4"], "f": [10.0]}
     (``method=`` is read as ``integrator=``).  With ``members``, also ``scene=NAME`` / ``job=K``
-    (a combined file's member, MEMBER_DIMS)."""
+    (a combined file's member, MEMBER_DIMS).  A key given twice selects the values of both."""
     keys = GRID_DIMS + (MEMBER_DIMS if members else ())
     sel = {}
     for word in words or ():
@@ -114,7 +114,10 @@ def parse_selection(words, members=False):
                     values = [float(v) for v in values]
                 except ValueError:
                     raise SelectionError(f"{key}={value}: not a number") from None
-            sel[key] = values
+            if key in sel and key in MEMBER_DIMS:
+                raise SelectionError(f"{item}: one {key} at a time ({key}={sel[key][0]} given before)")
+            # f=10 f=50 is f=10,50 (the second dropped the first)
+            sel[key] = list(dict.fromkeys(sel.get(key, []) + values))
     return sel
 
 

@@ -43,6 +43,10 @@ def test_selection_parsing_and_matching(results_file):
         select(ds, {"f": [7.0]})
     with pytest.raises(SelectionError, match="KEY=VALUE"):
         parse_selection(["speed=3"])
+    # a key given twice selects both (the second replaced the first); a member is one at a time
+    assert parse_selection(["f=10", "f=50,10"]) == {"f": [10.0, 50.0]}
+    with pytest.raises(SelectionError, match="one scene at a time"):
+        parse_selection(["scene=heavy_top", "scene=free_symmetric"], members=True)
 
 
 def test_theta_figure_lines_and_closed_form_bounds(results_file):

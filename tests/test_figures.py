@@ -216,6 +216,11 @@ def test_cli_output_dir_rule_and_notes(files, tmp_path, capsys):
     assert cli.main(["nutation", str(path), "-o", str(missing), "--parents"]) == 0
     out = capsys.readouterr().out
     assert missing.exists() and f"gyrolab-plot nutation {path} dt=0.001" in out
+    # -o's suffix is the format when --format is not given (-o e.pdf wrote e.png); --format still rules
+    assert cli.main(["energy", str(path), "-o", str(tmp_path / "e.pdf")]) == 0
+    assert (tmp_path / "e.pdf").read_bytes().startswith(b"%PDF") and not (tmp_path / "e.png").exists()
+    assert cli.main(["energy", str(path), "-o", str(tmp_path / "g.pdf"), "--format", "svg"]) == 0
+    assert (tmp_path / "g.svg").exists() and not (tmp_path / "g.pdf").exists()
 
 
 @pytest.mark.slow

@@ -15,7 +15,7 @@ name (``energy_heavy_top.png``, ``energy_job1.png``; ``standard`` into
 per member is what the separate files would have given (members differ in
 scene, options and invariants, so no figure could share their panels).
 
-Output: -o PATH (default ``<kind>.png`` next to FILE); --format png
+Output: -o PATH (default ``<kind>.png`` next to FILE; ``-o energy.pdf`` writes a PDF); --format png
 svg pdf for several.  Only ``work-precision`` and ``sciml`` run anything (their
 scipy peers at several tolerances; sciml times four solvers, best of 7, and
 re-times each method: minutes on a fast spin, one progress line per solver,
@@ -48,14 +48,19 @@ def _common(p, many=False):
             help="grid values to draw: integrator=..., f=... (Hz), theta0=... (deg), dt=... (s); "
             "a combined file's scene=NAME or job=K",
         )
-    p.add_argument("-o", "--output", help="output path (suffix replaced per --format); default next to FILE")
+    p.add_argument(
+        "-o",
+        "--output",
+        help="output path (suffix replaced per --format; a .png, .svg or .pdf suffix is the format when --format "
+        "is not given); default next to FILE",
+    )
     p.add_argument("--parents", action="store_true", help="create -o's missing parent directories")
     p.add_argument(
         "--format",
         nargs="+",
-        default=["png"],
+        default=None,
         choices=["png", "svg", "pdf"],
-        help="file formats to write (default: png)",
+        help="file formats to write (default: -o's suffix if it is one of these, else png)",
     )
 
 
@@ -218,6 +223,9 @@ def main(argv=None):
     from ..io import SelectionError
 
     args = build_parser().parse_args(argv)
+    if args.format is None:  # -o energy.pdf writes a PDF (it wrote energy.png)
+        suffix = Path(args.output).suffix.lstrip(".").lower() if args.output else ""
+        args.format = [suffix] if suffix in ("png", "svg", "pdf") else ["png"]
     notes = []
     try:
         result = run(args, notes)
