@@ -31,7 +31,7 @@ from .body import N_FIELDS as N_BODY
 from .body import body_lane, body_lane_free, body_lane_symmetric_top
 from .driver import STATUS_OK, _diverged, _record
 from .lanes import has_series, ieee_step, lane_step
-from .rigid_body import kinetic_energy, potential_scale
+from .rigid_body import divergence_scale
 
 # The loop over lanes always covers whole vectors of this many lanes (8 doubles
 # fill an AVX-512 register): a scalar remainder of up to 7 lanes would cost as
@@ -294,7 +294,7 @@ def make_advance_block(step):
             w = (W[0, j], W[1, j], W[2, j])
             body = body_lane(B, j)
             _record(out, i, 0, w, (Q[0, j], Q[1, j], Q[2, j], Q[3, j]), body)
-            TOL[j] = threshold * (kinetic_energy(w, body) + potential_scale(body))
+            TOL[j] = threshold * divergence_scale(w, body)
             status[i] = STATUS_OK
             n_steps[i] = 0
         # np.int64, here and for j below: a variable first set to a literal is typed Literal[int] until

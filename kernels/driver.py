@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit
 
 from .body import Body, body_row
-from .rigid_body import axis_lab, energy, kinetic_energy, lab_momentum, potential_scale
+from .rigid_body import axis_lab, divergence_scale, energy, lab_momentum
 from .rotation import lab_up_in_body
 
 FIELDS = (
@@ -94,17 +94,17 @@ def _start(i, w0, q0, bodies, threshold, out, status):
     q = (q0[i, 0], q0[i, 1], q0[i, 2], q0[i, 3])
     _record(out, i, 0, w, q, body)
     status[i] = STATUS_OK
-    return body, w, q, threshold * (kinetic_energy(w, body) + potential_scale(body))
+    return body, w, q, threshold * divergence_scale(w, body)
 
 
 @njit(cache=True, error_model="numpy")
 def tolerances(w0, bodies, threshold):
-    """Each run's bound on |E − E0| (J): ``threshold`` × (T0 + |M g c|), as ``_start`` computes it
-    (the same bits), for a check of samples integrated on from a saved state (runner/segments.py)."""
+    """Each run's bound on |E − E0| (J): ``threshold`` × rigid_body.divergence_scale (T0 + |M g c|,
+    plus a drive's reach), as ``_start`` computes it (the same bits), for a check of samples integrated
+    on from a saved state (runner/segments.py)."""
     out = np.empty(w0.shape[0])
     for i in range(w0.shape[0]):
-        body = body_row(bodies, i)
-        out[i] = threshold * (kinetic_energy((w0[i, 0], w0[i, 1], w0[i, 2]), body) + potential_scale(body))
+        out[i] = threshold * divergence_scale((w0[i, 0], w0[i, 1], w0[i, 2]), body_row(bodies, i))
     return out
 
 

@@ -110,6 +110,24 @@ def potential_scale(body):
 
 
 @njit(cache=True, error_model="numpy")
+def divergence_scale(w, body):
+    """The energy (J) a run's |E − E0| is held against (× runner.divergence_threshold): T0 + |M g c|,
+    plus, for a body with a drive, the most kinetic energy the drive can give it.  The body-fixed
+    torque τ sin²(rate t) turns and grows L by at most |τ| (t_off − t_on) over its window, and
+    T = ½ L_b·I⁻¹L_b ≤ |L|²/(2 I_min), so T stays below (|L0| + |τ| (t_off − t_on))²/(2 I_min): a
+    driven run is never stopped for energy it really gained (a body at rest, T0 = 0, was stopped at
+    its first sample whatever the threshold).  Without a drive the term is 0 (the same bits as before)."""
+    scale = kinetic_energy(w, body) + potential_scale(body)
+    tau = math.sqrt(body[6] * body[6] + body[7] * body[7] + body[8] * body[8])
+    if tau > 0.0:
+        I1, I2, I3 = body[0], body[1], body[2]
+        L0 = math.sqrt((I1 * w[0]) ** 2 + (I2 * w[1]) ** 2 + (I3 * w[2]) ** 2)
+        reach = L0 + tau * max(body[11] - body[10], 0.0)
+        scale += reach * reach / (2.0 * min(I1, I2, I3))
+    return scale
+
+
+@njit(cache=True, error_model="numpy")
 def energy(w, q, body):
     """E = ½ ω·Iω + M g c·γ (J); for c = l e3 that is ½ ω·Iω + M g l cos θ (γ3 = cos θ)."""
     return kinetic_energy(w, body) + potential_energy(q, body)

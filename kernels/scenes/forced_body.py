@@ -17,10 +17,11 @@ only turns the output axis: nothing here depends on it).  The torque does
 work and turns L, so nothing is conserved while it acts (CONSERVED is empty);
 only methods that see time integrate the scene (``step_driven``,
 kernels/methods/README.md), the others are refused before any run.  The
-runner's divergence check still compares |E − E0| with
-``runner.divergence_threshold`` × T0: a drive that pumps in more energy than
-that (the SciML problem takes E from 1.47 J to 6.5 J) is flagged as diverged;
-raise the threshold for such a drive.
+runner's divergence check compares |E − E0| with ``runner.divergence_threshold``
+× (T0 + the most kinetic energy the drive can give, (|L0| + |τ| (t_off − t_on))²/(2 I_min):
+kernels/rigid_body.py divergence_scale), so a run is stopped for energy no
+drive could have put in, never for what the drive did (the SciML problem takes E
+from 1.47 J to 6.5 J; a body at rest spun up by the drive starts at T0 = 0).
 
 I = (0.5, 2, 3) violates the triangle inequality (0.5 + 2 < 3): no rigid body
 has it, and the published problem uses it anyway, so ``allow_unphysical``
