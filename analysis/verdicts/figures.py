@@ -17,6 +17,7 @@ import numpy as np
 
 from ..io import FLOOR, color, save_figure
 from .cells import fmt_threshold
+from .classify import MIN_LADDER
 
 MARKERS = "osv^<>DPX*h"  # with the colours: PALETTE repeats after 12 methods
 
@@ -35,6 +36,11 @@ def group_style(k):
 
 
 def _order_panel(ax, orders, methods):
+    if not orders:  # like the threshold panel: words, not an empty 0..1 frame
+        words = f"no order: no dt ladder\n(an order needs >= {MIN_LADDER} values of sweep.dt)"
+        ax.text(0.5, 0.5, words, ha="center", transform=ax.transAxes)
+        ax.set_axis_off()
+        return
     groups = list(dict.fromkeys((o["f"], o["theta0"]) for o in orders))
     for o in orders:
         style, face = group_style(groups.index((o["f"], o["theta0"])))
@@ -67,9 +73,7 @@ def _order_panel(ax, orders, methods):
     ref = refs[0] if len(refs) == 1 else f"{len(refs)} references, one per group (see the verdict table)"
     where = f"{group_words(*groups[0])}, " if len(groups) == 1 else ""
     ax.set_title(
-        f"(a) order fits: lines over the asymptotic range, {where}final state at {when}\nreference: {ref}"
-        if orders
-        else "(a) no dt ladder",
+        f"(a) order fits: lines over the asymptotic range, {where}final state at {when}\nreference: {ref}",
         fontsize=9,
     )
     ax.grid(alpha=0.3, which="both")
