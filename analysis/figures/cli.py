@@ -223,7 +223,7 @@ def main(argv=None):
     from ..io import SelectionError
 
     args = build_parser().parse_args(argv)
-    if args.format is None:  # -o energy.pdf writes a PDF (it wrote energy.png)
+    if getattr(args, "format", "") is None:  # -o energy.pdf writes a PDF (it wrote energy.png)
         suffix = Path(args.output).suffix.lstrip(".").lower() if args.output else ""
         args.format = [suffix] if suffix in ("png", "svg", "pdf") else ["png"]
     notes = []
