@@ -12,7 +12,7 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.ticker import Locator, LogLocator
+from matplotlib.ticker import Locator, LogFormatterSciNotation, LogLocator
 
 from ..kernels.invariants import INVARIANTS
 from ..kernels.parameters import split_names
@@ -345,6 +345,18 @@ class _InView(Locator):
 
     def nonsingular(self, vmin, vmax):
         return self.inner.nonsingular(vmin, vmax)
+
+
+class ShortMinorLabels(LogFormatterSciNotation):
+    """A log axis's minor tick labels as plain numbers (1200, 2e-06), where matplotlib labels them (an
+    axis spanning less than a decade): its "1.6×10³ 1.8×10³ 2×10³" met each other in a narrow panel.
+    Which ticks are labelled is matplotlib's rule; decades keep their 10ⁿ."""
+
+    def __call__(self, x, pos=None):
+        text = super().__call__(x, pos)
+        if not text or x <= 0 or abs(math.log10(x) - round(math.log10(x))) < 1e-9:
+            return text
+        return f"{x:g}"
 
 
 def ticks_in_view(fig):

@@ -25,7 +25,7 @@ import time
 import matplotlib.pyplot as plt
 import numpy as np
 
-from ..io import build_run_scene, color, marker, scene_label, select
+from ..io import ShortMinorLabels, build_run_scene, color, marker, scene_label, select
 from . import yardstick
 from .record import (
     add_note,
@@ -202,6 +202,7 @@ def work_precision_figure(ds, sel=None, retime=True, peers=True, data=None):
                     )
             ax.set_xscale("log")
             ax.set_yscale("log")
+            ax.xaxis.set_minor_formatter(ShortMinorLabels())  # two steps a factor 2 apart: < 1 decade
             ax.set_xlabel(xlabel, fontsize=9)
             ax.set_ylabel("max_t |axis − axis_ref| (rad)")
             ax.grid(alpha=0.3, which="both")
