@@ -192,8 +192,7 @@ def check_inputs(inertia, omega0, mgc, T, dt_bounds, budget, metric, tol, method
     if not methods:
         raise AdviceError("methods: give at least one")
     if budget is not None:  # the budget must buy one step of each method: its dt at most T
-        costly = max(methods, key=lambda m: float(constants[calibrated_name(m)]["ns_per_step"]))
-        ns = float(constants[calibrated_name(costly)]["ns_per_step"])
+        ns, costly = max((float(constants[calibrated_name(m)]["ns_per_step"]), m) for m in methods)
         if budget < ns * 1e-9:
             raise AdviceError(
                 f"budget={budget:g} s: buys less than one step of {costly} ({ns:.3g} ns a step); "
